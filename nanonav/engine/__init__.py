@@ -1,0 +1,19 @@
+"""The simulation engine: fields, world, policies, Q-learning, metrics.
+
+It knows nothing of HTTP or SQL: a scenario goes in, plain arrays and dicts come out.
+"""
+
+from nanonav.engine.fields import field_and_gradient
+from nanonav.engine.result import QTable, SimulationResult, Trajectory, without_timings
+from nanonav.engine.simulate import Progress, ProgressCallback, simulate
+
+__all__ = [
+    "Progress",
+    "ProgressCallback",
+    "QTable",
+    "SimulationResult",
+    "Trajectory",
+    "field_and_gradient",
+    "simulate",
+    "without_timings",
+]

@@ -1,0 +1,214 @@
+"""Biomarker concentration fields and their analytic gradients (paper 2.1, 2.2, 2.6).
+
+A field is a sum over point sources: the cells themselves for the Gaussian and diffusion models,
+the emitters scattered around each cell for the inverse-square model. ``sample`` is the one
+implementation of the physics; the simulation kernel calls it per robot and ``field_and_gradient``
+calls it over arrays of points (heatmaps, tests).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+from nanonav.scenario import Biomarker
+
+GAUSSIAN = 0
+INVERSE_SQUARE = 1
+DIFFUSION = 2
+MODEL_CODES = {"gaussian": GAUSSIAN, "inverse_square": INVERSE_SQUARE, "diffusion": DIFFUSION}
+
+FASTMATH = {"reassoc", "contract", "nsz", "arcp"}
+
+
+@njit(cache=True, fastmath=FASTMATH)
+def sample(
+    model: int,
+    sx: NDArray[np.float64],
+    sy: NDArray[np.float64],
+    sz: NDArray[np.float64],
+    weight: float,
+    length: float,
+    softening: float,
+    x: float,
+    y: float,
+    z: float,
+) -> tuple[float, float, float, float]:
+    """Concentration and gradient at (x, y, z) of sources at (sx, sy, sz), each of strength
+    ``weight``; ``length`` is sigma (Gaussian) or lambda (diffusion)."""
+    c = 0.0
+    gx = 0.0
+    gy = 0.0
+    gz = 0.0
+    eps2 = softening * softening
+    if model == GAUSSIAN:
+        # eq. 2.1: rho = rho0 exp(-r^2 / 2 sigma^2); eq. 2.2: d rho/dx = -(x - x0)/sigma^2 rho
+        inv_s2 = 1.0 / (length * length)
+        for k in range(sx.shape[0]):
+            dx = x - sx[k]
+            dy = y - sy[k]
+            dz = z - sz[k]
+            e = weight * math.exp(-0.5 * (dx * dx + dy * dy + dz * dz) * inv_s2)
+            c += e
+            gx -= dx * inv_s2 * e
+            gy -= dy * inv_s2 * e
+            gz -= dz * inv_s2 * e
+    elif model == INVERSE_SQUARE:
+        # eq. 2.6: C = sum B / d^2, softened to B / (d^2 + eps^2); dC/dx = -2 B (x - xi) / s^2
+        for k in range(sx.shape[0]):
+            dx = x - sx[k]
+            dy = y - sy[k]
+            dz = z - sz[k]
+            inv = 1.0 / (dx * dx + dy * dy + dz * dz + eps2)
+            e = weight * inv
+            c += e
+            f = -2.0 * e * inv
+            gx += f * dx
+            gy += f * dy
+            gz += f * dz
+    else:
+        # steady diffusion with first-order decay: C = Q exp(-r/lambda) / (4 pi D r),
+        # r softened to rs = sqrt(r^2 + eps^2); dC/drs = -C (1/lambda + 1/rs); drs/dx = dx/rs
+        inv_l = 1.0 / length
+        for k in range(sx.shape[0]):
+            dx = x - sx[k]
+            dy = y - sy[k]
+            dz = z - sz[k]
+            rs = math.sqrt(dx * dx + dy * dy + dz * dz + eps2)
+            inv_r = 1.0 / rs
+            e = weight * math.exp(-rs * inv_l) * inv_r
+            c += e
+            f = -e * (inv_l + inv_r) * inv_r
+            gx += f * dx
+            gy += f * dy
+            gz += f * dz
+    return c, gx, gy, gz
+
+
+@njit(cache=True)
+def place_sources(
+    model: int,
+    cells: NDArray[np.float64],
+    offsets: NDArray[np.float64],
+    sx: NDArray[np.float64],
+    sy: NDArray[np.float64],
+    sz: NDArray[np.float64],
+) -> None:
+    """Write the source positions for the cells' current positions: the cells themselves, or
+    for the inverse-square model their emitters, which move with them."""
+    if model == INVERSE_SQUARE:
+        per_cell = offsets.shape[0] // cells.shape[0]
+        for k in range(offsets.shape[0]):
+            j = k // per_cell
+            sx[k] = cells[j, 0] + offsets[k, 0]
+            sy[k] = cells[j, 1] + offsets[k, 1]
+            sz[k] = cells[j, 2] + offsets[k, 2]
+    else:
+        for j in range(cells.shape[0]):
+            sx[j] = cells[j, 0]
+            sy[j] = cells[j, 1]
+            sz[j] = cells[j, 2]
+
+
+@njit(cache=True)
+def _sample_points(
+    model: int,
+    sx: NDArray[np.float64],
+    sy: NDArray[np.float64],
+    sz: NDArray[np.float64],
+    weight: float,
+    length: float,
+    softening: float,
+    points: NDArray[np.float64],
+    conc: NDArray[np.float64],
+    grad: NDArray[np.float64],
+) -> None:
+    for p in range(points.shape[0]):
+        c, gx, gy, gz = sample(
+            model, sx, sy, sz, weight, length, softening, points[p, 0], points[p, 1], points[p, 2]
+        )
+        conc[p] = c
+        grad[p, 0] = gx
+        grad[p, 1] = gy
+        grad[p, 2] = gz
+
+
+def source_weight(biomarker: Biomarker) -> float:
+    """Strength of one source: the whole peak per cell, or an equal share per emitter."""
+    if biomarker.model == "inverse_square":
+        return biomarker.peak / biomarker.emitters_per_cell
+    return biomarker.peak
+
+
+def length_scale(biomarker: Biomarker) -> float:
+    """sigma for the Gaussian model, lambda for diffusion (unused by inverse-square)."""
+    return biomarker.spread if biomarker.model == "gaussian" else biomarker.decay_length
+
+
+def source_count(biomarker: Biomarker, cells: int) -> int:
+    """How many point sources ``cells`` cells give."""
+    return cells * biomarker.emitters_per_cell if biomarker.model == "inverse_square" else cells
+
+
+def field_and_gradient(
+    biomarker: Biomarker,
+    cells: NDArray[np.float64],
+    emitter_offsets: NDArray[np.float64],
+    points: NDArray[np.float64],
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The exact (noise-free) concentration ``(P,)`` and gradient ``(P, 3)`` at ``points``.
+
+    ``cells`` is ``(C, 3)``; ``emitter_offsets`` is ``(C, E, 3)`` and used by the inverse-square
+    model only.
+    """
+    cells = np.ascontiguousarray(cells, dtype=np.float64).reshape(-1, 3)
+    points = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
+    offsets = np.ascontiguousarray(emitter_offsets, dtype=np.float64).reshape(-1, 3)
+    model = MODEL_CODES[biomarker.model]
+    n = source_count(biomarker, cells.shape[0])
+    if model == INVERSE_SQUARE and offsets.shape[0] != n:
+        raise ValueError(f"expected {n} emitter offsets, got {offsets.shape[0]}")
+    sx, sy, sz = np.empty(n), np.empty(n), np.empty(n)
+    place_sources(model, cells, offsets, sx, sy, sz)
+    conc = np.empty(points.shape[0])
+    grad = np.empty((points.shape[0], 3))
+    _sample_points(
+        model,
+        sx,
+        sy,
+        sz,
+        source_weight(biomarker),
+        length_scale(biomarker),
+        biomarker.softening,
+        points,
+        conc,
+        grad,
+    )
+    return conc, grad
+
+
+def radial_profile(biomarker: Biomarker, distances: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Concentration at ``distances`` from one lone cell whose emitters sit at its centre: the
+    reference the robots' concentration levels are cut from."""
+    points = np.zeros((len(distances), 3))
+    points[:, 0] = distances
+    model = MODEL_CODES[biomarker.model]
+    one = np.zeros(1)
+    conc = np.empty(len(distances))
+    grad = np.empty((len(distances), 3))
+    _sample_points(
+        model,
+        one,
+        one,
+        one,
+        biomarker.peak,
+        length_scale(biomarker),
+        biomarker.softening,
+        points,
+        conc,
+        grad,
+    )
+    return conc

@@ -1,0 +1,581 @@
+"""The compiled simulation step: cells drift, obstacles drift, every active robot senses, acts,
+moves, collides or reaches, and learns (eq. 2.7).
+
+Everything here runs under numba; the loop over robots is compiled, never a Python loop. Robots
+are processed in index order within a step, so a shared Q-table written by many robots in one
+step receives every update in a fixed order: the result is exact and reproducible.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+from nanonav.engine.fields import place_sources, sample
+from nanonav.engine.qlearning import (
+    APPROACH_CELL,
+    AVOID_OBSTACLE,
+    EXPLORE,
+    SIGN_THRESHOLD,
+)
+
+Q_LEARNING = 0
+GRADIENT = 1
+RUN_AND_TUMBLE = 2
+RANDOM = 3
+POLICY_CODES = {"q_learning": Q_LEARNING, "gradient": GRADIENT, "run_and_tumble": RUN_AND_TUMBLE,
+                "random": RANDOM}  # fmt: skip
+BEHAVIORS = 0
+DIRECTIONS = 1
+ACTION_SET_CODES = {"behaviors": BEHAVIORS, "directions": DIRECTIONS}
+
+# Proximity cut-offs, in robot steps: an obstacle surface within 2 steps is 'near', a cell within
+# 3 steps is 'near'.
+OBSTACLE_NEAR_STEPS = 2.0
+CELL_NEAR_STEPS = 3.0
+
+
+class KernelParams(NamedTuple):
+    """Constants of one episode, flattened from the scenario for the compiled code."""
+
+    model: int
+    weight: float
+    length: float
+    softening: float
+    noise: float
+    half: float
+    cell_std: float
+    obstacle_radius: float
+    obstacle_std: float
+    speed: float
+    sensing_radius: float
+    reach_distance: float
+    policy: int
+    action_set: int
+    shared: bool
+    learn: bool
+    alpha: float
+    gamma: float
+    epsilon: float
+    reward_reach: float
+    reward_collision: float
+    reward_approach: float
+    level_1: float
+    level_2: float
+    level_3: float
+    max_steps: int
+    record: bool
+    record_stride: int
+
+
+class Swarm(NamedTuple):
+    """Per-robot state arrays, all shaped ``(robots, ...)``."""
+
+    pos: NDArray[np.float64]  # (N, 3)
+    heading: NDArray[np.float64]  # (N, 3) unit vector of the last move
+    active: NDArray[np.bool_]  # not yet reached a cell
+    steps: NDArray[np.int64]  # steps taken while active
+    prev_conc: NDArray[np.float64]  # last sensed concentration
+    returns: NDArray[np.float64]  # summed reward
+    collisions: NDArray[np.int64]
+    path_length: NDArray[np.float64]
+    pending: NDArray[np.bool_]  # a transition awaits its next state for the Q-update
+    last_state: NDArray[np.int64]
+    last_action: NDArray[np.int64]
+    last_reward: NDArray[np.float64]
+    start: NDArray[np.float64]  # (N, 3) start positions
+    sum_conc: NDArray[np.float64]  # true concentration summed over the robot's steps
+    sum_dist: NDArray[np.float64]  # distance to the nearest cell summed likewise
+    last_dist: NDArray[np.float64]  # distance at the robot's last step
+
+
+class World(NamedTuple):
+    """The environment's moving parts and the field's sources."""
+
+    cells: NDArray[np.float64]  # (C, 3)
+    obstacles: NDArray[np.float64]  # (O, 3)
+    offsets: NDArray[np.float64]  # (K, 3) emitter offsets from their cell
+    sx: NDArray[np.float64]  # (K,) source positions
+    sy: NDArray[np.float64]
+    sz: NDArray[np.float64]
+
+
+class Learner(NamedTuple):
+    """Q-table(s) ``(tables, states, actions)`` with visit counts, and the lattice directions."""
+
+    q: NDArray[np.float64]
+    visits: NDArray[np.int64]
+    directions: NDArray[np.float64]  # (26, 3)
+
+
+class Recording(NamedTuple):
+    """History of the evaluation episode, a row every ``record_stride`` steps (``(1, ...)``
+    placeholders in training episodes)."""
+
+    pos: NDArray[np.float64]  # (T+1, N, 3)
+    cells: NDArray[np.float64]  # (T+1, C, 3)
+    obstacles: NDArray[np.float64]  # (T+1, O, 3)
+    conc: NDArray[np.float64]  # (T+1, N)
+    dist: NDArray[np.float64]  # (T+1, N)
+    step: NDArray[np.int64]  # (T+1,) the step each row shows
+
+
+@njit(cache=True)
+def _random_unit(rng: np.random.Generator) -> tuple[float, float, float]:
+    while True:
+        x = rng.standard_normal()
+        y = rng.standard_normal()
+        z = rng.standard_normal()
+        n = math.sqrt(x * x + y * y + z * z)
+        if n > 1e-12:
+            return x / n, y / n, z / n
+
+
+@njit(cache=True)
+def _reflect(v: float, half: float) -> float:
+    if v > half:
+        return 2.0 * half - v
+    if v < -half:
+        return -2.0 * half - v
+    return v
+
+
+@njit(cache=True)
+def _nearest_cell(cells: NDArray[np.float64], x: float, y: float, z: float) -> tuple[int, float]:
+    best = -1
+    best_d2 = np.inf
+    for j in range(cells.shape[0]):
+        dx = cells[j, 0] - x
+        dy = cells[j, 1] - y
+        dz = cells[j, 2] - z
+        d2 = dx * dx + dy * dy + dz * dz
+        if d2 < best_d2:
+            best_d2 = d2
+            best = j
+    return best, math.sqrt(best_d2)
+
+
+@njit(cache=True)
+def _nearest_obstacle(
+    obstacles: NDArray[np.float64], radius: float, x: float, y: float, z: float
+) -> tuple[int, float]:
+    """Index of the nearest obstacle and the distance to its surface (inf if none)."""
+    best = -1
+    best_d2 = np.inf
+    for j in range(obstacles.shape[0]):
+        dx = obstacles[j, 0] - x
+        dy = obstacles[j, 1] - y
+        dz = obstacles[j, 2] - z
+        d2 = dx * dx + dy * dy + dz * dz
+        if d2 < best_d2:
+            best_d2 = d2
+            best = j
+    if best < 0:
+        return -1, np.inf
+    return best, math.sqrt(best_d2) - radius
+
+
+@njit(cache=True)
+def _inside_obstacle(
+    obstacles: NDArray[np.float64], radius: float, x: float, y: float, z: float
+) -> bool:
+    r2 = radius * radius
+    for j in range(obstacles.shape[0]):
+        dx = obstacles[j, 0] - x
+        dy = obstacles[j, 1] - y
+        dz = obstacles[j, 2] - z
+        if dx * dx + dy * dy + dz * dz < r2:
+            return True
+    return False
+
+
+@njit(cache=True)
+def _sense(
+    p: KernelParams, rng: np.random.Generator, w: World, x: float, y: float, z: float
+) -> tuple[float, float, float, float]:
+    """A robot's reading of the concentration and its gradient, with relative sensor noise."""
+    c, gx, gy, gz = sample(p.model, w.sx, w.sy, w.sz, p.weight, p.length, p.softening, x, y, z)
+    if p.noise > 0.0:
+        c *= 1.0 + p.noise * rng.standard_normal()
+        gx *= 1.0 + p.noise * rng.standard_normal()
+        gy *= 1.0 + p.noise * rng.standard_normal()
+        gz *= 1.0 + p.noise * rng.standard_normal()
+    return c, gx, gy, gz
+
+
+@njit(cache=True)
+def _state(
+    p: KernelParams,
+    c: float,
+    prev_c: float,
+    gx: float,
+    gy: float,
+    gz: float,
+    obstacle_gap: float,
+    cell_d: float,
+) -> int:
+    """Mixed-radix state index, in the order of ``qlearning.behavior_states`` or
+    ``qlearning.direction_states``."""
+    near_obstacle = obstacle_gap <= OBSTACLE_NEAR_STEPS * p.speed
+    if p.action_set == BEHAVIORS:
+        level = int(c > p.level_1) + int(c > p.level_2) + int(c > p.level_3)
+        trend = 1 if c > prev_c else 0
+        obstacle = 0
+        if obstacle_gap <= p.sensing_radius:
+            obstacle = 2 if near_obstacle else 1
+        cell = 0
+        if cell_d <= p.sensing_radius:
+            cell = 2 if cell_d <= CELL_NEAR_STEPS * p.speed else 1
+        return ((level * 2 + trend) * 3 + obstacle) * 3 + cell
+    g = math.sqrt(gx * gx + gy * gy + gz * gz)
+    index = 0
+    for v in (gx, gy, gz):
+        sign = 1
+        if g > 0.0:
+            if v >= SIGN_THRESHOLD * g:
+                sign = 2
+            elif v <= -SIGN_THRESHOLD * g:
+                sign = 0
+        index = index * 3 + sign
+    return index * 2 + (1 if near_obstacle else 0)
+
+
+@njit(cache=True)
+def _choose(
+    p: KernelParams, rng: np.random.Generator, q: NDArray[np.float64], table: int, state: int
+) -> int:
+    """Epsilon-greedy over one row of the table; ties among the best are broken at random."""
+    actions = q.shape[2]
+    if p.epsilon > 0.0 and rng.random() < p.epsilon:
+        return int(rng.integers(0, actions))
+    best = q[table, state, 0]
+    ties = 1
+    for a in range(1, actions):
+        v = q[table, state, a]
+        if v > best:
+            best = v
+            ties = 1
+        elif v == best:
+            ties += 1
+    pick = 0 if ties == 1 else int(rng.integers(0, ties))
+    for a in range(actions):
+        if q[table, state, a] == best:
+            if pick == 0:
+                return a
+            pick -= 1
+    return 0
+
+
+@njit(cache=True)
+def _unit_or_random(
+    rng: np.random.Generator, x: float, y: float, z: float
+) -> tuple[float, float, float]:
+    n = math.sqrt(x * x + y * y + z * z)
+    if n > 1e-300:
+        return x / n, y / n, z / n
+    return _random_unit(rng)
+
+
+@njit(cache=True)
+def _behavior_direction(
+    p: KernelParams,
+    rng: np.random.Generator,
+    w: World,
+    action: int,
+    px: float,
+    py: float,
+    pz: float,
+    heading: NDArray[np.float64],
+    gx: float,
+    gy: float,
+    gz: float,
+    obstacle: int,
+    obstacle_gap: float,
+    cell: int,
+    cell_d: float,
+) -> tuple[float, float, float, float]:
+    """Unit direction and step length of one of the paper's behaviours."""
+    if action == EXPLORE:
+        dx, dy, dz = _random_unit(rng)
+        return dx, dy, dz, p.speed
+    if action == APPROACH_CELL:
+        if cell_d <= p.sensing_radius and cell_d > 0.0:
+            c = w.cells[cell]
+            return (
+                (c[0] - px) / cell_d,
+                (c[1] - py) / cell_d,
+                (c[2] - pz) / cell_d,
+                min(p.speed, cell_d),
+            )
+        return heading[0], heading[1], heading[2], p.speed
+    dx, dy, dz = _unit_or_random(rng, gx, gy, gz)
+    if action == AVOID_OBSTACLE and obstacle >= 0 and obstacle_gap <= p.sensing_radius:
+        o = w.obstacles[obstacle]
+        nx, ny, nz = _unit_or_random(rng, px - o[0], py - o[1], pz - o[2])
+        inward = dx * nx + dy * ny + dz * nz
+        if inward < 0.0:
+            # slide along the tangent plane: a tangential step never enters the sphere
+            tx = dx - inward * nx
+            ty = dy - inward * ny
+            tz = dz - inward * nz
+            if tx * tx + ty * ty + tz * tz < 1e-18:
+                tx, ty, tz = ny, -nx, 0.0
+                if tx * tx + ty * ty < 1e-18:
+                    tx, ty, tz = 0.0, nz, -ny
+            dx, dy, dz = _unit_or_random(rng, tx, ty, tz)
+    return dx, dy, dz, p.speed
+
+
+@njit(cache=True)
+def _learn(
+    p: KernelParams, q: NDArray[np.float64], table: int, s: int, a: int, target: float
+) -> None:
+    # eq. 2.7: Q(s,a) <- Q(s,a) + alpha [r + gamma max_a' Q(s',a') - Q(s,a)]
+    q[table, s, a] += p.alpha * (target - q[table, s, a])
+
+
+@njit(cache=True)
+def _bootstrap(p: KernelParams, q: NDArray[np.float64], table: int, s: int, reward: float) -> float:
+    best: float = q[table, s, 0]
+    for a in range(1, q.shape[2]):
+        best = max(best, q[table, s, a])
+    return reward + p.gamma * best
+
+
+@njit(cache=True)
+def _move_cells(p: KernelParams, rng: np.random.Generator, w: World) -> None:
+    """Random walk of the cells (paper 3.1); a move into an obstacle is refused."""
+    for j in range(w.cells.shape[0]):
+        x = _reflect(w.cells[j, 0] + p.cell_std * rng.standard_normal(), p.half)
+        y = _reflect(w.cells[j, 1] + p.cell_std * rng.standard_normal(), p.half)
+        z = _reflect(w.cells[j, 2] + p.cell_std * rng.standard_normal(), p.half)
+        if not _inside_obstacle(w.obstacles, p.obstacle_radius, x, y, z):
+            w.cells[j, 0] = x
+            w.cells[j, 1] = y
+            w.cells[j, 2] = z
+
+
+@njit(cache=True)
+def _move_obstacles(p: KernelParams, rng: np.random.Generator, w: World, s: Swarm) -> None:
+    """Obstacle drift (paper 2.6); a move that would engulf a robot or a cell is refused."""
+    r = p.obstacle_radius
+    for j in range(w.obstacles.shape[0]):
+        x = _reflect(w.obstacles[j, 0] + p.obstacle_std * rng.standard_normal(), p.half)
+        y = _reflect(w.obstacles[j, 1] + p.obstacle_std * rng.standard_normal(), p.half)
+        z = _reflect(w.obstacles[j, 2] + p.obstacle_std * rng.standard_normal(), p.half)
+        clear = True
+        for i in range(s.pos.shape[0]):
+            dx = s.pos[i, 0] - x
+            dy = s.pos[i, 1] - y
+            dz = s.pos[i, 2] - z
+            if dx * dx + dy * dy + dz * dz < r * r:
+                clear = False
+                break
+        if clear:
+            margin = r + p.reach_distance
+            for k in range(w.cells.shape[0]):
+                dx = w.cells[k, 0] - x
+                dy = w.cells[k, 1] - y
+                dz = w.cells[k, 2] - z
+                if dx * dx + dy * dy + dz * dz < margin * margin:
+                    clear = False
+                    break
+        if clear:
+            w.obstacles[j, 0] = x
+            w.obstacles[j, 1] = y
+            w.obstacles[j, 2] = z
+
+
+@njit(cache=True)
+def observe(p: KernelParams, w: World, s: Swarm, rec: Recording, t: int, final: bool) -> None:
+    """Measure the true field and distance at every robot after step ``t``: add them to the
+    per-robot sums of robots still moving at ``t``, and store a history row every
+    ``record_stride`` steps (and for the ``final`` step)."""
+    row = t // p.record_stride
+    on_row = t % p.record_stride == 0
+    if final and not on_row:
+        row += 1
+    keep = on_row or final
+    for i in range(s.pos.shape[0]):
+        x = s.pos[i, 0]
+        y = s.pos[i, 1]
+        z = s.pos[i, 2]
+        c, _, _, _ = sample(p.model, w.sx, w.sy, w.sz, p.weight, p.length, p.softening, x, y, z)
+        d = _nearest_cell(w.cells, x, y, z)[1]
+        if not final and s.steps[i] == t:
+            s.sum_conc[i] += c
+            s.sum_dist[i] += d
+            s.last_dist[i] = d
+        if keep:
+            rec.conc[row, i] = c
+            rec.dist[row, i] = d
+    if keep:
+        rec.pos[row] = s.pos
+        rec.cells[row] = w.cells
+        rec.obstacles[row] = w.obstacles
+        rec.step[row] = t
+
+
+@njit(cache=True)
+def run_steps(
+    p: KernelParams,
+    rng: np.random.Generator,
+    w: World,
+    s: Swarm,
+    lrn: Learner,
+    rec: Recording,
+    t: int,
+    n_steps: int,
+    counters: NDArray[np.int64],
+) -> int:
+    """Advance the episode from step ``t`` by up to ``n_steps`` steps; return the new step.
+
+    Stops early when every robot has reached a cell or at ``max_steps``. ``counters[0]``
+    accumulates the robot-steps simulated.
+    """
+    n = s.pos.shape[0]
+    end = min(t + n_steps, p.max_steps)
+    while t < end:
+        n_active = 0
+        for i in range(n):
+            if s.active[i]:
+                n_active += 1
+        if n_active == 0:
+            break
+        counters[0] += n_active
+        if p.cell_std > 0.0:
+            _move_cells(p, rng, w)
+        if p.obstacle_std > 0.0 and w.obstacles.shape[0] > 0:
+            _move_obstacles(p, rng, w, s)
+        place_sources(p.model, w.cells, w.offsets, w.sx, w.sy, w.sz)
+        for i in range(n):
+            if not s.active[i]:
+                continue
+            table = 0 if p.shared else i
+            px = s.pos[i, 0]
+            py = s.pos[i, 1]
+            pz = s.pos[i, 2]
+            cell, cell_d = _nearest_cell(w.cells, px, py, pz)
+            if cell_d <= p.reach_distance:
+                # a drifting cell came within reach of the robot
+                s.last_dist[i] = cell_d
+                s.returns[i] += p.reward_reach
+                if p.learn and s.pending[i]:
+                    _learn(
+                        p, lrn.q, table, s.last_state[i], s.last_action[i],
+                        s.last_reward[i] + p.reward_reach,
+                    )  # fmt: skip
+                s.pending[i] = False
+                s.active[i] = False
+                continue
+            c, gx, gy, gz = _sense(p, rng, w, px, py, pz)
+            obstacle, gap = _nearest_obstacle(w.obstacles, p.obstacle_radius, px, py, pz)
+
+            if p.policy == Q_LEARNING:
+                state = _state(p, c, s.prev_conc[i], gx, gy, gz, gap, cell_d)
+                if p.learn and s.pending[i]:
+                    target = _bootstrap(p, lrn.q, table, state, s.last_reward[i])
+                    _learn(p, lrn.q, table, s.last_state[i], s.last_action[i], target)
+                action = _choose(p, rng, lrn.q, table, state)
+                lrn.visits[table, state, action] += 1
+                if p.action_set == BEHAVIORS:
+                    dx, dy, dz, step = _behavior_direction(
+                        p, rng, w, action, px, py, pz, s.heading[i], gx, gy, gz,
+                        obstacle, gap, cell, cell_d,
+                    )  # fmt: skip
+                else:
+                    dx = lrn.directions[action, 0]
+                    dy = lrn.directions[action, 1]
+                    dz = lrn.directions[action, 2]
+                    step = p.speed
+            else:
+                state = 0
+                action = 0
+                step = p.speed
+                if p.policy == GRADIENT:
+                    dx, dy, dz = _unit_or_random(rng, gx, gy, gz)
+                elif p.policy == RUN_AND_TUMBLE and c > s.prev_conc[i]:
+                    dx = s.heading[i, 0]
+                    dy = s.heading[i, 1]
+                    dz = s.heading[i, 2]
+                else:
+                    dx, dy, dz = _random_unit(rng)
+            s.prev_conc[i] = c
+
+            nx = px + step * dx
+            ny = py + step * dy
+            nz = pz + step * dz
+            if abs(nx) > p.half:
+                nx = _reflect(nx, p.half)
+                dx = -dx
+            if abs(ny) > p.half:
+                ny = _reflect(ny, p.half)
+                dy = -dy
+            if abs(nz) > p.half:
+                nz = _reflect(nz, p.half)
+                dz = -dz
+            reward = 0.0
+            if _inside_obstacle(w.obstacles, p.obstacle_radius, nx, ny, nz):
+                s.collisions[i] += 1
+                reward += p.reward_collision
+                nx = px
+                ny = py
+                nz = pz
+            else:
+                s.path_length[i] += step
+                s.heading[i, 0] = dx
+                s.heading[i, 1] = dy
+                s.heading[i, 2] = dz
+            s.pos[i, 0] = nx
+            s.pos[i, 1] = ny
+            s.pos[i, 2] = nz
+            s.steps[i] += 1
+            new_d = _nearest_cell(w.cells, nx, ny, nz)[1]
+            # paper 2.7: +approach per unit moved toward the source, +reach on arrival
+            reward += p.reward_approach * (cell_d - new_d)
+            reached = new_d <= p.reach_distance
+            if reached:
+                reward += p.reward_reach
+                s.active[i] = False
+            s.returns[i] += reward
+            if p.policy == Q_LEARNING and p.learn:
+                if reached:
+                    _learn(p, lrn.q, table, state, action, reward)
+                    s.pending[i] = False
+                else:
+                    s.pending[i] = True
+                    s.last_state[i] = state
+                    s.last_action[i] = action
+                    s.last_reward[i] = reward
+        t += 1
+        if p.record:
+            observe(p, w, s, rec, t, False)
+    return t
+
+
+@njit(cache=True)
+def finish_episode(
+    p: KernelParams, rng: np.random.Generator, w: World, s: Swarm, lrn: Learner
+) -> None:
+    """Bootstrap the last transition of every robot the step limit stopped (not terminal)."""
+    if not (p.learn and p.policy == Q_LEARNING):
+        return
+    place_sources(p.model, w.cells, w.offsets, w.sx, w.sy, w.sz)
+    for i in range(s.pos.shape[0]):
+        if not s.pending[i]:
+            continue
+        table = 0 if p.shared else i
+        px = s.pos[i, 0]
+        py = s.pos[i, 1]
+        pz = s.pos[i, 2]
+        c, gx, gy, gz = _sense(p, rng, w, px, py, pz)
+        gap = _nearest_obstacle(w.obstacles, p.obstacle_radius, px, py, pz)[1]
+        cell_d = _nearest_cell(w.cells, px, py, pz)[1]
+        state = _state(p, c, s.prev_conc[i], gx, gy, gz, gap, cell_d)
+        target = _bootstrap(p, lrn.q, table, state, s.last_reward[i])
+        _learn(p, lrn.q, table, s.last_state[i], s.last_action[i], target)
+        s.pending[i] = False

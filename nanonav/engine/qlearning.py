@@ -1,0 +1,77 @@
+"""The Q-learning vocabulary: states, actions, their labels, and the exploration schedule.
+
+The kernel encodes a state as a mixed-radix index over the dimensions listed here; the labels
+are built in the same order, so ``labels[i]`` names the state the kernel calls ``i``.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+from numpy.typing import NDArray
+
+from nanonav.scenario import Learning
+
+# The 'behaviors' action set (paper 2.5).
+FOLLOW_GRADIENT = 0
+APPROACH_CELL = 1
+AVOID_OBSTACLE = 2
+EXPLORE = 3
+BEHAVIOR_ACTIONS = ["follow_gradient", "approach_cell", "avoid_obstacle", "explore"]
+
+# State dimensions of the 'behaviors' set, in index order (most significant first).
+CONCENTRATION_LEVELS = ["trace", "low", "mid", "high"]
+TRENDS = ["falling", "rising"]
+OBSTACLE_PROXIMITY = ["none", "sensed", "near"]
+CELL_PROXIMITY = ["none", "sensed", "near"]
+# Concentration levels are cut at the lone-cell profile's value at these multiples of the
+# sensing radius: beyond 3x is 'trace', within 0.5x is 'high'.
+LEVEL_DISTANCES = (3.0, 1.5, 0.5)
+
+# The 'directions' action set: the 26 lattice directions, unit length.
+LATTICE = np.array([d for d in itertools.product((-1, 0, 1), repeat=3) if any(d)], dtype=np.float64)
+DIRECTIONS: NDArray[np.float64] = LATTICE / np.linalg.norm(LATTICE, axis=1, keepdims=True)
+SIGNS = ["-", "0", "+"]
+OBSTACLE_NEAR = ["clear", "near"]
+# A gradient component counts as non-zero when it carries at least this share of the norm
+# (sin 22.5 degrees: the gradient then lies within the lattice direction's cone).
+SIGN_THRESHOLD = 0.3827
+
+
+def _axis_label(v: float) -> str:
+    return "0" if v == 0 else ("+" if v > 0 else "-")
+
+
+DIRECTION_ACTIONS = [
+    "move(" + ",".join(f"{_axis_label(v)}{axis}" for v, axis in zip(d, "xyz", strict=True)) + ")"
+    for d in LATTICE
+]
+
+
+def behavior_states() -> list[str]:
+    return [
+        f"conc={c}|trend={t}|obstacle={o}|cell={k}"
+        for c, t, o, k in itertools.product(
+            CONCENTRATION_LEVELS, TRENDS, OBSTACLE_PROXIMITY, CELL_PROXIMITY
+        )
+    ]
+
+
+def direction_states() -> list[str]:
+    return [
+        f"grad=({sx}x,{sy}y,{sz}z)|obstacle={o}"
+        for sx, sy, sz, o in itertools.product(SIGNS, SIGNS, SIGNS, OBSTACLE_NEAR)
+    ]
+
+
+def labels(actions: str) -> tuple[list[str], list[str]]:
+    """(state labels, action labels) of an action set."""
+    if actions == "behaviors":
+        return behavior_states(), BEHAVIOR_ACTIONS
+    return direction_states(), DIRECTION_ACTIONS
+
+
+def epsilon(learning: Learning, episode: int) -> float:
+    """Exploration rate of training episode ``episode``: exponential decay to a floor."""
+    return max(learning.epsilon_end, learning.epsilon_start * learning.epsilon_decay**episode)

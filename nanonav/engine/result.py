@@ -1,0 +1,127 @@
+"""What a simulation returns: plain arrays and JSON-ready dicts.
+
+``SimulationResult.to_dict()`` is the metrics document shared by the command line (``--json``)
+and the REST API; ``arrays()`` holds everything else as named numpy arrays (for ``.npz`` files and
+binary blobs). Only the timing fields (``summary.duration_s``, ``robots[*].duration_s``,
+``work.engine_s``) vary between two runs of the same scenario and seed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from nanonav.scenario import Scenario
+
+TIMING_KEYS = frozenset({"duration_s", "engine_s"})
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """The recorded evaluation episode.
+
+    Row ``k`` of every per-step array is the state after step ``step[k]``: row 0 is the start,
+    and rows follow every ``stride`` steps (1 unless the swarm is too large to keep every step),
+    the last row being the episode's end. A robot's path ends at the row whose step equals its
+    ``steps``: it stops once it reaches a cell.
+    """
+
+    step: NDArray[np.int64]  # (rows,) the step each row shows
+    robots: NDArray[np.float64]  # (rows, robots, 3) positions
+    cells: NDArray[np.float64]  # (rows, cells, 3) positions
+    obstacles: NDArray[np.float64]  # (rows, obstacles, 3) centres
+    concentration: NDArray[np.float64]  # (rows, robots) true concentration at each robot
+    distance: NDArray[np.float64]  # (rows, robots) true distance to the nearest cell
+    steps: NDArray[np.int64]  # (robots,) steps each robot was active (to its reach, or T)
+    reached: NDArray[np.bool_]  # (robots,) whether each robot reached a cell
+    emitter_offsets: NDArray[np.float64]  # (cells, emitters, 3) inverse-square emitters
+    obstacle_radius: float
+    stride: int = 1
+
+    @property
+    def length(self) -> int:
+        """Steps the episode lasted."""
+        return int(self.step[-1])
+
+
+@dataclass(frozen=True)
+class QTable:
+    """The learned action values with readable labels; ``values`` is ``(states, actions)`` for a
+    shared table and ``(robots, states, actions)`` when every robot learns its own."""
+
+    states: list[str]
+    actions: list[str]
+    values: NDArray[np.float64]
+    visits: NDArray[np.int64]
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "states": self.states,
+            "actions": self.actions,
+            "values": self.values.tolist(),
+            "visits": self.visits.tolist(),
+        }
+
+
+@dataclass(frozen=True)
+class SimulationResult:
+    """Everything one run produced.
+
+    ``completed`` is false when the caller stopped the run early: the episodes finished so far are
+    kept, and there is no evaluation episode (``trajectory`` is None, ``summary`` and ``robots``
+    are empty).
+    """
+
+    scenario: Scenario
+    summary: dict[str, Any]
+    robots: list[dict[str, Any]]
+    episodes: list[dict[str, Any]]
+    work: dict[str, Any]
+    trajectory: Trajectory | None
+    qtable: QTable | None
+    completed: bool = True
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The metrics document: scenario, Table 1 summary, per-robot rows, learning curve, work."""
+        return {
+            "scenario": self.scenario.model_dump(mode="json"),
+            "completed": self.completed,
+            "summary": self.summary,
+            "robots": self.robots,
+            "episodes": self.episodes,
+            "work": self.work,
+        }
+
+    def arrays(self) -> dict[str, NDArray[Any]]:
+        """The trajectory and Q-table as named arrays, for ``numpy.savez`` and binary storage."""
+        out: dict[str, NDArray[Any]] = {}
+        if self.trajectory is not None:
+            t = self.trajectory
+            out.update(
+                step=t.step,
+                robots=t.robots,
+                cells=t.cells,
+                obstacles=t.obstacles,
+                concentration=t.concentration,
+                distance=t.distance,
+                steps=t.steps,
+                reached=t.reached,
+                emitter_offsets=t.emitter_offsets,
+                obstacle_radius=np.array(t.obstacle_radius),
+            )
+        if self.qtable is not None:
+            out.update(q_values=self.qtable.values, q_visits=self.qtable.visits)
+        return out
+
+
+def without_timings(document: Any) -> Any:
+    """``document`` with every timing field removed, for comparing runs bit for bit."""
+    if isinstance(document, dict):
+        return {k: without_timings(v) for k, v in document.items() if k not in TIMING_KEYS}
+    if isinstance(document, list):
+        return [without_timings(v) for v in document]
+    return document

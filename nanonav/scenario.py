@@ -1,0 +1,311 @@
+"""The scenario: one validated, documented description of a simulation run.
+
+The same schema is used unchanged by the library, the ``nanonav`` command and the REST API.
+Every field has a default and a bound, unknown keys are rejected, and a ``preset`` supplies base
+values that explicit fields override. Lengths are in simulation units (the paper's cube is 50 units
+a side), times in steps, concentrations in arbitrary units relative to ``biomarker.peak``.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+PresetName = Literal["paper-single", "paper-swarm"]
+FieldModel = Literal["gaussian", "inverse_square", "diffusion"]
+Policy = Literal["q_learning", "gradient", "run_and_tumble", "random"]
+ActionSet = Literal["behaviors", "directions"]
+
+MAX_OBSTACLE_VOLUME_FRACTION = 0.3
+
+
+class ScenarioError(ValueError):
+    """A scenario that passed validation but cannot be realised (say, obstacles that leave no
+    room); ``field`` is the dotted name of the field to change."""
+
+    def __init__(self, field: str, message: str) -> None:
+        super().__init__(f"{field}: {message}")
+        self.field = field
+        self.message = message
+
+
+class _Part(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class Space(_Part):
+    """The tissue volume: a cube centred at the origin whose walls reflect everything inside."""
+
+    size: float = Field(
+        50.0,
+        gt=0.0,
+        le=1000.0,
+        description="Side of the cube, in length units (paper 2.4: 50). The cube spans "
+        "[-size/2, size/2] on every axis.",
+    )
+
+
+class Cells(_Part):
+    """Cancer cells: the targets, which drift as a random walk (paper 3.1) and shed biomarkers."""
+
+    count: int = Field(1, ge=1, le=100, description="Number of cancer cells.")
+    motion_std: float = Field(
+        0.2,
+        ge=0.0,
+        le=10.0,
+        description="Standard deviation of the cells' random walk, length units per axis per "
+        "step: each step a cell moves by N(0, motion_std) on x, y and z. 0 keeps cells still.",
+    )
+
+
+class Biomarker(_Part):
+    """The biomarker concentration field the robots sense (paper 2.1, 2.2 and 2.6)."""
+
+    model: FieldModel = Field(
+        "gaussian",
+        description="'gaussian': eq. 2.1, C = sum over cells of peak*exp(-r^2/(2*spread^2)), "
+        "gradient eq. 2.2. 'inverse_square': eq. 2.6, C = sum over point emitters of B/d^2 with "
+        "B = peak/emitters_per_cell, softened to B/(d^2 + softening^2). 'diffusion': the steady "
+        "state of a source that diffuses and decays, C = peak*exp(-r/decay_length)/r per cell "
+        "(peak = Q/(4*pi*D)), with r softened to sqrt(r^2 + softening^2).",
+    )
+    peak: float = Field(
+        1.0,
+        gt=0.0,
+        le=1e6,
+        description="Source strength: rho_0 of eq. 2.1 (the concentration at a cell), the total "
+        "of the B_i of eq. 2.6 over one cell's emitters, or Q/(4*pi*D) of the diffusion model.",
+    )
+    spread: float = Field(
+        10.0,
+        gt=0.0,
+        le=1000.0,
+        description="sigma of eq. 2.1, length units: how far the Gaussian field reaches.",
+    )
+    emitters_per_cell: int = Field(
+        50,
+        ge=1,
+        le=1000,
+        description="Point emitters of the inverse-square model (eq. 2.6) around each cell; "
+        "they move with their cell.",
+    )
+    emitter_scatter: float = Field(
+        1.0,
+        ge=0.0,
+        le=100.0,
+        description="Standard deviation, length units per axis, of the emitters' offsets from "
+        "their cell (inverse-square model).",
+    )
+    decay_length: float = Field(
+        10.0,
+        gt=0.0,
+        le=1e4,
+        description="lambda of the diffusion model, length units: sqrt(D/k) for diffusivity D "
+        "and decay rate k. Larger values reach farther.",
+    )
+    softening: float = Field(
+        0.5,
+        gt=0.0,
+        le=100.0,
+        description="Length, in units, that softens the inverse-square and diffusion fields near "
+        "their sources so that nothing divides by zero.",
+    )
+    sensor_noise: float = Field(
+        0.0,
+        ge=0.0,
+        le=1.0,
+        description="Relative Gaussian noise on every reading a robot takes: a sensed value v "
+        "becomes v*(1 + N(0, sensor_noise)), for the concentration and each gradient component.",
+    )
+
+
+class Obstacles(_Part):
+    """Spherical biological barriers (paper 2.4 and 2.6) placed at random, clear of cells and
+    robot starts. A move that would end inside one is blocked and counts as a collision."""
+
+    count: int = Field(10, ge=0, le=1000, description="Number of obstacles.")
+    radius: float = Field(1.5, gt=0.0, le=100.0, description="Obstacle radius, length units.")
+    motion_std: float = Field(
+        0.0,
+        ge=0.0,
+        le=10.0,
+        description="Per-axis standard deviation of the obstacles' random drift, length units "
+        "per step (paper 2.6, dynamic environment). 0 keeps them still.",
+    )
+
+
+class Robots(_Part):
+    """The nanorobot swarm. Each robot senses only locally: the concentration and its gradient
+    where it is, and obstacles and cells within ``sensing_radius``."""
+
+    count: int = Field(1, ge=1, le=10_000, description="Number of robots.")
+    speed: float = Field(
+        0.5, gt=0.0, le=100.0, description="Distance a robot moves in one step, length units."
+    )
+    sensing_radius: float = Field(
+        8.0,
+        ge=0.0,
+        le=10_000.0,
+        description="Range, length units, within which a robot detects obstacles and cells.",
+    )
+    policy: Policy = Field(
+        "q_learning",
+        description="'q_learning': tabular Q-learning (paper 2.5, 2.7). Baselines: 'gradient' "
+        "climbs the sensed gradient; 'run_and_tumble' keeps its heading while the reading rises "
+        "and turns to a random heading otherwise (bacterial chemotaxis); 'random' walks at random.",
+    )
+
+
+class Learning(_Part):
+    """Tabular Q-learning (paper 2.5 and 2.7): eq. 2.7 updates, epsilon-greedy exploration with
+    epsilon decaying per episode."""
+
+    episodes: int = Field(
+        50,
+        ge=0,
+        le=100_000,
+        description="Training episodes, each in a fresh world drawn from the seed. One greedy "
+        "evaluation episode follows them. Baseline policies run the same episodes as trials.",
+    )
+    max_steps: int = Field(1000, ge=1, le=1_000_000, description="Step limit of every episode.")
+    alpha: float = Field(0.5, gt=0.0, le=1.0, description="Learning rate alpha of eq. 2.7.")
+    gamma: float = Field(0.9, ge=0.0, le=1.0, description="Discount factor gamma of eq. 2.7.")
+    epsilon_start: float = Field(
+        1.0, ge=0.0, le=1.0, description="Exploration rate of the first episode."
+    )
+    epsilon_end: float = Field(0.05, ge=0.0, le=1.0, description="Floor of the exploration rate.")
+    epsilon_decay: float = Field(
+        0.95,
+        gt=0.0,
+        le=1.0,
+        description="Per-episode factor: epsilon of episode e is "
+        "max(epsilon_end, epsilon_start * epsilon_decay**e).",
+    )
+    actions: ActionSet = Field(
+        "behaviors",
+        description="'behaviors' (the paper's 2.5): follow the gradient, advance toward a sensed "
+        "cell, go around the nearest obstacle, explore; the state is the concentration level, "
+        "its trend, obstacle proximity and sensed-cell distance. 'directions': a move along one "
+        "of 26 lattice directions; the state holds the sign of the sensed gradient on each axis "
+        "and obstacle proximity, so the swarm must learn chemotaxis itself.",
+    )
+    shared_table: bool = Field(
+        True,
+        description="true: the swarm learns one Q-table together; false: each robot has its own.",
+    )
+
+    @model_validator(mode="after")
+    def _epsilon_order(self) -> Learning:
+        if self.epsilon_end > self.epsilon_start:
+            raise ValueError("epsilon_end must not exceed epsilon_start")
+        return self
+
+
+class Rewards(_Part):
+    """The reward function of paper 2.7."""
+
+    reach: float = Field(
+        10.0, ge=-1e6, le=1e6, description="Reward for reaching a cell (paper: +10)."
+    )
+    collision: float = Field(
+        -1.0, ge=-1e6, le=1e6, description="Reward for a move blocked by an obstacle (paper: -1)."
+    )
+    approach: float = Field(
+        1.0,
+        ge=-1e6,
+        le=1e6,
+        description="Reward per length unit closed toward the nearest cell, the biomarker "
+        "source (paper: +1 per unit); moving away costs the same.",
+    )
+
+
+class Scenario(_Part):
+    """A complete simulation run: the world, the swarm, the learning and the seed."""
+
+    preset: PresetName | None = Field(
+        None,
+        description="Base values: 'paper-single' (Figures 1, 3, 4: one robot, one cell, ten "
+        "obstacles) or 'paper-swarm' (Figure 2: 15 robots, 2 cells, 10 obstacles). Fields given "
+        "explicitly override the preset's.",
+    )
+    seed: int = Field(
+        0,
+        ge=0,
+        le=2**63 - 1,
+        description="Seed of every random draw; the same scenario and seed give bit-identical "
+        "results.",
+    )
+    space: Space = Space()
+    cells: Cells = Cells()
+    biomarker: Biomarker = Biomarker()
+    obstacles: Obstacles = Obstacles()
+    robots: Robots = Robots()
+    learning: Learning = Learning()
+    rewards: Rewards = Rewards()
+    reach_distance: float = Field(
+        0.5,
+        gt=0.0,
+        le=100.0,
+        description="A robot within this distance of a cell, length units, has reached it and "
+        "stops.",
+    )
+
+    @model_validator(mode="before")
+    @classmethod
+    def _apply_preset(cls, data: Any) -> Any:
+        if isinstance(data, dict) and isinstance(data.get("preset"), str):
+            base = PRESETS.get(data["preset"])
+            if base is not None:
+                return _deep_merge(base, data)
+        return data
+
+    @model_validator(mode="after")
+    def _fits_in_space(self) -> Scenario:
+        half = self.space.size / 2
+        if self.obstacles.radius >= half / 2:
+            raise ValueError("obstacles.radius must be less than a quarter of space.size")
+        sphere = 4.0 / 3.0 * math.pi * self.obstacles.radius**3
+        if self.obstacles.count * sphere > MAX_OBSTACLE_VOLUME_FRACTION * self.space.size**3:
+            raise ValueError(
+                "obstacles: count * sphere volume must stay under "
+                f"{MAX_OBSTACLE_VOLUME_FRACTION:.0%} of the space's volume"
+            )
+        if self.reach_distance >= half:
+            raise ValueError("reach_distance must be less than half of space.size")
+        return self
+
+    @property
+    def robot_steps_budget(self) -> int:
+        """The most robot-steps this scenario can cost: robots x max_steps x (episodes + 1)."""
+        return self.robots.count * self.learning.max_steps * (self.learning.episodes + 1)
+
+
+PRESETS: dict[str, dict[str, Any]] = {
+    "paper-single": {
+        "cells": {"count": 1, "motion_std": 0.2},
+        "robots": {"count": 1},
+        "obstacles": {"count": 10},
+    },
+    "paper-swarm": {
+        "cells": {"count": 2, "motion_std": 0.2},
+        "robots": {"count": 15},
+        "obstacles": {"count": 10},
+    },
+}
+
+
+def _deep_merge(base: dict[str, Any], override: dict[str, Any]) -> dict[str, Any]:
+    merged = dict(base)
+    for key, value in override.items():
+        if isinstance(value, dict) and isinstance(merged.get(key), dict):
+            merged[key] = _deep_merge(merged[key], value)
+        else:
+            merged[key] = value
+    return merged
+
+
+def preset_scenario(name: str, **overrides: Any) -> Scenario:
+    """A preset's scenario, with ``overrides`` applied on top (keys as in the JSON schema)."""
+    return Scenario.model_validate({"preset": name, **overrides})
