@@ -1,0 +1,77 @@
+"""The scenario schema: defaults, presets, bounds, and errors that name the field."""
+
+import json
+
+import pytest
+from pydantic import ValidationError
+
+from nanonav.scenario import PRESETS, Scenario, preset_scenario
+
+
+def error_locations(data: object) -> list[str]:
+    with pytest.raises(ValidationError) as caught:
+        Scenario.model_validate(data)
+    return [".".join(str(p) for p in e["loc"]) for e in caught.value.errors()]
+
+
+def test_empty_scenario_is_all_defaults() -> None:
+    s = Scenario.model_validate({})
+    assert s.space.size == 50.0 and s.robots.count == 1 and s.learning.episodes == 50
+    assert s.biomarker.model == "gaussian" and s.robots.policy == "q_learning"
+
+
+def test_presets_give_the_papers_figures_and_fields_override_them() -> None:
+    swarm = preset_scenario("paper-swarm")
+    assert (swarm.robots.count, swarm.cells.count, swarm.obstacles.count) == (15, 2, 10)
+    single = preset_scenario("paper-single")
+    assert (single.robots.count, single.cells.count) == (1, 1)
+    mixed = Scenario.model_validate({"preset": "paper-swarm", "robots": {"speed": 1.0}})
+    assert mixed.robots.count == 15 and mixed.robots.speed == 1.0
+    assert set(PRESETS) == {"paper-single", "paper-swarm"}
+
+
+def test_a_resolved_scenario_round_trips() -> None:
+    s = preset_scenario("paper-swarm", seed=9, robots={"count": 3})
+    again = Scenario.model_validate(json.loads(s.model_dump_json()))
+    assert again == s and again.robots.count == 3
+
+
+@pytest.mark.parametrize(
+    ("data", "field"),
+    [
+        ({"robots": {"count": 0}}, "robots.count"),
+        ({"robots": {"count": 10_001}}, "robots.count"),
+        ({"robots": {"policy": "teleport"}}, "robots.policy"),
+        ({"biomarker": {"model": "laplace"}}, "biomarker.model"),
+        ({"biomarker": {"spread": -1}}, "biomarker.spread"),
+        ({"learning": {"alpha": 0}}, "learning.alpha"),
+        ({"learning": {"gamma": 1.5}}, "learning.gamma"),
+        ({"learning": {"episodes": "many"}}, "learning.episodes"),
+        ({"space": {"size": "nan"}}, "space.size"),
+        ({"seed": -1}, "seed"),
+        ({"preset": "paper-huge"}, "preset"),
+        ({"robots": {"colour": "blue"}}, "robots.colour"),
+        ({"warp": 9}, "warp"),
+    ],
+)
+def test_invalid_fields_are_rejected_by_name(data: dict[str, object], field: str) -> None:
+    assert field in error_locations(data)
+
+
+def test_cross_field_rules_name_their_part() -> None:
+    assert error_locations({"learning": {"epsilon_start": 0.1, "epsilon_end": 0.5}}) == ["learning"]
+    assert error_locations({"obstacles": {"count": 1000, "radius": 5.0}}) == [""]
+
+
+def test_every_field_is_documented() -> None:
+    schema = Scenario.model_json_schema()
+
+    def walk(properties: dict[str, dict[str, object]]) -> None:
+        for name, spec in properties.items():
+            if "$ref" in spec or "allOf" in spec:
+                continue
+            assert spec.get("description"), name
+
+    walk(schema["properties"])
+    for definition in schema["$defs"].values():
+        walk(definition["properties"])

@@ -1,0 +1,187 @@
+"""Whole runs: reproducibility, obstacles, the baselines, learning, stopping, Table 1."""
+
+from typing import Any
+
+import numpy as np
+import pytest
+
+from nanonav.engine import Progress, SimulationResult, simulate, without_timings
+from nanonav.engine.qlearning import behavior_states, direction_states
+from nanonav.scenario import Scenario
+
+
+def scenario(**fields: Any) -> Scenario:
+    return Scenario.model_validate(fields)
+
+
+def assert_identical(a: SimulationResult, b: SimulationResult) -> None:
+    assert without_timings(a.to_dict()) == without_timings(b.to_dict())
+    arrays_a, arrays_b = a.arrays(), b.arrays()
+    assert arrays_a.keys() == arrays_b.keys()
+    for key in arrays_a:
+        assert arrays_a[key].dtype == arrays_b[key].dtype
+        assert np.array_equal(arrays_a[key], arrays_b[key]), key
+
+
+SWARM = {
+    "preset": "paper-swarm",
+    "learning": {"episodes": 4, "max_steps": 150},
+    "biomarker": {"model": "inverse_square", "sensor_noise": 0.1},
+    "obstacles": {"count": 20, "motion_std": 0.1},
+}
+
+
+@pytest.mark.parametrize("policy", ["q_learning", "gradient", "run_and_tumble", "random"])
+def test_same_scenario_and_seed_give_bit_identical_results(policy: str) -> None:
+    s = scenario(**SWARM, robots={"policy": policy, "count": 15}, seed=11)
+    assert_identical(simulate(s), simulate(s))
+
+
+def test_different_seeds_give_different_results() -> None:
+    a = simulate(scenario(**SWARM, seed=1))
+    b = simulate(scenario(**SWARM, seed=2))
+    assert a.trajectory is not None and b.trajectory is not None
+    assert not np.array_equal(a.trajectory.robots[0], b.trajectory.robots[0])
+    assert without_timings(a.to_dict()["episodes"]) != without_timings(b.to_dict()["episodes"])
+
+
+def test_per_robot_tables_are_reproducible_too() -> None:
+    s = scenario(**{**SWARM, "learning": {"shared_table": False, "episodes": 3, "max_steps": 100}})
+    assert_identical(simulate(s), simulate(s))
+
+
+@pytest.mark.parametrize("policy", ["q_learning", "gradient", "run_and_tumble", "random"])
+def test_no_robot_ever_ends_a_step_inside_an_obstacle(policy: str) -> None:
+    s = scenario(
+        seed=5,
+        robots={"count": 40, "policy": policy},
+        obstacles={"count": 150, "radius": 2.0, "motion_std": 0.3},
+        cells={"count": 2},
+        learning={"episodes": 0, "max_steps": 400, "actions": "directions"},
+    )
+    result = simulate(s)
+    t = result.trajectory
+    assert t is not None and t.stride == 1
+    gaps = np.linalg.norm(t.robots[:, :, None, :] - t.obstacles[:, None, :, :], axis=3)
+    assert gaps.min() >= t.obstacle_radius
+    assert result.summary["collisions"] > 0, "the test should exercise blocked moves"
+
+
+def test_gradient_reaches_a_static_cell_in_an_obstacle_free_world() -> None:
+    for seed in range(5):
+        s = scenario(
+            seed=seed,
+            cells={"motion_std": 0.0},
+            obstacles={"count": 0},
+            robots={"policy": "gradient", "count": 5},
+            learning={"episodes": 0, "max_steps": 400},
+        )
+        result = simulate(s)
+        assert result.summary["success_rate"] == 1.0
+        assert result.summary["final_distance"] <= s.reach_distance
+        # a straight climb: the path is hardly longer than the start-to-cell line
+        assert result.summary["path_efficiency"] > 0.95
+
+
+def test_q_learning_with_directions_learns_chemotaxis() -> None:
+    first, last, trained, random = [], [], [], []
+    for seed in range(4):
+        base: dict[str, Any] = {"seed": seed, "learning": {"actions": "directions", "episodes": 40}}
+        learned = simulate(scenario(**base))
+        steps = [e["steps"] for e in learned.episodes]
+        first.append(np.mean(steps[:10]))
+        last.append(np.mean(steps[-10:]))
+        trained.append(learned.summary["success_rate"])
+        random.append(simulate(scenario(**base, robots={"policy": "random"})).summary["success_rate"])
+    assert np.mean(last) < 0.5 * np.mean(first), (first, last)
+    assert np.mean(trained) > np.mean(random), (trained, random)
+    assert np.mean(trained) >= 0.75
+
+
+def test_q_table_has_readable_labels_and_counts_visits() -> None:
+    # still cells: every robot-step is a decision (no cell drifts into a robot's reach)
+    result = simulate(scenario(cells={"motion_std": 0}, learning={"episodes": 3, "max_steps": 200}))
+    q = result.qtable
+    assert q is not None
+    assert q.states == behavior_states() and len(q.actions) == 4
+    assert q.values.shape == (len(q.states), 4) and q.visits.shape == q.values.shape
+    assert q.visits.sum() == result.work["robot_steps"]
+    assert np.abs(q.values).sum() > 0
+    per_robot = simulate(
+        scenario(
+            robots={"count": 3},
+            learning={"episodes": 1, "max_steps": 50, "shared_table": False, "actions": "directions"},
+        )
+    ).qtable
+    assert per_robot is not None
+    assert per_robot.values.shape == (3, len(direction_states()), 26)
+    assert len(set(per_robot.actions)) == 26
+
+
+def test_baselines_have_no_q_table() -> None:
+    result = simulate(scenario(robots={"policy": "gradient"}, learning={"episodes": 1}))
+    assert result.qtable is None
+    assert "q_values" not in result.arrays()
+
+
+def test_table_1_agrees_with_the_trajectory() -> None:
+    result = simulate(scenario(preset="paper-swarm", learning={"episodes": 2, "max_steps": 300}))
+    t = result.trajectory
+    assert t is not None
+    assert result.summary["total_steps"] == t.length == int(t.steps.max())
+    for row in result.robots:
+        i = row["robot"]
+        own = slice(0, row["total_steps"] + 1)
+        assert row["average_distance"] == pytest.approx(t.distance[own, i].mean(), rel=1e-12)
+        assert row["average_concentration"] == pytest.approx(
+            t.concentration[own, i].mean(), rel=1e-12
+        )
+        if row["reached"]:
+            assert row["final_distance"] <= result.scenario.reach_distance
+        assert 0.0 <= row["path_efficiency"] <= 1.0 + 1e-12
+    reached = [r for r in result.robots if r["reached"]]
+    assert result.summary["success_rate"] == len(reached) / 15
+    assert result.summary["collisions"] == sum(r["collisions"] for r in result.robots)
+
+
+def test_work_counts_every_robot_step() -> None:
+    s = scenario(robots={"policy": "random", "count": 3}, learning={"episodes": 2, "max_steps": 50})
+    result = simulate(s)
+    assert result.work["robot_steps"] == 3 * 50 * 3
+    assert result.work["engine_s"] > 0
+
+
+def test_a_callback_can_stop_the_run_and_keep_finished_episodes() -> None:
+    seen: list[Progress] = []
+
+    def stop_after_three(p: Progress) -> bool:
+        seen.append(p)
+        return p.episode < 3
+
+    result = simulate(scenario(learning={"episodes": 10, "max_steps": 100}), stop_after_three)
+    assert not result.completed
+    assert len(result.episodes) == 3
+    assert result.trajectory is None and result.summary == {}
+    fractions = [p.fraction for p in seen]
+    assert fractions == sorted(fractions) and 0.0 <= fractions[0] and fractions[-1] <= 1.0
+
+
+def test_progress_reaches_one_at_the_end() -> None:
+    seen: list[Progress] = []
+    result = simulate(scenario(learning={"episodes": 2, "max_steps": 50}), seen.append)
+    assert result.completed
+    assert seen[-1].fraction == 1.0 and seen[-1].episode == seen[-1].episodes == 3
+
+
+def test_large_swarms_record_a_strided_history_within_budget() -> None:
+    s = scenario(
+        robots={"count": 2000, "policy": "random"},
+        learning={"episodes": 0, "max_steps": 1500},
+        obstacles={"count": 0},
+    )
+    t = simulate(s).trajectory
+    assert t is not None
+    assert t.stride > 1
+    assert t.robots.shape[0] * 2000 <= 2_000_000 + 2 * 2000
+    assert t.step[0] == 0 and t.step[-1] == 1500
+    assert (np.diff(t.step) > 0).all()
