@@ -9,7 +9,6 @@ step receives every update in a fixed order: the result is exact and reproducibl
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -22,106 +21,25 @@ from nanonav.engine.qlearning import (
     EXPLORE,
     SIGN_THRESHOLD,
 )
-
-Q_LEARNING = 0
-GRADIENT = 1
-RUN_AND_TUMBLE = 2
-RANDOM = 3
-POLICY_CODES = {"q_learning": Q_LEARNING, "gradient": GRADIENT, "run_and_tumble": RUN_AND_TUMBLE,
-                "random": RANDOM}  # fmt: skip
-BEHAVIORS = 0
-DIRECTIONS = 1
-ACTION_SET_CODES = {"behaviors": BEHAVIORS, "directions": DIRECTIONS}
+from nanonav.engine.state import (
+    BEHAVIORS,
+    GRADIENT,
+    LAYOUT_STATUS,
+    Q_LEARNING,
+    ROBOT_STEPS,
+    RUN_AND_TUMBLE,
+    KernelParams,
+    Learner,
+    Recording,
+    Swarm,
+    World,
+)
+from nanonav.engine.world import draw_world
 
 # Proximity cut-offs, in robot steps: an obstacle surface within 2 steps is 'near', a cell within
 # 3 steps is 'near'.
 OBSTACLE_NEAR_STEPS = 2.0
 CELL_NEAR_STEPS = 3.0
-
-
-class KernelParams(NamedTuple):
-    """Constants of one episode, flattened from the scenario for the compiled code."""
-
-    model: int
-    weight: float
-    length: float
-    softening: float
-    noise: float
-    half: float
-    cell_std: float
-    obstacle_radius: float
-    obstacle_std: float
-    speed: float
-    sensing_radius: float
-    reach_distance: float
-    policy: int
-    action_set: int
-    shared: bool
-    learn: bool
-    alpha: float
-    gamma: float
-    epsilon: float
-    reward_reach: float
-    reward_collision: float
-    reward_approach: float
-    level_1: float
-    level_2: float
-    level_3: float
-    max_steps: int
-    record: bool
-    record_stride: int
-
-
-class Swarm(NamedTuple):
-    """Per-robot state arrays, all shaped ``(robots, ...)``."""
-
-    pos: NDArray[np.float64]  # (N, 3)
-    heading: NDArray[np.float64]  # (N, 3) unit vector of the last move
-    active: NDArray[np.bool_]  # not yet reached a cell
-    steps: NDArray[np.int64]  # steps taken while active
-    prev_conc: NDArray[np.float64]  # last sensed concentration
-    returns: NDArray[np.float64]  # summed reward
-    collisions: NDArray[np.int64]
-    path_length: NDArray[np.float64]
-    pending: NDArray[np.bool_]  # a transition awaits its next state for the Q-update
-    last_state: NDArray[np.int64]
-    last_action: NDArray[np.int64]
-    last_reward: NDArray[np.float64]
-    start: NDArray[np.float64]  # (N, 3) start positions
-    sum_conc: NDArray[np.float64]  # true concentration summed over the robot's steps
-    sum_dist: NDArray[np.float64]  # distance to the nearest cell summed likewise
-    last_dist: NDArray[np.float64]  # distance at the robot's last step
-
-
-class World(NamedTuple):
-    """The environment's moving parts and the field's sources."""
-
-    cells: NDArray[np.float64]  # (C, 3)
-    obstacles: NDArray[np.float64]  # (O, 3)
-    offsets: NDArray[np.float64]  # (K, 3) emitter offsets from their cell
-    sx: NDArray[np.float64]  # (K,) source positions
-    sy: NDArray[np.float64]
-    sz: NDArray[np.float64]
-
-
-class Learner(NamedTuple):
-    """Q-table(s) ``(tables, states, actions)`` with visit counts, and the lattice directions."""
-
-    q: NDArray[np.float64]
-    visits: NDArray[np.int64]
-    directions: NDArray[np.float64]  # (26, 3)
-
-
-class Recording(NamedTuple):
-    """History of the evaluation episode, a row every ``record_stride`` steps (``(1, ...)``
-    placeholders in training episodes)."""
-
-    pos: NDArray[np.float64]  # (T+1, N, 3)
-    cells: NDArray[np.float64]  # (T+1, C, 3)
-    obstacles: NDArray[np.float64]  # (T+1, O, 3)
-    conc: NDArray[np.float64]  # (T+1, N)
-    dist: NDArray[np.float64]  # (T+1, N)
-    step: NDArray[np.int64]  # (T+1,) the step each row shows
 
 
 @njit(cache=True)
@@ -434,9 +352,19 @@ def run_steps(
 ) -> int:
     """Advance the episode from step ``t`` by up to ``n_steps`` steps; return the new step.
 
-    Stops early when every robot has reached a cell or at ``max_steps``. ``counters[0]``
-    accumulates the robot-steps simulated.
+    At step 0 the world is drawn first (``counters[LAYOUT_STATUS]`` says whether it fitted).
+    The episode ends when every robot has reached a cell or at ``max_steps``; the last
+    transitions are then learned and the final row recorded. ``counters[ROBOT_STEPS]`` counts the
+    robot-steps simulated.
     """
+    if t == 0:
+        status = draw_world(p, rng, w, s)
+        counters[LAYOUT_STATUS] = status
+        if status != 0:
+            return 0
+        place_sources(p.model, w.cells, w.offsets, w.sx, w.sy, w.sz)
+        if p.record:
+            observe(p, w, s, rec, 0, False)
     n = s.pos.shape[0]
     end = min(t + n_steps, p.max_steps)
     while t < end:
@@ -446,7 +374,7 @@ def run_steps(
                 n_active += 1
         if n_active == 0:
             break
-        counters[0] += n_active
+        counters[ROBOT_STEPS] += n_active
         if p.cell_std > 0.0:
             _move_cells(p, rng, w)
         if p.obstacle_std > 0.0 and w.obstacles.shape[0] > 0:
@@ -554,11 +482,15 @@ def run_steps(
         t += 1
         if p.record:
             observe(p, w, s, rec, t, False)
+    if t >= p.max_steps or not s.active.any():
+        _finish_episode(p, rng, w, s, lrn)
+        if p.record and t % p.record_stride:
+            observe(p, w, s, rec, t, True)
     return t
 
 
 @njit(cache=True)
-def finish_episode(
+def _finish_episode(
     p: KernelParams, rng: np.random.Generator, w: World, s: Swarm, lrn: Learner
 ) -> None:
     """Bootstrap the last transition of every robot the step limit stopped (not terminal)."""

@@ -6,7 +6,7 @@ from typing import Any
 
 import numpy as np
 
-from nanonav.engine.kernel import Swarm
+from nanonav.engine.state import Swarm
 
 
 def robot_rows(swarm: Swarm, duration_s: float, episode_steps: int) -> list[dict[str, Any]]:

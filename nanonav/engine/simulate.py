@@ -14,10 +14,10 @@ from typing import Any
 
 import numpy as np
 
-from nanonav.engine import fields, kernel, metrics, qlearning
-from nanonav.engine.kernel import KernelParams, Learner, Recording, Swarm, World
+from nanonav.engine import fields, kernel, metrics, qlearning, state
 from nanonav.engine.result import QTable, SimulationResult, Trajectory
-from nanonav.engine.world import Layout, draw_layout, episode_generators
+from nanonav.engine.state import KernelParams, Learner, Recording, Swarm, World
+from nanonav.engine.world import episode_generator, raise_for_layout
 from nanonav.scenario import Scenario
 
 # Robot-steps per compiled call between progress reports (about 0.1 s of work).
@@ -45,9 +45,8 @@ class Progress:
 ProgressCallback = Callable[[Progress], bool | None]
 
 
-def _params(
-    scenario: Scenario, *, epsilon: float, learn: bool, record: bool, stride: int
-) -> KernelParams:
+def _params(scenario: Scenario) -> KernelParams:
+    """The kernel's constants for training episodes; evaluation swaps a few with ``_replace``."""
     b = scenario.biomarker
     base = max(scenario.robots.sensing_radius, scenario.robots.speed)
     levels = fields.radial_profile(b, base * np.array(qlearning.LEVEL_DISTANCES))
@@ -64,13 +63,13 @@ def _params(
         speed=scenario.robots.speed,
         sensing_radius=scenario.robots.sensing_radius,
         reach_distance=scenario.reach_distance,
-        policy=kernel.POLICY_CODES[scenario.robots.policy],
-        action_set=kernel.ACTION_SET_CODES[scenario.learning.actions],
+        policy=state.POLICY_CODES[scenario.robots.policy],
+        action_set=state.ACTION_SET_CODES[scenario.learning.actions],
         shared=scenario.learning.shared_table,
-        learn=learn,
+        learn=scenario.robots.policy == "q_learning",
         alpha=scenario.learning.alpha,
         gamma=scenario.learning.gamma,
-        epsilon=epsilon,
+        epsilon=0.0,
         reward_reach=scenario.rewards.reach,
         reward_collision=scenario.rewards.collision,
         reward_approach=scenario.rewards.approach,
@@ -78,53 +77,9 @@ def _params(
         level_2=float(levels[1]),
         level_3=float(levels[2]),
         max_steps=scenario.learning.max_steps,
-        record=record,
-        record_stride=stride,
-    )
-
-
-def _swarm(layout: Layout) -> Swarm:
-    n = layout.robots.shape[0]
-    return Swarm(
-        pos=layout.robots.copy(),
-        heading=layout.headings.copy(),
-        active=np.ones(n, dtype=np.bool_),
-        steps=np.zeros(n, dtype=np.int64),
-        prev_conc=np.full(n, -1.0),
-        returns=np.zeros(n),
-        collisions=np.zeros(n, dtype=np.int64),
-        path_length=np.zeros(n),
-        pending=np.zeros(n, dtype=np.bool_),
-        last_state=np.zeros(n, dtype=np.int64),
-        last_action=np.zeros(n, dtype=np.int64),
-        last_reward=np.zeros(n),
-        start=layout.robots.copy(),
-        sum_conc=np.zeros(n),
-        sum_dist=np.zeros(n),
-        last_dist=np.zeros(n),
-    )
-
-
-def _world(scenario: Scenario, layout: Layout) -> World:
-    k = fields.source_count(scenario.biomarker, layout.cells.shape[0])
-    return World(
-        cells=layout.cells.copy(),
-        obstacles=layout.obstacles.copy(),
-        offsets=np.ascontiguousarray(layout.emitter_offsets.reshape(-1, 3)),
-        sx=np.empty(k),
-        sy=np.empty(k),
-        sz=np.empty(k),
-    )
-
-
-def _recording(rows: int, robots: int, cells: int, obstacles: int) -> Recording:
-    return Recording(
-        pos=np.zeros((rows, robots, 3)),
-        cells=np.zeros((rows, cells, 3)),
-        obstacles=np.zeros((rows, obstacles, 3)),
-        conc=np.zeros((rows, robots)),
-        dist=np.zeros((rows, robots)),
-        step=np.zeros(rows, dtype=np.int64),
+        record=False,
+        record_stride=record_stride(scenario.robots.count, scenario.learning.max_steps),
+        emitter_scatter=b.emitter_scatter,
     )
 
 
@@ -149,29 +104,57 @@ def record_stride(robots: int, max_steps: int) -> int:
 
 
 class _Episode:
-    """One episode in progress: its arrays, generator and step counter."""
+    """One episode: its arrays, its generator and its step counter. The kernel draws the world
+    on the first ``advance``."""
 
     def __init__(
         self, scenario: Scenario, index: int, params: KernelParams, learner: Learner
     ) -> None:
-        world_rng, self.rng = episode_generators(scenario.seed, index)
-        self.layout = draw_layout(scenario, world_rng)
+        self.scenario = scenario
+        self.rng = episode_generator(scenario.seed, index)
         self.params = params
-        self.world = _world(scenario, self.layout)
-        self.swarm = _swarm(self.layout)
         self.learner = learner
-        rows = scenario.learning.max_steps // params.record_stride + 2 if params.record else 1
-        self.recording = _recording(
-            rows, scenario.robots.count, scenario.cells.count, scenario.obstacles.count
+        n = scenario.robots.count
+        cells = scenario.cells.count
+        obstacles = scenario.obstacles.count
+        k = fields.source_count(scenario.biomarker, cells)
+        self.world = World(
+            cells=np.empty((cells, 3)),
+            obstacles=np.empty((obstacles, 3)),
+            offsets=np.zeros((k if params.model == fields.INVERSE_SQUARE else 0, 3)),
+            sx=np.empty(k),
+            sy=np.empty(k),
+            sz=np.empty(k),
+        )
+        self.swarm = Swarm(
+            pos=np.empty((n, 3)),
+            heading=np.empty((n, 3)),
+            active=np.ones(n, dtype=np.bool_),
+            steps=np.zeros(n, dtype=np.int64),
+            prev_conc=np.full(n, -1.0),
+            returns=np.zeros(n),
+            collisions=np.zeros(n, dtype=np.int64),
+            path_length=np.zeros(n),
+            pending=np.zeros(n, dtype=np.bool_),
+            last_state=np.zeros(n, dtype=np.int64),
+            last_action=np.zeros(n, dtype=np.int64),
+            last_reward=np.zeros(n),
+            start=np.empty((n, 3)),
+            sum_conc=np.zeros(n),
+            sum_dist=np.zeros(n),
+            last_dist=np.zeros(n),
+        )
+        rows = params.max_steps // params.record_stride + 2 if params.record else 1
+        self.recording = Recording(
+            pos=np.zeros((rows, n, 3)),
+            cells=np.zeros((rows, cells, 3)),
+            obstacles=np.zeros((rows, obstacles, 3)),
+            conc=np.zeros((rows, n)),
+            dist=np.zeros((rows, n)),
+            step=np.zeros(rows, dtype=np.int64),
         )
         self.t = 0
-        self.counters = np.zeros(1, dtype=np.int64)
-        if params.record:
-            fields.place_sources(
-                params.model, self.world.cells, self.world.offsets,
-                self.world.sx, self.world.sy, self.world.sz,
-            )  # fmt: skip
-            kernel.observe(params, self.world, self.swarm, self.recording, 0, False)
+        self.counters = np.zeros(2, dtype=np.int64)
 
     @property
     def over(self) -> bool:
@@ -182,17 +165,17 @@ class _Episode:
             self.params, self.rng, self.world, self.swarm, self.learner, self.recording,
             self.t, n_steps, self.counters,
         )  # fmt: skip
+        raise_for_layout(int(self.counters[state.LAYOUT_STATUS]), self.scenario)
 
-    def finish(self) -> None:
-        kernel.finish_episode(self.params, self.rng, self.world, self.swarm, self.learner)
-        if self.params.record and self.t % self.params.record_stride:
-            kernel.observe(self.params, self.world, self.swarm, self.recording, self.t, True)
+    @property
+    def robot_steps(self) -> int:
+        return int(self.counters[state.ROBOT_STEPS])
 
-    def trajectory(self, radius: float) -> Trajectory:
-        rows = self.t // self.params.record_stride + 1
-        if self.t % self.params.record_stride:
-            rows += 1
+    def trajectory(self) -> Trajectory:
+        stride = self.params.record_stride
+        rows = self.t // stride + 1 + (1 if self.t % stride else 0)
         r = self.recording
+        cells = self.scenario.cells.count
         return Trajectory(
             step=r.step[:rows].copy(),
             robots=r.pos[:rows].copy(),
@@ -202,9 +185,9 @@ class _Episode:
             distance=r.dist[:rows].copy(),
             steps=self.swarm.steps.copy(),
             reached=~self.swarm.active,
-            emitter_offsets=self.layout.emitter_offsets.copy(),
-            obstacle_radius=radius,
-            stride=self.params.record_stride,
+            emitter_offsets=self.world.offsets.reshape(cells, -1, 3).copy(),
+            obstacle_radius=self.params.obstacle_radius,
+            stride=stride,
         )
 
 
@@ -220,13 +203,12 @@ def _warm_up() -> None:
     tiny = Scenario.model_validate(
         {"learning": {"episodes": 0, "max_steps": 2}, "obstacles": {"count": 1}}
     )
-    learner = _learner(tiny)
-    episode = _Episode(tiny, 0, _params(tiny, epsilon=0.0, learn=True, record=True, stride=1),
-                       learner)  # fmt: skip
+    params = _params(tiny)._replace(record=True)
+    episode = _Episode(tiny, 0, params, _learner(tiny))
     episode.advance(2)
-    episode.finish()
-    fields.field_and_gradient(tiny.biomarker, episode.world.cells, np.zeros((1, 0, 3)),
-                              np.zeros((1, 3)))  # fmt: skip
+    fields.field_and_gradient(
+        tiny.biomarker, episode.world.cells, np.zeros((1, 0, 3)), np.zeros((1, 3))
+    )
     _compiled = True
 
 
@@ -242,7 +224,7 @@ def simulate(scenario: Scenario, progress: ProgressCallback | None = None) -> Si
     chunk = max(1, CHUNK_ROBOT_STEPS // scenario.robots.count)
     learner = _learner(scenario)
     is_q = scenario.robots.policy == "q_learning"
-    stride = record_stride(scenario.robots.count, learning.max_steps)
+    training = _params(scenario)
 
     curve: list[dict[str, Any]] = []
     robot_steps = 0
@@ -259,28 +241,25 @@ def simulate(scenario: Scenario, progress: ProgressCallback | None = None) -> Si
         evaluating = index == learning.episodes
         eps = 0.0 if evaluating or not is_q else qlearning.epsilon(learning, index)
         started = time.perf_counter()
-        params = _params(
-            scenario, epsilon=eps, learn=is_q and not evaluating, record=evaluating, stride=stride
-        )
+        if evaluating:
+            params = training._replace(epsilon=0.0, learn=False, record=True)
+        else:
+            params = training._replace(epsilon=eps)
         episode = _Episode(scenario, index, params, learner)
-        stopped = False
+        episode_s = 0.0
         while not episode.over:
             episode.advance(chunk)
-            if not episode.over:
-                engine_s += time.perf_counter() - started
-                stopped = not report(index, episode.t)
-                started = time.perf_counter()
-                if stopped:
-                    break
-        if stopped:
+            episode_s += time.perf_counter() - started
+            if not episode.over and not report(index, episode.t):
+                break
+            started = time.perf_counter()
+        engine_s += episode_s
+        robot_steps += episode.robot_steps
+        if not episode.over:
             break
-        episode.finish()
-        elapsed = time.perf_counter() - started
-        engine_s += elapsed
-        robot_steps += int(episode.counters[0])
         if evaluating:
             evaluation = episode
-            eval_s = elapsed
+            eval_s = episode_s
         else:
             s = episode.swarm
             curve.append(
@@ -307,5 +286,5 @@ def simulate(scenario: Scenario, progress: ProgressCallback | None = None) -> Si
         return SimulationResult(scenario, {}, [], curve, work, None, qtable, completed=False)
     rows = metrics.robot_rows(evaluation.swarm, eval_s, evaluation.t)
     summary = metrics.swarm_summary(rows, evaluation.t, eval_s)
-    trajectory = evaluation.trajectory(scenario.obstacles.radius)
+    trajectory = evaluation.trajectory()
     return SimulationResult(scenario, summary, rows, curve, work, trajectory, qtable)

@@ -1,103 +1,97 @@
 """A fresh world for each episode: cells, robot starts, obstacles and emitters, drawn at random.
 
-Everything is drawn in a fixed order from the episode's own world generator, so the same seed
-and episode give the same world whatever the policy or field model: methods compared on the same
-seeds face the same worlds.
+Each episode has its own generator, and the world is drawn from it first, in a fixed order, before
+anything moves: the same seed and episode give the same world whatever the policy, so methods
+compared on the same seeds face the same worlds.
 """
 
 from __future__ import annotations
 
-from typing import NamedTuple
+import math
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
+from nanonav.engine.state import KernelParams, Swarm, World
 from nanonav.scenario import Scenario, ScenarioError
 
 # Cells start within this fraction of the half-width, robots within the next.
 CELL_EXTENT = 0.8
 ROBOT_EXTENT = 0.95
-PLACEMENT_ROUNDS = 200
-CANDIDATES_PER_ROUND = 64
+PLACEMENT_ATTEMPTS = 10_000
+NO_ROOM_FOR_ROBOTS = -1
 
 
-class Layout(NamedTuple):
-    """Initial positions of one episode."""
-
-    cells: NDArray[np.float64]  # (C, 3)
-    robots: NDArray[np.float64]  # (N, 3)
-    headings: NDArray[np.float64]  # (N, 3) unit vectors
-    obstacles: NDArray[np.float64]  # (O, 3)
-    emitter_offsets: NDArray[np.float64]  # (C, E, 3); E = 0 unless inverse-square
+def episode_generator(seed: int, episode: int) -> np.random.Generator:
+    """The generator of one episode of one seed, independent of every other episode's."""
+    return np.random.Generator(np.random.PCG64(np.random.SeedSequence(seed, spawn_key=(episode,))))
 
 
-def episode_generators(seed: int, episode: int) -> tuple[np.random.Generator, np.random.Generator]:
-    """Independent (world, dynamics) generators of one episode of one seed."""
-    world = np.random.Generator(
-        np.random.PCG64(np.random.SeedSequence(seed, spawn_key=(episode, 0)))
-    )
-    dynamics = np.random.Generator(
-        np.random.PCG64(np.random.SeedSequence(seed, spawn_key=(episode, 1)))
-    )
-    return world, dynamics
+@njit(cache=True)
+def _uniform(rng: np.random.Generator, out: NDArray[np.float64], low: float, high: float) -> None:
+    for k in range(out.shape[0]):
+        out[k] = low + (high - low) * rng.random()
 
 
-def _pairwise_clear(
-    points: NDArray[np.float64], others: NDArray[np.float64], distance: float
-) -> NDArray[np.bool_]:
-    if others.shape[0] == 0:
-        return np.ones(points.shape[0], dtype=bool)
-    d2 = ((points[:, None, :] - others[None, :, :]) ** 2).sum(axis=2)
-    return np.asarray((d2 >= distance * distance).all(axis=1))
+@njit(cache=True)
+def _clear(point: NDArray[np.float64], others: NDArray[np.float64], distance: float) -> bool:
+    for j in range(others.shape[0]):
+        d2 = 0.0
+        for a in range(3):
+            d = point[a] - others[j, a]
+            d2 += d * d
+        if d2 < distance * distance:
+            return False
+    return True
 
 
-def _unit(v: NDArray[np.float64]) -> NDArray[np.float64]:
-    n = np.linalg.norm(v, axis=1, keepdims=True)
-    n[n == 0] = 1.0
-    unit: NDArray[np.float64] = v / n
-    return unit
-
-
-def draw_layout(scenario: Scenario, rng: np.random.Generator) -> Layout:
-    """Draw an episode's starting world; raises ScenarioError if obstacles cannot be placed."""
-    half = scenario.space.size / 2
-    n_cells = scenario.cells.count
-    n_robots = scenario.robots.count
-    reach = scenario.reach_distance
-    cells = rng.uniform(-CELL_EXTENT * half, CELL_EXTENT * half, (n_cells, 3))
-
-    robots = rng.uniform(-ROBOT_EXTENT * half, ROBOT_EXTENT * half, (n_robots, 3))
-    for _ in range(PLACEMENT_ROUNDS):
-        close = ~_pairwise_clear(robots, cells, 2 * reach)
-        if not close.any():
-            break
-        robots[close] = rng.uniform(
-            -ROBOT_EXTENT * half, ROBOT_EXTENT * half, (int(close.sum()), 3)
-        )
-    else:
-        raise ScenarioError("reach_distance", "no room for the robots to start out of reach")
-    headings = _unit(rng.standard_normal((n_robots, 3)))
-
-    radius = scenario.obstacles.radius
-    obstacles = np.empty((scenario.obstacles.count, 3))
-    for k in range(scenario.obstacles.count):
-        for _ in range(PLACEMENT_ROUNDS):
-            candidates = rng.uniform(-half + radius, half - radius, (CANDIDATES_PER_ROUND, 3))
-            ok = _pairwise_clear(candidates, cells, radius + reach + scenario.robots.speed)
-            ok &= _pairwise_clear(candidates, robots, radius)
-            hits = np.flatnonzero(ok)
-            if hits.size:
-                obstacles[k] = candidates[hits[0]]
+@njit(cache=True)
+def draw_world(p: KernelParams, rng: np.random.Generator, w: World, s: Swarm) -> int:
+    """Draw cells, robot starts and headings, obstacles clear of both, and emitter offsets, in
+    place. Returns 0; ``NO_ROOM_FOR_ROBOTS``; or 1 + the index of an obstacle with no room."""
+    half = p.half
+    for j in range(w.cells.shape[0]):
+        _uniform(rng, w.cells[j], -CELL_EXTENT * half, CELL_EXTENT * half)
+    for i in range(s.pos.shape[0]):
+        for attempt in range(PLACEMENT_ATTEMPTS + 1):
+            if attempt == PLACEMENT_ATTEMPTS:
+                return NO_ROOM_FOR_ROBOTS
+            _uniform(rng, s.pos[i], -ROBOT_EXTENT * half, ROBOT_EXTENT * half)
+            if _clear(s.pos[i], w.cells, 2.0 * p.reach_distance):
                 break
-        else:
-            raise ScenarioError(
-                "obstacles.count",
-                f"could not place obstacle {k + 1} of {scenario.obstacles.count} clear of the "
-                "cells and robot starts; use fewer or smaller obstacles, or fewer robots",
-            )
+        n = 0.0
+        while n < 1e-12:
+            for a in range(3):
+                s.heading[i, a] = rng.standard_normal()
+            n = math.sqrt(s.heading[i, 0] ** 2 + s.heading[i, 1] ** 2 + s.heading[i, 2] ** 2)
+        for a in range(3):
+            s.heading[i, a] /= n
+            s.start[i, a] = s.pos[i, a]
+    # cells keep a robot's step plus the reach distance free around them, so they stay reachable
+    cell_clearance = p.obstacle_radius + p.reach_distance + p.speed
+    for k in range(w.obstacles.shape[0]):
+        for attempt in range(PLACEMENT_ATTEMPTS + 1):
+            if attempt == PLACEMENT_ATTEMPTS:
+                return k + 1
+            _uniform(rng, w.obstacles[k], -half + p.obstacle_radius, half - p.obstacle_radius)
+            if _clear(w.obstacles[k], w.cells, cell_clearance) and _clear(
+                w.obstacles[k], s.pos, p.obstacle_radius
+            ):
+                break
+    for k in range(w.offsets.shape[0]):
+        for a in range(3):
+            w.offsets[k, a] = p.emitter_scatter * rng.standard_normal()
+    return 0
 
-    per_cell = (
-        scenario.biomarker.emitters_per_cell if scenario.biomarker.model == "inverse_square" else 0
-    )
-    offsets = rng.normal(0.0, scenario.biomarker.emitter_scatter, (n_cells, per_cell, 3))
-    return Layout(cells, robots, headings, obstacles, offsets)
+
+def raise_for_layout(status: int, scenario: Scenario) -> None:
+    """Turn ``draw_world``'s status into the error a user can act on."""
+    if status == NO_ROOM_FOR_ROBOTS:
+        raise ScenarioError("reach_distance", "no room for the robots to start out of reach")
+    if status > 0:
+        raise ScenarioError(
+            "obstacles.count",
+            f"could not place obstacle {status} of {scenario.obstacles.count} clear of the "
+            "cells and robot starts; use fewer or smaller obstacles, or fewer robots",
+        )

@@ -1,0 +1,90 @@
+"""Engine throughput: robot-steps per second of ``simulate`` for swarms of 1, 15, 100 and 1,000
+robots under each field model, beside a naive per-robot Python loop of the same physics, measured
+in the same run so that every ratio compares like with like.
+
+    python benchmarks/engine.py            # the full table (about two minutes)
+    python benchmarks/engine.py --quick    # a smoke run with small workloads
+
+Scenario: 2 cells x 50 emitters, 10 obstacles, q_learning with the paper's behaviours, 1,000-step
+episodes. Figures are medians over repeats; ``engine_s`` excludes numba's start-up.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from naive import naive_robot_steps_per_second  # noqa: E402
+
+from nanonav.engine import simulate  # noqa: E402
+from nanonav.scenario import Scenario  # noqa: E402
+
+MODELS = ("gaussian", "inverse_square", "diffusion")
+SWARMS = (1, 15, 100, 1000)
+# Targets on one core: absolute at 1,000 robots, ratios to the naive loop at 15 and 1.
+TARGET_RATE_1000 = 1_000_000
+TARGET_RATIO = {15: 300, 1: 50}
+
+
+def bench_scenario(model: str, robots: int, robot_steps: int) -> Scenario:
+    episodes = max(1, robot_steps // (robots * 150))
+    return Scenario.model_validate(
+        {
+            "cells": {"count": 2},
+            "biomarker": {"model": model, "emitters_per_cell": 50},
+            "obstacles": {"count": 10},
+            "robots": {"count": robots, "policy": "q_learning"},
+            "learning": {"episodes": episodes, "max_steps": 1000},
+        }
+    )
+
+
+def engine_rate(scenario: Scenario, repeats: int) -> tuple[float, int]:
+    rates = []
+    steps = 0
+    for seed in range(repeats):
+        result = simulate(scenario.model_copy(update={"seed": seed}))
+        rates.append(result.work["robot_steps"] / result.work["engine_s"])
+        steps = result.work["robot_steps"]
+    return statistics.median(rates), steps
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="small workloads, one repeat")
+    args = parser.parse_args(argv)
+    workload = 20_000 if args.quick else 400_000
+    repeats = 1 if args.quick else 3
+    naive_seconds = 0.2 if args.quick else 1.0
+
+    simulate(bench_scenario("gaussian", 1, 1000))  # start-up: compile or load numba's cache
+    print(f"cpu cores visible: {os.cpu_count()}, numba threads: 1 (the engine is single-threaded)")
+    header = f"{'model':<15}{'robots':>7}{'engine rs/s':>14}{'naive rs/s':>12}{'ratio':>9}"
+    print(header)
+    print("-" * len(header))
+    verdicts = []
+    for model in MODELS:
+        for robots in SWARMS:
+            scenario = bench_scenario(model, robots, workload)
+            rate, _ = engine_rate(scenario, repeats)
+            naive = naive_robot_steps_per_second(scenario, naive_seconds)
+            ratio = rate / naive
+            print(f"{model:<15}{robots:>7}{rate:>14,.0f}{naive:>12,.0f}{ratio:>8,.0f}x")
+            if robots == 1000:
+                verdicts.append((model, robots, "rate", rate, TARGET_RATE_1000))
+            if robots in TARGET_RATIO:
+                verdicts.append((model, robots, "ratio", ratio, TARGET_RATIO[robots]))
+    print()
+    for model, robots, kind, value, target in verdicts:
+        status = "meets" if value >= target else "BELOW"
+        print(f"{status} target: {model}, {robots} robots, {kind} {value:,.0f} vs {target:,}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,110 @@
+"""The arrays one episode runs on, grouped for the compiled kernel, and the codes that stand
+for the scenario's choices inside it."""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import NDArray
+
+Q_LEARNING = 0
+GRADIENT = 1
+RUN_AND_TUMBLE = 2
+RANDOM = 3
+POLICY_CODES = {"q_learning": Q_LEARNING, "gradient": GRADIENT, "run_and_tumble": RUN_AND_TUMBLE,
+                "random": RANDOM}  # fmt: skip
+BEHAVIORS = 0
+DIRECTIONS = 1
+ACTION_SET_CODES = {"behaviors": BEHAVIORS, "directions": DIRECTIONS}
+
+
+class KernelParams(NamedTuple):
+    """Constants of one episode, flattened from the scenario for the compiled code."""
+
+    model: int
+    weight: float
+    length: float
+    softening: float
+    noise: float
+    half: float
+    cell_std: float
+    obstacle_radius: float
+    obstacle_std: float
+    speed: float
+    sensing_radius: float
+    reach_distance: float
+    policy: int
+    action_set: int
+    shared: bool
+    learn: bool
+    alpha: float
+    gamma: float
+    epsilon: float
+    reward_reach: float
+    reward_collision: float
+    reward_approach: float
+    level_1: float
+    level_2: float
+    level_3: float
+    max_steps: int
+    record: bool
+    record_stride: int
+    emitter_scatter: float
+
+
+class Swarm(NamedTuple):
+    """Per-robot state arrays, all shaped ``(robots, ...)``."""
+
+    pos: NDArray[np.float64]  # (N, 3)
+    heading: NDArray[np.float64]  # (N, 3) unit vector of the last move
+    active: NDArray[np.bool_]  # not yet reached a cell
+    steps: NDArray[np.int64]  # steps taken while active
+    prev_conc: NDArray[np.float64]  # last sensed concentration
+    returns: NDArray[np.float64]  # summed reward
+    collisions: NDArray[np.int64]
+    path_length: NDArray[np.float64]
+    pending: NDArray[np.bool_]  # a transition awaits its next state for the Q-update
+    last_state: NDArray[np.int64]
+    last_action: NDArray[np.int64]
+    last_reward: NDArray[np.float64]
+    start: NDArray[np.float64]  # (N, 3) start positions
+    sum_conc: NDArray[np.float64]  # true concentration summed over the robot's steps
+    sum_dist: NDArray[np.float64]  # distance to the nearest cell summed likewise
+    last_dist: NDArray[np.float64]  # distance at the robot's last step
+
+
+class World(NamedTuple):
+    """The environment's moving parts and the field's sources."""
+
+    cells: NDArray[np.float64]  # (C, 3)
+    obstacles: NDArray[np.float64]  # (O, 3)
+    offsets: NDArray[np.float64]  # (K, 3) emitter offsets from their cell
+    sx: NDArray[np.float64]  # (K,) source positions
+    sy: NDArray[np.float64]
+    sz: NDArray[np.float64]
+
+
+class Learner(NamedTuple):
+    """Q-table(s) ``(tables, states, actions)`` with visit counts, and the lattice directions."""
+
+    q: NDArray[np.float64]
+    visits: NDArray[np.int64]
+    directions: NDArray[np.float64]  # (26, 3)
+
+
+class Recording(NamedTuple):
+    """History of the evaluation episode, a row every ``record_stride`` steps (``(1, ...)``
+    placeholders in training episodes)."""
+
+    pos: NDArray[np.float64]  # (T+1, N, 3)
+    cells: NDArray[np.float64]  # (T+1, C, 3)
+    obstacles: NDArray[np.float64]  # (T+1, O, 3)
+    conc: NDArray[np.float64]  # (T+1, N)
+    dist: NDArray[np.float64]  # (T+1, N)
+    step: NDArray[np.int64]  # (T+1,) the step each row shows
+
+
+# counters[] slots filled by the kernel
+ROBOT_STEPS = 0
+LAYOUT_STATUS = 1
