@@ -19,10 +19,10 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from naive import naive_robot_steps_per_second  # noqa: E402
+from naive import naive_robot_steps_per_second
 
-from nanonav.engine import simulate  # noqa: E402
-from nanonav.scenario import Scenario  # noqa: E402
+from nanonav.engine import simulate
+from nanonav.scenario import Scenario
 
 MODELS = ("gaussian", "inverse_square", "diffusion")
 SWARMS = (1, 15, 100, 1000)
@@ -57,7 +57,13 @@ def engine_rate(scenario: Scenario, repeats: int) -> tuple[float, int]:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="small workloads, one repeat")
+    parser.add_argument("--models", default=",".join(MODELS), help="comma-separated models")
+    parser.add_argument(
+        "--robots", default=",".join(map(str, SWARMS)), help="comma-separated swarm sizes"
+    )
     args = parser.parse_args(argv)
+    models = args.models.split(",")
+    swarms = [int(n) for n in args.robots.split(",")]
     workload = 20_000 if args.quick else 400_000
     repeats = 1 if args.quick else 3
     naive_seconds = 0.2 if args.quick else 1.0
@@ -68,8 +74,8 @@ def main(argv: list[str] | None = None) -> int:
     print(header)
     print("-" * len(header))
     verdicts = []
-    for model in MODELS:
-        for robots in SWARMS:
+    for model in models:
+        for robots in swarms:
             scenario = bench_scenario(model, robots, workload)
             rate, _ = engine_rate(scenario, repeats)
             naive = naive_robot_steps_per_second(scenario, naive_seconds)

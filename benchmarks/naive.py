@@ -24,15 +24,21 @@ class NaiveSwarm:
         self.rng = np.random.default_rng(seed)
         half = scenario.space.size / 2
         self.half = half
-        self.cells = [self.rng.uniform(-0.8 * half, 0.8 * half, 3) for _ in range(scenario.cells.count)]
+        self.cells = [
+            self.rng.uniform(-0.8 * half, 0.8 * half, 3) for _ in range(scenario.cells.count)
+        ]
         per_cell = scenario.biomarker.emitters_per_cell
         self.offsets = [
             [self.rng.normal(0, scenario.biomarker.emitter_scatter, 3) for _ in range(per_cell)]
             for _ in self.cells
         ]
-        self.robots = [self.rng.uniform(-0.95 * half, 0.95 * half, 3) for _ in range(scenario.robots.count)]
+        self.robots = [
+            self.rng.uniform(-0.95 * half, 0.95 * half, 3) for _ in range(scenario.robots.count)
+        ]
         r = scenario.obstacles.radius
-        self.obstacles = [self.rng.uniform(-half + r, half - r, 3) for _ in range(scenario.obstacles.count)]
+        self.obstacles = [
+            self.rng.uniform(-half + r, half - r, 3) for _ in range(scenario.obstacles.count)
+        ]
         self.q = np.zeros((72, 4))
         self.prev = [-1.0] * len(self.robots)
         self.active = [True] * len(self.robots)
@@ -68,7 +74,9 @@ class NaiveSwarm:
     def step(self) -> int:
         s = self.s
         for j, cell in enumerate(self.cells):
-            self.cells[j] = np.clip(cell + self.rng.normal(0, s.cells.motion_std, 3), -self.half, self.half)
+            self.cells[j] = np.clip(
+                cell + self.rng.normal(0, s.cells.motion_std, 3), -self.half, self.half
+            )
         sources = self.sources()
         moved = 0
         for i, pos in enumerate(self.robots):
@@ -81,17 +89,17 @@ class NaiveSwarm:
             gaps = [float(np.linalg.norm(pos - o)) - s.obstacles.radius for o in self.obstacles]
             gap = min(gaps) if gaps else math.inf
             level = int(c > 0.01) + int(c > 0.1) + int(c > 0.5)
-            state = ((level * 2 + int(c > self.prev[i])) * 3 + min(int(gap < s.robots.sensing_radius) * 2, 2)) * 3
+            trend = int(c > self.prev[i])
+            obstacle = 2 if gap < s.robots.sensing_radius else 0
+            state = ((level * 2 + trend) * 3 + obstacle) * 3
             state += 1 if d_old < s.robots.sensing_radius else 0
             self.prev[i] = c
             if self.rng.random() < 0.1:
                 action = int(self.rng.integers(0, 4))
             else:
                 action = int(np.argmax(self.q[state]))
-            if action == 3 or not np.any(grad):
-                direction = self.rng.normal(size=3)
-            else:
-                direction = grad
+            explore = action == 3 or not np.any(grad)
+            direction = self.rng.normal(size=3) if explore else grad
             new = pos + s.robots.speed * direction / np.linalg.norm(direction)
             new = np.clip(new, -self.half, self.half)
             reward = 0.0
