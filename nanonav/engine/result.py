@@ -8,7 +8,7 @@ binary blobs). Only the timing fields (``summary.duration_s``, ``robots[*].durat
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -83,7 +83,6 @@ class SimulationResult:
     trajectory: Trajectory | None
     qtable: QTable | None
     completed: bool = True
-    extra: dict[str, Any] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
         """The metrics document: scenario, Table 1 summary, per-robot rows, learning curve, work."""
