@@ -389,8 +389,8 @@ def run_steps(
             pz = s.pos[i, 2]
             cell, cell_d = _nearest_cell(w.cells, px, py, pz)
             if cell_d <= p.reach_distance:
-                # a drifting cell came within reach of the robot
-                s.last_dist[i] = cell_d
+                # a drifting cell came within reach: the robot spends this step receiving it
+                s.steps[i] += 1
                 s.returns[i] += p.reward_reach
                 if p.learn and s.pending[i]:
                     _learn(

@@ -1,0 +1,526 @@
+"""Pictures of a simulation result, as PNG bytes (the paper's Figures 3, 4 and 5, and the
+learning curve).
+
+The view is kept apart from the model: the engine never imports this module, and this module
+only reads a finished ``SimulationResult``. Every figure is drawn on its own
+``matplotlib.figure.Figure`` with the Agg canvas and saved to a ``BytesIO``; pyplot and its
+global state are never used, so a server process keeps no figure alive between requests.
+Each PNG is exactly ``figsize x DPI`` pixels (no tight bounding box), which clients can rely on.
+"""
+
+from __future__ import annotations
+
+import io
+from typing import Any, Literal
+
+import numpy as np
+from matplotlib.artist import Artist
+from matplotlib.axes import Axes
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.colors import LogNorm, Normalize
+from matplotlib.figure import Figure
+from matplotlib.image import AxesImage
+from matplotlib.lines import Line2D
+from matplotlib.patches import Circle, Patch
+from matplotlib.ticker import MaxNLocator
+from numpy.typing import NDArray
+
+from nanonav.engine import SimulationResult, Trajectory, field_and_gradient
+
+Plane = Literal["xy", "xz", "yz", "all"]
+ColourScale = Literal["auto", "linear", "log"]
+
+PICTURE_NAMES: tuple[str, ...] = (
+    "heatmap_xy",
+    "heatmap_xz",
+    "heatmap_yz",
+    "heatmap_all",
+    "trajectory",
+    "concentration",
+    "learning",
+)
+"""The keys of ``render_all``: also the file names (``<name>.png``) the command line writes."""
+
+DPI = 100
+HEATMAP_RESOLUTION = 120
+# A log colour scale shows this many decades below the maximum, at most: the inverse-square and
+# diffusion fields diverge (softened) at their sources and would otherwise squash everything else.
+LOG_DECADES = 5.0
+# Beyond these counts the 3-D picture stays readable and fast by drawing less.
+MAX_ROBOT_PATHS = 30
+MAX_SPHERES = 60
+MAX_LINE_POINTS = 2000
+# Longer learning curves get a moving mean over a twentieth of the episodes, over the raw line.
+SMOOTH_AFTER = 60
+
+_PLANE_AXES: dict[str, tuple[int, int, int]] = {"xy": (0, 1, 2), "xz": (0, 2, 1), "yz": (1, 2, 0)}
+_AXIS_NAMES = "xyz"
+_LENGTH = "length units"
+_ROBOT_BLUE = "tab:blue"
+_CELL_RED = "tab:red"
+_HEATMAP_CMAP = "viridis"
+
+
+def _figure(width: float, height: float) -> Figure:
+    fig = Figure(figsize=(width, height), dpi=DPI, layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def _png(fig: Figure) -> bytes:
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=DPI)
+    return buffer.getvalue()
+
+
+def _trajectory(result: SimulationResult) -> Trajectory:
+    if result.trajectory is None:
+        raise ValueError(
+            "this result has no evaluation episode to draw (the run was stopped before it "
+            "finished); only the learning curve can be drawn"
+        )
+    return result.trajectory
+
+
+def _last_row(trajectory: Trajectory, robot: int) -> int:
+    """The history row that shows ``robot`` where it stopped: the first row at or after its last
+    step (rows may be ``stride`` steps apart, and a stopped robot stays put)."""
+    row = int(np.searchsorted(trajectory.step, trajectory.steps[robot], side="left"))
+    return min(row, len(trajectory.step) - 1)
+
+
+def _target_cell(trajectory: Trajectory) -> int:
+    """The cell nearest to robot 0 at the last step: the one the heatmap slices through."""
+    cells = trajectory.cells[-1]
+    robot = trajectory.robots[-1, 0]
+    return int(np.argmin(np.linalg.norm(cells - robot, axis=1)))
+
+
+def _resolve_scale(result: SimulationResult, scale: ColourScale) -> Literal["linear", "log"]:
+    if scale != "auto":
+        return scale
+    return "linear" if result.scenario.biomarker.model == "gaussian" else "log"
+
+
+# ---------------------------------------------------------------- heatmap (Figure 5)
+
+
+def _slices(
+    result: SimulationResult, planes: tuple[str, ...], resolution: int
+) -> dict[str, NDArray[np.float64]]:
+    """The true concentration on a ``resolution`` square grid over the whole cube, in each plane
+    through the target cell; one field evaluation for all planes."""
+    trajectory = _trajectory(result)
+    half = result.scenario.space.size / 2
+    target = trajectory.cells[-1, _target_cell(trajectory)]
+    axis = np.linspace(-half, half, resolution)
+    u, v = np.meshgrid(axis, axis, indexing="xy")
+    blocks = []
+    for plane in planes:
+        a, b, fixed = _PLANE_AXES[plane]
+        block = np.empty((resolution * resolution, 3))
+        block[:, a] = u.ravel()
+        block[:, b] = v.ravel()
+        block[:, fixed] = target[fixed]
+        blocks.append(block)
+    concentration, _ = field_and_gradient(
+        result.scenario.biomarker,
+        trajectory.cells[-1],
+        trajectory.emitter_offsets,
+        np.concatenate(blocks),
+    )
+    grids = concentration.reshape(len(planes), resolution, resolution)
+    return {plane: grids[i] for i, plane in enumerate(planes)}
+
+
+def _norm(values: list[NDArray[np.float64]], scale: Literal["linear", "log"]) -> Normalize:
+    top = max(float(v.max()) for v in values)
+    if scale == "linear":
+        return Normalize(vmin=0.0, vmax=top if top > 0 else 1.0)
+    positive = [v[v > 0] for v in values]
+    low = min((float(p.min()) for p in positive if p.size), default=top)
+    top = top if top > 0 else 1.0
+    low = max(low, top * 10.0**-LOG_DECADES)
+    return LogNorm(vmin=low if low < top else top / 10.0, vmax=top)
+
+
+def _draw_slice(
+    ax: Axes,
+    result: SimulationResult,
+    plane: str,
+    grid: NDArray[np.float64],
+    norm: Normalize,
+) -> tuple[AxesImage, bool]:
+    """Draw one slice; also say whether it cut any obstacle (for the legend)."""
+    trajectory = _trajectory(result)
+    half = result.scenario.space.size / 2
+    a, b, fixed = _PLANE_AXES[plane]
+    target_index = _target_cell(trajectory)
+    level = float(trajectory.cells[-1, target_index, fixed])
+    if isinstance(norm, LogNorm):
+        grid = np.clip(grid, norm.vmin, None)
+    image = ax.imshow(
+        grid,
+        origin="lower",
+        extent=(-half, half, -half, half),
+        cmap=_HEATMAP_CMAP,
+        norm=norm,
+        interpolation="bilinear",
+    )
+    radius = trajectory.obstacle_radius
+    cut = False
+    for centre in trajectory.obstacles[-1]:
+        depth = abs(float(centre[fixed]) - level)
+        if depth < radius:
+            cut = True
+            ax.add_patch(
+                Circle(
+                    (float(centre[a]), float(centre[b])),
+                    float(np.sqrt(radius**2 - depth**2)),
+                    facecolor="black",
+                    edgecolor="white",
+                    linewidth=0.8,
+                    alpha=0.85,
+                )
+            )
+    cells = trajectory.cells[-1]
+    others = np.delete(cells, target_index, axis=0)
+    if len(others):
+        ax.scatter(
+            others[:, a], others[:, b], s=50, facecolors="none", edgecolors=_CELL_RED, linewidths=2
+        )
+    ax.scatter(
+        cells[target_index, a],
+        cells[target_index, b],
+        s=70,
+        color=_CELL_RED,
+        edgecolors="white",
+        linewidths=1.2,
+        zorder=3,
+    )
+    ax.set_xlim(-half, half)
+    ax.set_ylim(-half, half)
+    ax.set_aspect("equal")
+    ax.set_xlabel(f"{_AXIS_NAMES[a]} ({_LENGTH})")
+    ax.set_ylabel(f"{_AXIS_NAMES[b]} ({_LENGTH})")
+    ax.set_title(f"{plane.upper()} plane at {_AXIS_NAMES[fixed]} = {level:.1f}")
+    return image, cut
+
+
+def _heatmap_legend_handles(other_cells: bool, obstacles: bool) -> list[Artist]:
+    handles: list[Artist] = [
+        Line2D(
+            [],
+            [],
+            marker="o",
+            linestyle="",
+            color=_CELL_RED,
+            markeredgecolor="white",
+            markersize=9,
+            label="target cell (in the slice)",
+        ),
+    ]
+    if other_cells:
+        handles.append(
+            Line2D(
+                [],
+                [],
+                marker="o",
+                linestyle="",
+                markerfacecolor="none",
+                markeredgecolor=_CELL_RED,
+                markeredgewidth=2,
+                markersize=8,
+                label="other cells (projected)",
+            )
+        )
+    if obstacles:
+        handles.append(
+            Patch(facecolor="black", edgecolor="grey", label="obstacles cut by the slice")
+        )
+    return handles  # fmt: skip
+
+
+def _heatmap_figure(
+    result: SimulationResult,
+    planes: tuple[str, ...],
+    slices: dict[str, NDArray[np.float64]],
+    scale: Literal["linear", "log"],
+) -> bytes:
+    trajectory = _trajectory(result)
+    single = len(planes) == 1
+    fig = _figure(6.4, 6.2) if single else _figure(4.6 * len(planes) + 1.4, 5.4)
+    axes = fig.subplots(1, len(planes), squeeze=False)[0]
+    norm = _norm([slices[p] for p in planes], scale)
+    drawn = [
+        _draw_slice(ax, result, plane, slices[plane], norm)
+        for ax, plane in zip(axes, planes, strict=True)
+    ]
+    colourbar = fig.colorbar(drawn[0][0], ax=list(axes), shrink=0.9)
+    colourbar.set_label(f"biomarker concentration (a.u.{', log scale' if scale == 'log' else ''})")
+    model = result.scenario.biomarker.model.replace("_", "-")
+    when = f"last step ({trajectory.length}) of the evaluation episode"
+    fig.suptitle(
+        f"Biomarker concentration, {model} field\n{when}"
+        if single
+        else f"Biomarker concentration, {model} field, at the {when}"
+    )
+    handles = _heatmap_legend_handles(
+        other_cells=trajectory.cells.shape[1] > 1, obstacles=any(cut for _, cut in drawn)
+    )
+    fig.legend(
+        handles=handles,
+        loc="outside lower center",
+        ncols=min(len(handles), 2 if single else 3),
+        frameon=False,
+    )
+    return _png(fig)
+
+
+def heatmap_png(
+    result: SimulationResult,
+    plane: Plane = "all",
+    *,
+    scale: ColourScale = "auto",
+    resolution: int = HEATMAP_RESOLUTION,
+) -> bytes:
+    """Figure 5: the true concentration in a plane through the target cell (the cell nearest to
+    robot 0 at the end of the evaluation episode), over the whole cube, with the cells and the
+    obstacles the slice cuts. ``plane="all"`` draws XY, XZ and YZ side by side on one colour
+    scale. ``scale="auto"`` is linear for the Gaussian field and logarithmic for the
+    inverse-square and diffusion fields, which span decades."""
+    planes = ("xy", "xz", "yz") if plane == "all" else (plane,)
+    resolved = _resolve_scale(result, scale)
+    return _heatmap_figure(result, planes, _slices(result, planes, resolution), resolved)
+
+
+# ---------------------------------------------------------------- trajectory (Figure 3)
+
+
+def _thin(path: NDArray[np.float64]) -> NDArray[np.float64]:
+    """At most ``MAX_LINE_POINTS`` rows of a path, always keeping its last point."""
+    if len(path) <= MAX_LINE_POINTS:
+        return path
+    stride = int(np.ceil(len(path) / MAX_LINE_POINTS))
+    return np.concatenate([path[::stride], path[-1:]])
+
+
+def _draw_obstacles(ax: Any, centres: NDArray[np.float64], radius: float) -> None:
+    if len(centres) == 0:
+        return
+    if len(centres) > MAX_SPHERES:
+        ax.scatter(*centres.T, s=12, color="black", alpha=0.6, depthshade=True, zorder=1)
+        return
+    theta, phi = np.meshgrid(np.linspace(0, 2 * np.pi, 16), np.linspace(0, np.pi, 9))
+    unit = np.stack([np.cos(theta) * np.sin(phi), np.sin(theta) * np.sin(phi), np.cos(phi)], axis=0)
+    for centre in centres:
+        x, y, z = centre[:, None, None] + radius * unit
+        ax.plot_surface(x, y, z, color="black", alpha=0.55, linewidth=0, shade=True, zorder=1)
+
+
+def trajectory_png(result: SimulationResult) -> bytes:
+    """Figure 3: the robots' paths (blue, each up to the step it stopped) and the cells' random
+    walks (red) in the evaluation episode, with the obstacles as black spheres at their last
+    positions. Beyond ``MAX_ROBOT_PATHS`` robots only the first ones are drawn, and the title
+    says so."""
+    trajectory = _trajectory(result)
+    half = result.scenario.space.size / 2
+    robots_total = trajectory.robots.shape[1]
+    shown = min(robots_total, MAX_ROBOT_PATHS)
+    fig = _figure(7.5, 6.8)
+    # Explicit draw order (paths over spheres) reads better than matplotlib's depth sorting.
+    ax: Any = fig.add_subplot(projection="3d", computed_zorder=False)
+    _draw_obstacles(ax, trajectory.obstacles[-1], trajectory.obstacle_radius)
+    width = 1.6 if shown == 1 else 1.0
+    for i in range(shown):
+        path = _thin(trajectory.robots[: _last_row(trajectory, i) + 1, i])
+        ax.plot(*path.T, color=_ROBOT_BLUE, linewidth=width, alpha=0.9, zorder=2)
+        ax.scatter(*path[-1], color=_ROBOT_BLUE, marker="X", s=45, depthshade=False, zorder=3)
+    starts = trajectory.robots[0, :shown]
+    ax.scatter(*starts.T, color="tab:green", marker="o", s=30, depthshade=False, zorder=3)
+    for j in range(trajectory.cells.shape[1]):
+        path = _thin(trajectory.cells[:, j])
+        ax.plot(*path.T, color=_CELL_RED, linewidth=1.6, zorder=4)
+        ax.scatter(
+            *path[-1], color=_CELL_RED, marker="*", s=160, edgecolors="black", depthshade=False,
+            zorder=5,
+        )  # fmt: skip
+    ax.set_xlim(-half, half)
+    ax.set_ylim(-half, half)
+    ax.set_zlim(-half, half)
+    ax.set_box_aspect((1, 1, 1), zoom=0.9)
+    ax.set_xlabel(f"x ({_LENGTH})")
+    ax.set_ylabel(f"y ({_LENGTH})")
+    ax.set_zlabel(f"z ({_LENGTH})")
+    reached = int(np.count_nonzero(trajectory.reached))
+    who = "robot" if robots_total == 1 else f"{robots_total} robots"
+    if shown < robots_total:
+        who += f" (paths of the first {shown} drawn)"
+    ax.set_title(
+        f"Paths of the {who} and the cancer cells\n"
+        f"{reached} of {robots_total} reached a cell in {trajectory.length} steps"
+    )
+    ax.legend(
+        handles=[
+            Line2D([], [], color=_ROBOT_BLUE, label="robot path"),
+            Line2D([], [], color=_CELL_RED, label="cell path"),
+            Line2D([], [], color="tab:green", marker="o", linestyle="", label="robot start"),
+            Line2D([], [], color=_ROBOT_BLUE, marker="X", linestyle="", label="robot end"),
+            Line2D(
+                [], [], color=_CELL_RED, marker="*", markersize=11, markeredgecolor="black",
+                linestyle="", label="cell at the end",
+            ),
+            Line2D(
+                [], [], color="black", marker="o", markersize=9, alpha=0.55, linestyle="",
+                label="obstacle",
+            ),
+        ],
+        loc="upper left",
+        fontsize="small",
+    )  # fmt: skip
+    return _png(fig)
+
+
+# ---------------------------------------------------------------- concentration (Figure 4)
+
+
+def concentration_png(result: SimulationResult) -> bytes:
+    """Figure 4: the biomarker concentration at the robots (red, left axis) and their distance to
+    the nearest cell (blue, right axis) over the steps of the evaluation episode.
+
+    One robot: its own curves up to the step it stopped. A swarm: the mean over all robots with
+    a band from the 10th to the 90th percentile (a robot that stopped keeps its last values), so
+    the picture stays readable for thousands of robots.
+    """
+    trajectory = _trajectory(result)
+    n = trajectory.robots.shape[1]
+    log_scale = _resolve_scale(result, "auto") == "log"
+    fig = _figure(8.0, 4.8)
+    left = fig.add_subplot()
+    right = left.twinx()
+    if n == 1:
+        end = _last_row(trajectory, 0) + 1
+        steps = trajectory.step[:end]
+        left.plot(steps, trajectory.concentration[:end, 0], color=_CELL_RED, linewidth=1.8)
+        right.plot(steps, trajectory.distance[:end, 0], color=_ROBOT_BLUE, linewidth=1.8)
+        what = "one robot, evaluation episode"
+        labels = ("concentration at the robot", "distance to the nearest cell")
+    else:
+        steps = trajectory.step
+        for axis, values, colour in (
+            (left, trajectory.concentration, _CELL_RED),
+            (right, trajectory.distance, _ROBOT_BLUE),
+        ):
+            low, high = np.percentile(values, [10, 90], axis=1)
+            axis.fill_between(steps, low, high, color=colour, alpha=0.18, linewidth=0)
+            axis.plot(steps, values.mean(axis=1), color=colour, linewidth=1.8)
+        what = f"{n} robots: mean and 10-90% band, evaluation episode"
+        labels = ("mean concentration at the robots", "mean distance to the nearest cell")
+    if log_scale:
+        left.set_yscale("log")
+    left.set_xlabel("step of the evaluation episode")
+    left.set_ylabel(
+        f"biomarker concentration (a.u.{', log scale' if log_scale else ''})", color=_CELL_RED
+    )
+    right.set_ylabel(f"distance to the nearest cell ({_LENGTH})", color=_ROBOT_BLUE)
+    left.tick_params(axis="y", colors=_CELL_RED)
+    right.tick_params(axis="y", colors=_ROBOT_BLUE)
+    right.set_ylim(bottom=0)
+    left.set_xlim(0, max(int(steps[-1]), 1))
+    left.grid(alpha=0.3)
+    left.set_title(f"Biomarker concentration and distance to the nearest cell\n{what}")
+    left.legend(
+        handles=[
+            Line2D([], [], color=_CELL_RED, linewidth=1.8, label=labels[0]),
+            Line2D([], [], color=_ROBOT_BLUE, linewidth=1.8, label=labels[1]),
+        ],
+        loc="center right",
+        fontsize="small",
+    )
+    return _png(fig)
+
+
+# ---------------------------------------------------------------- learning curve
+
+_POLICY_NAMES = {
+    "q_learning": "Q-learning",
+    "gradient": "gradient climbing",
+    "run_and_tumble": "run and tumble",
+    "random": "random walk",
+}
+_LEARNING_PANELS = (
+    ("steps", "total_steps", "steps per episode", "steps", 1.0),
+    ("success_rate", "success_rate", "robots that reached a cell", "success rate (%)", 100.0),
+    ("mean_return", "mean_return", "mean return per robot", "return (reward units)", 1.0),
+    ("epsilon", None, "exploration rate", "epsilon", 1.0),
+)
+
+
+def learning_png(result: SimulationResult) -> bytes:
+    """The learning curve, one point per training episode: steps taken, success rate, mean
+    return and the exploration rate. The greedy evaluation episode, when the run finished it,
+    is drawn as a star after them. Works for stopped runs too, from the episodes they
+    finished."""
+    episodes = result.episodes
+    summary = result.summary if result.trajectory is not None else {}
+    if not episodes and not summary:
+        raise ValueError("this result has no finished episode to draw a learning curve from")
+    index = np.array([int(e["episode"]) for e in episodes])
+    planned = result.scenario.learning.episodes
+    window = len(episodes) // 20 if len(episodes) > SMOOTH_AFTER else 1
+    fig = _figure(9.0, 6.0)
+    axes = fig.subplots(2, 2, sharex=True)
+    marker = "o" if len(episodes) <= SMOOTH_AFTER else None
+    for ax, (key, summary_key, title, ylabel, factor) in zip(
+        axes.ravel(), _LEARNING_PANELS, strict=True
+    ):
+        values = np.array([float(e[key]) * factor for e in episodes])
+        if window > 1 and key != "epsilon":
+            ax.plot(index, values, color=_ROBOT_BLUE, alpha=0.3, linewidth=0.8)
+            mean = np.convolve(values, np.ones(window) / window, mode="valid")
+            ax.plot(
+                index[window - 1 :], mean, color=_ROBOT_BLUE, linewidth=1.8,
+                label=f"training (mean of {window})",
+            )  # fmt: skip
+        elif episodes:
+            ax.plot(index, values, color=_ROBOT_BLUE, marker=marker, markersize=3, label="training")
+        if summary:
+            value = 0.0 if summary_key is None else summary.get(summary_key)
+            if value is not None:
+                ax.plot(
+                    [planned], [float(value) * factor],
+                    color="tab:orange", marker="*", markersize=13, markeredgecolor="black",
+                    linestyle="", label="evaluation (greedy)",
+                )  # fmt: skip
+        ax.set_title(title)
+        ax.set_ylabel(ylabel)
+        ax.grid(alpha=0.3)
+    axes[0, 1].set_ylim(-5, 105)
+    axes[1, 1].set_ylim(-0.05, 1.05)
+    pad = max(0.5, 0.03 * planned)
+    axes[0, 0].set_xlim(-pad, planned + pad)
+    for ax in axes[1]:
+        ax.set_xlabel("episode")
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True, min_n_ticks=1))
+    axes[0, 0].legend(loc="best", fontsize="small")
+    policy = _POLICY_NAMES[result.scenario.robots.policy]
+    status = "" if result.completed else ", stopped early"
+    fig.suptitle(f"Learning curve: {policy}, {len(episodes)} training episodes{status}")
+    return _png(fig)
+
+
+# ---------------------------------------------------------------- all of them
+
+
+def render_all(result: SimulationResult, *, scale: ColourScale = "auto") -> dict[str, bytes]:
+    """Every picture, keyed by ``PICTURE_NAMES``; the field is evaluated once for the four
+    heatmaps."""
+    planes = ("xy", "xz", "yz")
+    slices = _slices(result, planes, HEATMAP_RESOLUTION)
+    resolved = _resolve_scale(result, scale)
+    pictures = {f"heatmap_{p}": _heatmap_figure(result, (p,), slices, resolved) for p in planes}
+    pictures["heatmap_all"] = _heatmap_figure(result, planes, slices, resolved)
+    pictures["trajectory"] = trajectory_png(result)
+    pictures["concentration"] = concentration_png(result)
+    pictures["learning"] = learning_png(result)
+    return {name: pictures[name] for name in PICTURE_NAMES}
