@@ -11,7 +11,8 @@ from __future__ import annotations
 import math
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic_core import InitErrorDetails, PydanticCustomError
 
 PresetName = Literal["paper-single", "paper-swarm"]
 FieldModel = Literal["gaussian", "inverse_square", "diffusion"]
@@ -29,6 +30,14 @@ class ScenarioError(ValueError):
         super().__init__(f"{field}: {message}")
         self.field = field
         self.message = message
+
+
+def _field_error(model: str, loc: tuple[str, ...], value: Any, message: str) -> ValidationError:
+    """A validation error that names the field at fault, for rules that span several fields."""
+    error = PydanticCustomError("scenario_rule", message)
+    return ValidationError.from_exception_data(
+        model, [InitErrorDetails(type=error, loc=loc, input=value)]
+    )
 
 
 class _Part(BaseModel):
@@ -199,7 +208,9 @@ class Learning(_Part):
     @model_validator(mode="after")
     def _epsilon_order(self) -> Learning:
         if self.epsilon_end > self.epsilon_start:
-            raise ValueError("epsilon_end must not exceed epsilon_start")
+            raise _field_error(
+                "Learning", ("epsilon_end",), self.epsilon_end, "must not exceed epsilon_start"
+            )
         return self
 
 
@@ -264,16 +275,24 @@ class Scenario(_Part):
     @model_validator(mode="after")
     def _fits_in_space(self) -> Scenario:
         half = self.space.size / 2
-        if self.obstacles.radius >= half / 2:
-            raise ValueError("obstacles.radius must be less than a quarter of space.size")
-        sphere = 4.0 / 3.0 * math.pi * self.obstacles.radius**3
+        radius = self.obstacles.radius
+        if radius >= half / 2:
+            raise _field_error(
+                "Scenario", ("obstacles", "radius"), radius,
+                "must be less than a quarter of space.size",
+            )  # fmt: skip
+        sphere = 4.0 / 3.0 * math.pi * radius**3
         if self.obstacles.count * sphere > MAX_OBSTACLE_VOLUME_FRACTION * self.space.size**3:
-            raise ValueError(
-                "obstacles: count * sphere volume must stay under "
-                f"{MAX_OBSTACLE_VOLUME_FRACTION:.0%} of the space's volume"
-            )
+            raise _field_error(
+                "Scenario", ("obstacles", "count"), self.obstacles.count,
+                f"obstacles of this radius would fill more than "
+                f"{MAX_OBSTACLE_VOLUME_FRACTION:.0%} of the space",
+            )  # fmt: skip
         if self.reach_distance >= half:
-            raise ValueError("reach_distance must be less than half of space.size")
+            raise _field_error(
+                "Scenario", ("reach_distance",), self.reach_distance,
+                "must be less than half of space.size",
+            )  # fmt: skip
         return self
 
     @property

@@ -59,8 +59,12 @@ def test_invalid_fields_are_rejected_by_name(data: dict[str, object], field: str
 
 
 def test_cross_field_rules_name_their_part() -> None:
-    assert error_locations({"learning": {"epsilon_start": 0.1, "epsilon_end": 0.5}}) == ["learning"]
-    assert error_locations({"obstacles": {"count": 1000, "radius": 5.0}}) == [""]
+    assert error_locations({"learning": {"epsilon_start": 0.1, "epsilon_end": 0.5}}) == [
+        "learning.epsilon_end"
+    ]
+    assert error_locations({"obstacles": {"count": 1000, "radius": 5.0}}) == ["obstacles.count"]
+    assert error_locations({"space": {"size": 5}}) == ["obstacles.radius"]
+    assert error_locations({"space": {"size": 20}, "reach_distance": 11}) == ["reach_distance"]
 
 
 def test_every_field_is_documented() -> None:
