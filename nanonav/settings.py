@@ -1,0 +1,118 @@
+"""The one place that reads the environment: a typed, validated ``Settings`` object.
+
+Every variable has the ``NANONAV_`` prefix; ``DATABASE_URL``, ``HOST`` and ``PORT`` are also read
+without it, as platforms and ``make run`` set them. Values are checked when the object is built,
+so a bad configuration stops a process at start-up, not at its first request.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+from pydantic import AliasChoices, Field, field_validator
+from pydantic_settings import BaseSettings, SettingsConfigDict
+from sqlalchemy.engine import make_url
+from sqlalchemy.exc import ArgumentError
+
+DEFAULT_DATABASE_URL = "sqlite:///var/nanonav.db"
+
+
+def _aliases(name: str, *unprefixed: str) -> AliasChoices:
+    return AliasChoices(f"NANONAV_{name.upper()}", *unprefixed, name)
+
+
+class Settings(BaseSettings):
+    """Configuration of the API, the worker and the store."""
+
+    model_config = SettingsConfigDict(env_prefix="NANONAV_", extra="ignore", frozen=True)
+
+    database_url: str = Field(
+        DEFAULT_DATABASE_URL,
+        validation_alias=_aliases("database_url", "DATABASE_URL"),
+        description="SQLAlchemy URL of the job store; a relative SQLite path is relative to the "
+        "working directory. 'postgresql://' means the psycopg 3 driver.",
+    )
+    host: str = Field(
+        "127.0.0.1", validation_alias=_aliases("host", "HOST"), description="API bind address."
+    )
+    port: int = Field(
+        8000, ge=1, le=65535, validation_alias=_aliases("port", "PORT"), description="API port."
+    )
+    max_body_bytes: int = Field(
+        1_000_000,
+        ge=1024,
+        validation_alias=_aliases("max_body_bytes"),
+        description="Largest request body the API reads, bytes; larger ones get 413.",
+    )
+    robot_steps_budget: int = Field(
+        1_000_000_000,
+        ge=1,
+        validation_alias=_aliases("robot_steps_budget"),
+        description="Largest robots x max_steps x (episodes + 1) a submitted scenario may cost.",
+    )
+    job_time_limit_s: float = Field(
+        3600.0,
+        gt=0,
+        validation_alias=_aliases("job_time_limit_s"),
+        description="Wall-clock seconds a job may run before it is stopped and failed.",
+    )
+    progress_interval_s: float = Field(
+        0.25,
+        gt=0,
+        validation_alias=_aliases("progress_interval_s"),
+        description="Least time between two progress writes of a running job; each write also "
+        "renews the lease and reads whether a cancel was requested.",
+    )
+    poll_interval_s: float = Field(
+        0.2,
+        gt=0,
+        validation_alias=_aliases("poll_interval_s"),
+        description="How long an idle worker sleeps between two looks at the queue.",
+    )
+    lease_s: float = Field(
+        120.0,
+        gt=0,
+        validation_alias=_aliases("lease_s"),
+        description="How long a claim holds without a progress write; a running job whose lease "
+        "expired (its worker died) is queued again.",
+    )
+    max_attempts: int = Field(
+        3,
+        ge=1,
+        validation_alias=_aliases("max_attempts"),
+        description="Claims a job may get before an expired lease fails it instead.",
+    )
+    worker_nice: int = Field(
+        5,
+        ge=0,
+        le=19,
+        validation_alias=_aliases("worker_nice"),
+        description="Niceness a worker process adds to itself, so that on a shared machine the "
+        "API answers promptly while simulations run; 0 leaves the priority alone.",
+    )
+    worker_concurrency: int = Field(
+        1,
+        ge=1,
+        le=256,
+        validation_alias=_aliases("worker_concurrency"),
+        description="Worker processes `nanonav worker` starts unless --concurrency says otherwise.",
+    )
+
+    @field_validator("database_url")
+    @classmethod
+    def _known_url(cls, value: str) -> str:
+        try:
+            url = make_url(value)
+        except ArgumentError as error:
+            raise ValueError(f"not a database URL: {error}") from None
+        if url.drivername in {"postgresql", "postgres"}:
+            url = url.set(drivername="postgresql+psycopg")
+        if url.get_backend_name() not in {"sqlite", "postgresql"}:
+            raise ValueError("only sqlite:// and postgresql:// databases are supported")
+        return url.render_as_string(hide_password=False)
+
+
+@lru_cache(maxsize=1)
+def get_settings() -> Settings:
+    """The process's settings, read from the environment once."""
+    return Settings()

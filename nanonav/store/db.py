@@ -1,0 +1,77 @@
+"""Engines and sessions for SQLite and PostgreSQL.
+
+SQLite runs in WAL mode (readers never wait for the writer) with a busy timeout and foreign keys
+on. SQLAlchemy, not the ``sqlite3`` module, emits BEGIN: an ordinary unit of work starts with a
+deferred BEGIN, and one that asked for :data:`WRITE_LOCK` starts with ``BEGIN IMMEDIATE``, which
+takes the write lock up front so a read-then-write transaction (the claim) can never fail to
+upgrade its lock half-way.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+from sqlalchemy import Engine, create_engine, event
+from sqlalchemy.engine import Connection, make_url
+from sqlalchemy.orm import Session, sessionmaker
+from sqlalchemy.pool import ConnectionPoolEntry
+
+BUSY_TIMEOUT_MS = 30_000
+WRITE_LOCK = "nanonav_write_lock"
+
+
+def make_engine(url: str, **kwargs: Any) -> Engine:
+    """An engine for ``url``; for a SQLite file, its directory is created if missing."""
+    parsed = make_url(url)
+    if parsed.get_backend_name() != "sqlite":
+        return create_engine(parsed, pool_pre_ping=True, **kwargs)
+    if parsed.database and parsed.database != ":memory:":
+        Path(parsed.database).parent.mkdir(parents=True, exist_ok=True)
+    engine = create_engine(
+        parsed,
+        connect_args={"timeout": BUSY_TIMEOUT_MS / 1000, "check_same_thread": False},
+        **kwargs,
+    )
+    event.listen(engine, "connect", _sqlite_on_connect)
+    event.listen(engine, "begin", _sqlite_on_begin)
+    return engine
+
+
+def _sqlite_on_connect(dbapi_connection: Any, record: ConnectionPoolEntry) -> None:
+    dbapi_connection.isolation_level = None
+    cursor = dbapi_connection.cursor()
+    try:
+        cursor.execute("PRAGMA journal_mode=WAL")
+        cursor.execute(f"PRAGMA busy_timeout={BUSY_TIMEOUT_MS}")
+        cursor.execute("PRAGMA foreign_keys=ON")
+        cursor.execute("PRAGMA synchronous=NORMAL")
+    finally:
+        cursor.close()
+
+
+def _sqlite_on_begin(connection: Connection) -> None:
+    if connection.get_execution_options().get(WRITE_LOCK):
+        connection.exec_driver_sql("BEGIN IMMEDIATE")
+    else:
+        connection.exec_driver_sql("BEGIN")
+
+
+def make_sessionmaker(engine: Engine) -> sessionmaker[Session]:
+    """Sessions that keep loaded rows readable after commit (rows map to frozen records)."""
+    return sessionmaker(engine, expire_on_commit=False)
+
+
+@contextmanager
+def unit_of_work(sessions: sessionmaker[Session], *, write: bool = False) -> Iterator[Session]:
+    """One transaction: committed if the block returns, rolled back if it raises.
+
+    ``write=True`` takes SQLite's write lock at BEGIN (PostgreSQL ignores the option): use it for
+    every transaction that reads rows and then changes them.
+    """
+    with sessions() as session, session.begin():
+        if write:
+            session.connection(execution_options={WRITE_LOCK: True})
+        yield session

@@ -1,0 +1,37 @@
+"""What the store refuses, as typed exceptions that callers map to their own answers."""
+
+from __future__ import annotations
+
+from nanonav.store.models import JobStatus
+
+
+class StoreError(Exception):
+    """Base of the store's refusals."""
+
+
+class JobNotFound(StoreError):
+    def __init__(self, job_id: int) -> None:
+        super().__init__(f"there is no job {job_id}")
+        self.job_id = job_id
+
+
+class JobAlreadyFinished(StoreError):
+    def __init__(self, job_id: int, status: JobStatus) -> None:
+        super().__init__(f"job {job_id} has already finished: it is {status.value}")
+        self.job_id = job_id
+        self.status = status
+
+
+class ResultsUnavailable(StoreError):
+    def __init__(self, job_id: int, status: JobStatus) -> None:
+        super().__init__(f"job {job_id} is {status.value}; results exist only for succeeded jobs")
+        self.job_id = job_id
+        self.status = status
+
+
+class LeaseLost(StoreError):
+    """The worker's claim on a job is no longer valid: the write it tried was not made."""
+
+    def __init__(self, job_id: int) -> None:
+        super().__init__(f"the lease on job {job_id} was lost")
+        self.job_id = job_id

@@ -1,0 +1,405 @@
+"""Every query of the job queue. Each public method of :class:`JobStore` is one transaction.
+
+The life of a job: ``enqueue`` -> ``claim`` (a lease with a fresh token) -> ``report_progress``
+(renews the lease, says whether a cancel was asked) -> ``finish`` / ``fail`` / ``release``; all
+three are fenced by the lease token. ``recover_expired`` hands back the jobs of dead workers.
+"""
+
+from __future__ import annotations
+
+import secrets
+from collections.abc import Mapping
+from dataclasses import dataclass
+from datetime import UTC, datetime, timedelta
+from typing import Any
+
+from numpy.typing import NDArray
+from sqlalchemy import Engine, case, literal, select, update
+from sqlalchemy.exc import IntegrityError
+from sqlalchemy.orm import Session
+
+from nanonav.store.arrays import pack, unpack
+from nanonav.store.db import make_engine, make_sessionmaker, unit_of_work
+from nanonav.store.errors import JobAlreadyFinished, JobNotFound, LeaseLost, ResultsUnavailable
+from nanonav.store.models import Job, JobPlot, JobResult, JobStatus, UTCDateTime
+
+
+def utcnow() -> datetime:
+    return datetime.now(UTC)
+
+
+@dataclass(frozen=True)
+class JobRecord:
+    """A job as its row says, detached from any session."""
+
+    id: int
+    status: JobStatus
+    scenario: dict[str, Any]
+    robot_steps: int
+    idempotency_key: str | None
+    created_at: datetime
+    started_at: datetime | None
+    finished_at: datetime | None
+    episode: int
+    episodes: int
+    fraction: float
+    cancel_requested: bool
+    error: str | None
+    attempts: int
+
+    @classmethod
+    def of(cls, row: Job) -> JobRecord:
+        return cls(
+            id=row.id,
+            status=JobStatus(row.status),
+            scenario=row.scenario,
+            robot_steps=row.robot_steps,
+            idempotency_key=row.idempotency_key,
+            created_at=row.created_at,
+            started_at=row.started_at,
+            finished_at=row.finished_at,
+            episode=row.episode,
+            episodes=row.episodes,
+            fraction=row.fraction,
+            cancel_requested=row.cancel_requested,
+            error=row.error,
+            attempts=row.attempts,
+        )
+
+
+@dataclass(frozen=True)
+class Claim:
+    """A job a worker holds; ``token`` fences every write the worker makes about it."""
+
+    job: JobRecord
+    token: str
+    owner: str
+
+
+@dataclass(frozen=True)
+class Page:
+    jobs: list[JobRecord]
+    next_before_id: int | None
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """What a run produced, as the worker hands it to the store."""
+
+    completed: bool
+    metrics: dict[str, Any]
+    trajectory: Mapping[str, NDArray[Any]] | None
+    qtable: Mapping[str, NDArray[Any]] | None
+    plots: Mapping[str, bytes]
+
+
+class JobStore:
+    """The job queue and its results on one database."""
+
+    def __init__(self, engine: Engine) -> None:
+        self.engine = engine
+        self._sessions = make_sessionmaker(engine)
+
+    @classmethod
+    def from_url(cls, url: str) -> JobStore:
+        return cls(make_engine(url))
+
+    def close(self) -> None:
+        self.engine.dispose()
+
+    # -- the client's side ------------------------------------------------------------------
+
+    def enqueue(
+        self,
+        scenario: dict[str, Any],
+        *,
+        robot_steps: int,
+        episodes: int,
+        idempotency_key: str | None = None,
+    ) -> JobRecord:
+        """A new queued job; with a key already used, the job that key made instead."""
+        try:
+            with unit_of_work(self._sessions) as session:
+                row = Job(
+                    status=JobStatus.QUEUED,
+                    scenario=scenario,
+                    robot_steps=robot_steps,
+                    idempotency_key=idempotency_key,
+                    created_at=utcnow(),
+                    episode=0,
+                    episodes=episodes,
+                    fraction=0.0,
+                    cancel_requested=False,
+                    attempts=0,
+                )
+                session.add(row)
+                session.flush()
+                return JobRecord.of(row)
+        except IntegrityError:
+            if idempotency_key is None:
+                raise
+            with unit_of_work(self._sessions) as session:
+                existing = session.scalars(
+                    select(Job).where(Job.idempotency_key == idempotency_key)
+                ).one()
+                return JobRecord.of(existing)
+
+    def get(self, job_id: int) -> JobRecord:
+        with unit_of_work(self._sessions) as session:
+            return JobRecord.of(_job(session, job_id))
+
+    def page(self, *, status: JobStatus | None, limit: int, before_id: int | None) -> Page:
+        """Up to ``limit`` jobs, newest first, older than ``before_id`` when given."""
+        query = select(Job).order_by(Job.id.desc()).limit(limit + 1)
+        if status is not None:
+            query = query.where(Job.status == status)
+        if before_id is not None:
+            query = query.where(Job.id < before_id)
+        with unit_of_work(self._sessions) as session:
+            rows = [JobRecord.of(row) for row in session.scalars(query)]
+        more = len(rows) > limit
+        rows = rows[:limit]
+        return Page(jobs=rows, next_before_id=rows[-1].id if more else None)
+
+    def cancel(self, job_id: int) -> JobRecord:
+        """A queued job is cancelled now; a running one is asked to stop."""
+        now = utcnow()
+        with unit_of_work(self._sessions, write=True) as session:
+            row = _job(session, job_id)
+            if row.status == JobStatus.QUEUED:
+                row.status = JobStatus.CANCELLED
+                row.finished_at = now
+            elif row.status == JobStatus.RUNNING:
+                row.cancel_requested = True
+            elif row.status != JobStatus.CANCELLED:
+                raise JobAlreadyFinished(job_id, JobStatus(row.status))
+            session.flush()
+            return JobRecord.of(row)
+
+    def metrics(self, job_id: int) -> dict[str, Any]:
+        with unit_of_work(self._sessions) as session:
+            return _result(session, job_id).metrics
+
+    def trajectory(self, job_id: int) -> dict[str, NDArray[Any]]:
+        with unit_of_work(self._sessions) as session:
+            blob = _result(session, job_id).trajectory
+        return unpack(blob) if blob is not None else {}
+
+    def qtable(self, job_id: int) -> dict[str, NDArray[Any]]:
+        with unit_of_work(self._sessions) as session:
+            blob = _result(session, job_id).qtable
+        return unpack(blob) if blob is not None else {}
+
+    def plot(self, job_id: int, name: str) -> bytes | None:
+        """The PNG ``name`` of a succeeded job, or None if the job has no such picture."""
+        with unit_of_work(self._sessions) as session:
+            _succeeded(session, job_id)
+            return session.scalars(
+                select(JobPlot.png).where(JobPlot.job_id == job_id, JobPlot.name == name)
+            ).one_or_none()
+
+    def partial_result(self, job_id: int) -> dict[str, Any] | None:
+        """The metrics a job stored whatever its status (a cancelled job keeps its episodes)."""
+        with unit_of_work(self._sessions) as session:
+            _job(session, job_id)
+            row = session.get(JobResult, job_id)
+            return None if row is None else row.metrics
+
+    # -- the worker's side ------------------------------------------------------------------
+
+    def claim(self, owner: str, *, lease_s: float, now: datetime | None = None) -> Claim | None:
+        """The oldest queued job, now running under a new lease, or None if nothing waits."""
+        now = now or utcnow()
+        token = secrets.token_hex(16)
+        oldest = (
+            select(Job.id)
+            .where(Job.status == JobStatus.QUEUED)
+            .order_by(Job.id)
+            .limit(1)
+            .with_for_update(skip_locked=True)
+            .scalar_subquery()
+        )
+        claim = (
+            update(Job)
+            .where(Job.id == oldest, Job.status == JobStatus.QUEUED)
+            .values(
+                status=JobStatus.RUNNING,
+                lease_token=token,
+                lease_owner=owner,
+                lease_expires_at=now + timedelta(seconds=lease_s),
+                attempts=Job.attempts + 1,
+                started_at=now,
+                error=None,
+            )
+            .returning(Job)
+            .execution_options(synchronize_session=False)
+        )
+        with unit_of_work(self._sessions, write=True) as session:
+            row = session.scalars(claim).one_or_none()
+            if row is None:
+                return None
+            return Claim(job=JobRecord.of(row), token=token, owner=owner)
+
+    def report_progress(
+        self,
+        claim: Claim,
+        *,
+        episode: int,
+        episodes: int,
+        fraction: float,
+        lease_s: float,
+        now: datetime | None = None,
+    ) -> bool:
+        """Write the progress, renew the lease; True if a client asked to cancel the job."""
+        now = now or utcnow()
+        statement = (
+            _fenced(claim)
+            .values(
+                episode=episode,
+                episodes=episodes,
+                fraction=min(max(fraction, 0.0), 1.0),
+                lease_expires_at=now + timedelta(seconds=lease_s),
+            )
+            .returning(Job.cancel_requested)
+        )
+        with unit_of_work(self._sessions) as session:
+            cancel = session.scalars(statement).one_or_none()
+        if cancel is None:
+            raise LeaseLost(claim.job.id)
+        return bool(cancel)
+
+    def renew(self, claim: Claim, *, lease_s: float, now: datetime | None = None) -> None:
+        """Extend the lease without touching the progress (a heartbeat)."""
+        now = now or utcnow()
+        statement = (
+            _fenced(claim)
+            .values(lease_expires_at=now + timedelta(seconds=lease_s))
+            .returning(Job.id)
+        )
+        with unit_of_work(self._sessions) as session:
+            if session.scalars(statement).one_or_none() is None:
+                raise LeaseLost(claim.job.id)
+
+    def finish(self, claim: Claim, outcome: Outcome, *, now: datetime | None = None) -> JobRecord:
+        """Store what the run produced; the job ends succeeded, or cancelled if it was stopped."""
+        now = now or utcnow()
+        status = JobStatus.SUCCEEDED if outcome.completed else JobStatus.CANCELLED
+        values: dict[str, Any] = {"status": status, "finished_at": now, **_lease_cleared()}
+        if outcome.completed:
+            values.update(fraction=1.0, episode=Job.episodes)
+        with unit_of_work(self._sessions, write=True) as session:
+            row = session.scalars(_fenced(claim).values(**values).returning(Job)).one_or_none()
+            if row is None:
+                raise LeaseLost(claim.job.id)
+            session.add(
+                JobResult(
+                    job_id=claim.job.id,
+                    completed=outcome.completed,
+                    metrics=outcome.metrics,
+                    trajectory=None if outcome.trajectory is None else pack(outcome.trajectory),
+                    qtable=None if outcome.qtable is None else pack(outcome.qtable),
+                )
+            )
+            session.add_all(
+                JobPlot(job_id=claim.job.id, name=name, png=png)
+                for name, png in outcome.plots.items()
+            )
+            return JobRecord.of(row)
+
+    def fail(self, claim: Claim, error: str, *, now: datetime | None = None) -> JobRecord:
+        """The job ends failed with ``error``, a sentence a person can read."""
+        now = now or utcnow()
+        values = {"status": JobStatus.FAILED, "finished_at": now, "error": error}
+        with unit_of_work(self._sessions) as session:
+            row = session.scalars(
+                _fenced(claim).values(**values, **_lease_cleared()).returning(Job)
+            ).one_or_none()
+            if row is None:
+                raise LeaseLost(claim.job.id)
+            return JobRecord.of(row)
+
+    def release(self, claim: Claim) -> JobRecord:
+        """Give the job back to the queue untouched, as if this claim had never happened."""
+        values = {
+            "status": JobStatus.QUEUED,
+            "attempts": Job.attempts - 1,
+            "started_at": None,
+            "episode": 0,
+            "fraction": 0.0,
+        }
+        with unit_of_work(self._sessions) as session:
+            row = session.scalars(
+                _fenced(claim).values(**values, **_lease_cleared()).returning(Job)
+            ).one_or_none()
+            if row is None:
+                raise LeaseLost(claim.job.id)
+            return JobRecord.of(row)
+
+    def recover_expired(self, *, max_attempts: int, now: datetime | None = None) -> int:
+        """Jobs whose lease ran out (their worker died) are queued again, or failed once they
+        used ``max_attempts`` claims, or cancelled if a cancel was asked; returns how many."""
+        now = now or utcnow()
+        status = case(
+            (Job.cancel_requested, JobStatus.CANCELLED.value),
+            (Job.attempts >= max_attempts, JobStatus.FAILED.value),
+            else_=JobStatus.QUEUED.value,
+        )
+        error = case(
+            (Job.cancel_requested, None),
+            (
+                Job.attempts >= max_attempts,
+                f"its worker stopped answering {max_attempts} times; given up",
+            ),
+            else_=None,
+        )
+        finished = case(
+            (Job.cancel_requested | (Job.attempts >= max_attempts), literal(now, UTCDateTime())),
+            else_=None,
+        )
+        statement = (
+            update(Job)
+            .where(Job.status == JobStatus.RUNNING, Job.lease_expires_at < now)
+            .values(status=status, error=error, finished_at=finished, **_lease_cleared())
+            .returning(Job.id)
+            .execution_options(synchronize_session=False)
+        )
+        with unit_of_work(self._sessions, write=True) as session:
+            return len(session.scalars(statement).all())
+
+
+def _lease_cleared() -> dict[str, Any]:
+    return {"lease_token": None, "lease_owner": None, "lease_expires_at": None}
+
+
+def _fenced(claim: Claim) -> Any:
+    return (
+        update(Job)
+        .where(
+            Job.id == claim.job.id,
+            Job.lease_token == claim.token,
+            Job.status == JobStatus.RUNNING,
+        )
+        .execution_options(synchronize_session=False)
+    )
+
+
+def _job(session: Session, job_id: int) -> Job:
+    row = session.get(Job, job_id)
+    if row is None:
+        raise JobNotFound(job_id)
+    return row
+
+
+def _succeeded(session: Session, job_id: int) -> Job:
+    row = _job(session, job_id)
+    if row.status != JobStatus.SUCCEEDED:
+        raise ResultsUnavailable(job_id, JobStatus(row.status))
+    return row
+
+
+def _result(session: Session, job_id: int) -> JobResult:
+    _succeeded(session, job_id)
+    row = session.get(JobResult, job_id)
+    if row is None:
+        raise ResultsUnavailable(job_id, JobStatus.SUCCEEDED)
+    return row

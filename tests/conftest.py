@@ -1,0 +1,142 @@
+"""Fixtures shared by the store, service, worker and end-to-end tests: real databases only.
+
+SQLite is a file under ``tmp_path``. PostgreSQL is the local server (``NANONAV_TEST_POSTGRES_URL``,
+by default postgres@127.0.0.1:5432/test), one fresh schema per test; it is skipped when it does not
+answer, except in CI (``CI=true``), where that is a failure.
+"""
+
+from __future__ import annotations
+
+import os
+import socket
+import threading
+import time
+import uuid
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+
+import httpx
+import pytest
+import uvicorn
+from fastapi import FastAPI
+from sqlalchemy import create_engine, text
+from sqlalchemy.engine import make_url
+from sqlalchemy.exc import OperationalError
+
+from nanonav.settings import Settings
+from nanonav.store import JobStore
+from nanonav.store.migrate import upgrade
+from service.app import create_app
+
+POSTGRES_URL = os.environ.get(
+    "NANONAV_TEST_POSTGRES_URL", "postgresql+psycopg://postgres@127.0.0.1:5432/test"
+)
+
+
+def sqlite_url_in(directory: Path) -> str:
+    return f"sqlite:///{directory / 'nanonav.db'}"
+
+
+@pytest.fixture
+def sqlite_url(tmp_path: Path) -> str:
+    return sqlite_url_in(tmp_path)
+
+
+@pytest.fixture
+def postgres_url() -> Iterator[str]:
+    schema = f"test_{uuid.uuid4().hex[:12]}"
+    admin = create_engine(POSTGRES_URL, isolation_level="AUTOCOMMIT")
+    try:
+        with admin.connect() as connection:
+            connection.execute(text(f'CREATE SCHEMA "{schema}"'))
+    except OperationalError as error:
+        admin.dispose()
+        if os.environ.get("CI") == "true":
+            pytest.fail(f"PostgreSQL must answer in CI: {error}")
+        pytest.skip(f"PostgreSQL is not reachable: {error}")
+    url = make_url(POSTGRES_URL).update_query_dict({"options": f"-csearch_path={schema}"})
+    try:
+        yield url.render_as_string(hide_password=False)
+    finally:
+        with admin.connect() as connection:
+            connection.execute(text(f'DROP SCHEMA "{schema}" CASCADE'))
+        admin.dispose()
+
+
+@pytest.fixture(params=["sqlite", "postgresql"])
+def database_url(request: pytest.FixtureRequest) -> str:
+    """Each store test runs on a SQLite file and on PostgreSQL."""
+    name = "sqlite_url" if request.param == "sqlite" else "postgres_url"
+    return str(request.getfixturevalue(name))
+
+
+@pytest.fixture
+def store(database_url: str) -> Iterator[JobStore]:
+    upgrade(database_url)
+    job_store = JobStore.from_url(database_url)
+    try:
+        yield job_store
+    finally:
+        job_store.close()
+
+
+@pytest.fixture
+def sqlite_store(sqlite_url: str) -> Iterator[JobStore]:
+    upgrade(sqlite_url)
+    job_store = JobStore.from_url(sqlite_url)
+    try:
+        yield job_store
+    finally:
+        job_store.close()
+
+
+@contextmanager
+def serve(app: FastAPI) -> Iterator[str]:
+    """Serve ``app`` with a real uvicorn on a free local port; yields its base URL."""
+    sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    sock.bind(("127.0.0.1", 0))
+    port = sock.getsockname()[1]
+    server = uvicorn.Server(uvicorn.Config(app, log_level="warning", lifespan="on"))
+    thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, daemon=True)
+    thread.start()
+    deadline = time.monotonic() + 10
+    while not server.started:
+        if time.monotonic() > deadline or not thread.is_alive():
+            raise RuntimeError("the test server did not start")
+        time.sleep(0.01)
+    try:
+        yield f"http://127.0.0.1:{port}"
+    finally:
+        server.should_exit = True
+        thread.join(timeout=10)
+        sock.close()
+
+
+@dataclass
+class Api:
+    """A running API over a migrated SQLite file, and a client for it."""
+
+    url: str
+    client: httpx.Client
+    database_url: str
+    store: JobStore
+
+
+@pytest.fixture
+def api_settings(sqlite_url: str) -> Settings:
+    return Settings(database_url=sqlite_url, max_body_bytes=64 * 1024)
+
+
+@pytest.fixture
+def api(api_settings: Settings) -> Iterator[Api]:
+    upgrade(api_settings.database_url)
+    store = JobStore.from_url(api_settings.database_url)
+    with (
+        serve(create_app(api_settings)) as url,
+        httpx.Client(base_url=url, timeout=30) as client,
+    ):
+        yield Api(url=url, client=client, database_url=api_settings.database_url, store=store)
+    store.close()
