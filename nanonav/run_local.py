@@ -1,0 +1,105 @@
+"""``make run``: migrate the database, start the API and one worker, stop both on Ctrl-C.
+
+The database is ``DATABASE_URL`` (default ``./var/nanonav.db``); the API listens on
+``$HOST:$PORT`` (default 127.0.0.1:8000). The two parts run as child processes in their own
+process groups, so a Ctrl-C reaches this supervisor only, which then stops them in order.
+"""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+import threading
+import time
+import urllib.error
+import urllib.request
+from types import FrameType
+
+from sqlalchemy.engine import make_url
+
+from nanonav.settings import Settings
+from nanonav.store.migrate import upgrade
+
+READY_TIMEOUT_S = 60.0
+STOP_TIMEOUT_S = 20.0
+
+
+def _wait_until_ready(url: str, api: subprocess.Popen[bytes], stop: threading.Event) -> bool:
+    deadline = time.monotonic() + READY_TIMEOUT_S
+    while time.monotonic() < deadline and not stop.is_set() and api.poll() is None:
+        try:
+            with urllib.request.urlopen(f"{url}/healthz", timeout=2) as response:
+                if response.status == 200:
+                    return True
+        except (urllib.error.URLError, OSError):
+            pass
+        stop.wait(0.2)
+    return False
+
+
+def _stop(children: list[subprocess.Popen[bytes]]) -> None:
+    for child in children:
+        if child.poll() is None:
+            child.send_signal(signal.SIGTERM)
+    for child in children:
+        try:
+            child.wait(timeout=STOP_TIMEOUT_S)
+        except subprocess.TimeoutExpired:
+            child.kill()
+            child.wait()
+
+
+def main() -> int:
+    settings = Settings()
+    shown = make_url(settings.database_url).render_as_string(hide_password=True)
+    print(f"nanonav: migrating {shown}", flush=True)
+    upgrade(settings.database_url)
+
+    stop = threading.Event()
+
+    def on_signal(signum: int, frame: FrameType | None) -> None:
+        stop.set()
+
+    signal.signal(signal.SIGINT, on_signal)
+    signal.signal(signal.SIGTERM, on_signal)
+
+    api = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "uvicorn",
+            "service.app:create_app",
+            "--factory",
+            "--host",
+            settings.host,
+            "--port",
+            str(settings.port),
+        ],
+        start_new_session=True,
+    )
+    worker = subprocess.Popen([sys.executable, "-m", "worker"], start_new_session=True)
+    children = [api, worker]
+    url = f"http://{settings.host}:{settings.port}"
+    try:
+        if _wait_until_ready(url, api, stop):
+            print(
+                f"nanonav: the API is at {url} (OpenAPI page: {url}/docs); Ctrl-C stops it",
+                flush=True,
+            )
+        while not stop.is_set():
+            if any(child.poll() is not None for child in children):
+                name = "API" if api.poll() is not None else "worker"
+                print(f"nanonav: the {name} stopped unexpectedly; stopping", file=sys.stderr)
+                _stop(children)
+                return 1
+            stop.wait(0.5)
+    finally:
+        print("nanonav: stopping the API and the worker", flush=True)
+        _stop(children)
+    print("nanonav: stopped", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,48 @@
+"""The app factory: ``uvicorn --factory service.app:create_app``."""
+
+from __future__ import annotations
+
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
+
+from fastapi import FastAPI
+
+import nanonav
+from nanonav.settings import Settings
+from nanonav.store import JobStore
+from service import problems
+from service.limits import BodySizeLimit
+from service.routes import jobs, meta
+
+DESCRIPTION = """Submit nanorobot scenarios, watch them run, and fetch their results.
+
+`POST /jobs` queues a scenario (`{}` is all defaults); worker processes run it. Errors are
+`application/problem+json` (RFC 9457); a 422 names the offending fields.
+"""
+
+
+def create_app(settings: Settings | None = None) -> FastAPI:
+    """The API over the store that ``settings`` (by default the environment's) names."""
+    settings = settings or Settings()
+    store = JobStore.from_url(settings.database_url)
+
+    @asynccontextmanager
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        try:
+            yield
+        finally:
+            store.close()
+
+    app = FastAPI(
+        title="NanoNav",
+        version=nanonav.__version__,
+        description=DESCRIPTION,
+        lifespan=lifespan,
+    )
+    app.state.settings = settings
+    app.state.store = store
+    app.add_middleware(BodySizeLimit, max_bytes=settings.max_body_bytes)
+    problems.install(app)
+    app.include_router(jobs.router)
+    app.include_router(meta.router)
+    return app

@@ -1,0 +1,38 @@
+"""The dependencies routes receive, declared once as ``Annotated`` aliases."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from fastapi import Depends, Request
+
+from nanonav.settings import Settings
+from nanonav.store import JobStore
+from service.problems import UnsupportedMediaType
+
+
+def _store(request: Request) -> JobStore:
+    store: JobStore = request.app.state.store
+    return store
+
+
+def _settings(request: Request) -> Settings:
+    settings: Settings = request.app.state.settings
+    return settings
+
+
+async def require_json(request: Request) -> None:
+    """A request body, if there is one, must be declared as JSON."""
+    if not await request.body():
+        return
+    media = request.headers.get("content-type", "").split(";")[0].strip().lower()
+    kind, _, subtype = media.partition("/")
+    if kind != "application" or not (subtype == "json" or subtype.endswith("+json")):
+        raise UnsupportedMediaType(
+            f"the body must be application/json, not {media or 'undeclared'}"
+        )
+
+
+StoreDep = Annotated[JobStore, Depends(_store)]
+SettingsDep = Annotated[Settings, Depends(_settings)]
+JsonBody = Depends(require_json)

@@ -1,0 +1,244 @@
+"""Errors as RFC 9457 problem documents (``application/problem+json``), mapped in one place.
+
+Every error a client can cause is a typed exception here or in the store; each maps to one status.
+Validation errors carry the offending fields, as JSON pointers into the body or parameter names.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from http import HTTPStatus
+from typing import Any
+
+from fastapi import FastAPI, Request
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import JSONResponse
+from pydantic import BaseModel, ConfigDict, Field
+from sqlalchemy.exc import OperationalError
+from starlette.exceptions import HTTPException as StarletteHTTPException
+from starlette.responses import Response
+
+from nanonav.store import JobAlreadyFinished, JobNotFound, ResultsUnavailable
+
+PROBLEM_JSON = "application/problem+json"
+PROBLEM_BASE = "urn:nanonav:problem:"
+
+logger = logging.getLogger(__name__)
+
+
+class FieldError(BaseModel):
+    """One offending input: where it is and what is wrong with it."""
+
+    pointer: str | None = Field(
+        None, description="JSON pointer into the request body, e.g. '#/robots/count'."
+    )
+    parameter: str | None = Field(None, description="Name of the offending query/path parameter.")
+    loc: list[str | int] = Field(description="FastAPI-style location, e.g. ['body', 'robots'].")
+    detail: str
+    type: str
+
+
+class Problem(BaseModel):
+    """An RFC 9457 problem document."""
+
+    model_config = ConfigDict(
+        json_schema_extra={
+            "examples": [
+                {
+                    "type": PROBLEM_BASE + "job-not-found",
+                    "title": "Job not found",
+                    "status": 404,
+                    "detail": "there is no job 42",
+                    "instance": "/jobs/42",
+                }
+            ]
+        }
+    )
+
+    type: str = "about:blank"
+    title: str
+    status: int
+    detail: str | None = None
+    instance: str | None = None
+    errors: list[FieldError] | None = None
+
+
+class ProblemError(Exception):
+    """An error the client caused, with the status and wording of its problem document."""
+
+    status = 400
+    slug = "bad-request"
+    title = "Bad request"
+
+    def __init__(self, detail: str, errors: Sequence[FieldError] = ()) -> None:
+        super().__init__(detail)
+        self.detail = detail
+        self.errors = list(errors)
+
+
+class BodyTooLarge(StarletteHTTPException):
+    """Raised from inside the body stream, where only an HTTPException gets through FastAPI."""
+
+    def __init__(self, limit: int) -> None:
+        super().__init__(413, f"the request body is larger than {limit} bytes")
+
+
+class UnsupportedMediaType(ProblemError):
+    status = 415
+    slug = "unsupported-media-type"
+    title = "Unsupported media type"
+
+
+class PictureMissing(ProblemError):
+    status = 404
+    slug = "picture-not-found"
+    title = "Picture not found"
+
+
+class InvalidInput(ProblemError):
+    status = 422
+    slug = "invalid-input"
+    title = "Invalid input"
+
+
+class BudgetExceeded(InvalidInput):
+    slug = "budget-exceeded"
+    title = "Scenario over the work budget"
+
+
+def problem_response(problem: Problem, headers: dict[str, str] | None = None) -> Response:
+    return JSONResponse(
+        problem.model_dump(exclude_none=True),
+        status_code=problem.status,
+        media_type=PROBLEM_JSON,
+        headers=headers,
+    )
+
+
+def problems(*statuses: int) -> dict[int | str, dict[str, Any]]:
+    """The ``responses=`` entry documenting a route's problem answers in OpenAPI."""
+    return {
+        status: {"model": Problem, "content": {PROBLEM_JSON: {}}, "description": "A problem"}
+        for status in statuses
+    }
+
+
+def field_error(loc: Sequence[str | int], detail: str, kind: str) -> FieldError:
+    where = list(loc)
+    if where and where[0] == "body":
+        tokens = (str(part).replace("~", "~0").replace("/", "~1") for part in where[1:])
+        pointer = "#" + "".join(f"/{token}" for token in tokens)
+        return FieldError(pointer=pointer, loc=where, detail=detail, type=kind)
+    parameter = str(where[1]) if len(where) > 1 else None
+    return FieldError(parameter=parameter, loc=where, detail=detail, type=kind)
+
+
+def install(app: FastAPI) -> None:
+    """Map every error type to its problem document, once for the whole app."""
+
+    def respond(
+        request: Request,
+        status: int,
+        slug: str,
+        title: str,
+        detail: str,
+        errors: Sequence[FieldError] = (),
+    ) -> Response:
+        problem = Problem(
+            type=PROBLEM_BASE + slug,
+            title=title,
+            status=status,
+            detail=detail,
+            instance=request.url.path,
+            errors=list(errors) or None,
+        )
+        return problem_response(problem)
+
+    async def on_problem(request: Request, exc: Exception) -> Response:
+        assert isinstance(exc, ProblemError)
+        return respond(request, exc.status, exc.slug, exc.title, exc.detail, exc.errors)
+
+    async def on_not_found(request: Request, exc: Exception) -> Response:
+        return respond(request, 404, "job-not-found", "Job not found", str(exc))
+
+    async def on_unavailable(request: Request, exc: Exception) -> Response:
+        return respond(request, 409, "results-unavailable", "Results unavailable", str(exc))
+
+    async def on_finished(request: Request, exc: Exception) -> Response:
+        return respond(request, 409, "job-finished", "Job already finished", str(exc))
+
+    async def on_validation(request: Request, exc: Exception) -> Response:
+        assert isinstance(exc, RequestValidationError)
+        errors = [
+            field_error(
+                [p for p in e.get("loc", ()) if isinstance(p, str | int)],
+                str(e.get("msg", "")),
+                str(e.get("type", "")),
+            )
+            for e in exc.errors()
+        ]
+        if any(e.type == "json_invalid" for e in errors):
+            return respond(
+                request,
+                400,
+                "malformed-json",
+                "Malformed JSON",
+                "the request body is not valid JSON",
+                errors,
+            )
+        first = errors[0] if errors else None
+        detail = "the request is invalid"
+        if first is not None:
+            where = first.pointer or first.parameter or "/".join(map(str, first.loc))
+            detail = f"{where}: {first.detail}"
+        return respond(request, 422, "invalid-input", "Invalid input", detail, errors)
+
+    async def on_http(request: Request, exc: Exception) -> Response:
+        assert isinstance(exc, StarletteHTTPException)
+        slug = {413: "body-too-large", 404: "not-found", 405: "method-not-allowed"}.get(
+            exc.status_code, "http-error"
+        )
+        title = {413: "Content too large"}.get(exc.status_code, _reason(exc.status_code))
+        response = respond(request, exc.status_code, slug, title, str(exc.detail))
+        if exc.headers:
+            response.headers.update(exc.headers)
+        return response
+
+    async def on_database_down(request: Request, exc: Exception) -> Response:
+        logger.error("database error on %s %s: %s", request.method, request.url.path, exc)
+        response = respond(
+            request,
+            503,
+            "database-unavailable",
+            "Database unavailable",
+            "the job store did not answer; try again shortly",
+        )
+        response.headers["Retry-After"] = "1"
+        return response
+
+    async def on_crash(request: Request, exc: Exception) -> Response:
+        logger.exception("unhandled error on %s %s", request.method, request.url.path)
+        return respond(
+            request,
+            500,
+            "internal-error",
+            "Internal server error",
+            "the server failed; this is a bug and has been logged",
+        )
+
+    app.add_exception_handler(ProblemError, on_problem)
+    app.add_exception_handler(JobNotFound, on_not_found)
+    app.add_exception_handler(ResultsUnavailable, on_unavailable)
+    app.add_exception_handler(JobAlreadyFinished, on_finished)
+    app.add_exception_handler(RequestValidationError, on_validation)
+    app.add_exception_handler(StarletteHTTPException, on_http)
+    app.add_exception_handler(OperationalError, on_database_down)
+    app.add_exception_handler(Exception, on_crash)
+
+
+def _reason(status: int) -> str:
+    try:
+        return HTTPStatus(status).phrase
+    except ValueError:
+        return "Error"

@@ -1,0 +1,256 @@
+"""Jobs: submit, watch, list, cancel, and fetch results as JSON, arrays or pictures."""
+
+from __future__ import annotations
+
+import base64
+import binascii
+import csv
+import io
+from typing import Annotated, Any, Literal
+
+import numpy as np
+from fastapi import APIRouter, Body, Header, Path, Query, Response
+from numpy.typing import NDArray
+
+from nanonav.scenario import Scenario
+from nanonav.store import JobStatus
+from nanonav.store.arrays import pack
+from service.deps import JsonBody, SettingsDep, StoreDep
+from service.problems import BudgetExceeded, InvalidInput, PictureMissing, field_error, problems
+from service.schemas import Job, JobPage, Metrics, QTable, Trajectory
+
+router = APIRouter(prefix="/jobs", tags=["jobs"])
+
+JobId = Annotated[int, Path(ge=1, le=2**63 - 1, description="The job's id.")]
+PNG: dict[int | str, dict[str, Any]] = {
+    200: {"content": {"image/png": {}}, "description": "A PNG picture."}
+}
+NOT_FOUND_OR_NOT_READY = problems(404, 409, 422)
+
+SCENARIO_EXAMPLES: dict[str, Any] = {
+    "defaults": {"summary": "All defaults", "value": {}},
+    "tiny": {
+        "summary": "A quick run",
+        "value": {"seed": 7, "learning": {"episodes": 2, "max_steps": 100}},
+    },
+    "swarm": {"summary": "The paper's swarm", "value": {"preset": "paper-swarm"}},
+}
+
+
+@router.post(
+    "",
+    status_code=202,
+    response_model=Job,
+    dependencies=[JsonBody],
+    responses=problems(400, 413, 415, 422),
+)
+def submit_job(
+    scenario: Annotated[Scenario, Body(openapi_examples=SCENARIO_EXAMPLES)],
+    store: StoreDep,
+    settings: SettingsDep,
+    response: Response,
+    idempotency_key: Annotated[str | None, Header(max_length=200)] = None,
+) -> Job:
+    """Queue a scenario to run; answers once the job is stored."""
+    if scenario.robot_steps_budget > settings.robot_steps_budget:
+        detail = (
+            f"robots.count x learning.max_steps x (learning.episodes + 1) = "
+            f"{scenario.robot_steps_budget} robot-steps, over the budget of "
+            f"{settings.robot_steps_budget}"
+        )
+        raise BudgetExceeded(
+            detail,
+            [
+                field_error(["body", *loc], detail, "budget_exceeded")
+                for loc in (
+                    ["robots", "count"],
+                    ["learning", "max_steps"],
+                    ["learning", "episodes"],
+                )
+            ],
+        )
+    job = store.enqueue(
+        scenario.model_dump(mode="json"),
+        robot_steps=scenario.robot_steps_budget,
+        episodes=scenario.learning.episodes + 1,
+        idempotency_key=idempotency_key,
+    )
+    response.headers["Location"] = f"/jobs/{job.id}"
+    return Job.of(job)
+
+
+@router.get("", response_model=JobPage, responses=problems(422))
+def list_jobs(
+    store: StoreDep,
+    status: Annotated[JobStatus | None, Query(description="Only jobs in this state.")] = None,
+    limit: Annotated[int, Query(ge=1, le=100, description="Jobs per page.")] = 20,
+    cursor: Annotated[str | None, Query(max_length=64, description="From `next_cursor`.")] = None,
+) -> JobPage:
+    """A page of jobs, newest first."""
+    before = None if cursor is None else _decode_cursor(cursor)
+    page = store.page(status=status, limit=limit, before_id=before)
+    next_cursor = None if page.next_before_id is None else _encode_cursor(page.next_before_id)
+    next_url = None
+    if next_cursor is not None:
+        query = f"limit={limit}&cursor={next_cursor}"
+        if status is not None:
+            query = f"status={status.value}&{query}"
+        next_url = f"/jobs?{query}"
+    return JobPage(jobs=[Job.of(j) for j in page.jobs], next_cursor=next_cursor, next=next_url)
+
+
+@router.get("/{job_id}", response_model=Job, responses=problems(404, 422))
+def get_job(job_id: JobId, store: StoreDep) -> Job:
+    """A job's state and progress."""
+    return Job.of(store.get(job_id))
+
+
+@router.post("/{job_id}/cancel", response_model=Job, responses=problems(404, 409, 422))
+def cancel_job(job_id: JobId, store: StoreDep) -> Job:
+    """Cancel a job: a queued one at once, a running one within about a second."""
+    return Job.of(store.cancel(job_id))
+
+
+@router.get("/{job_id}/metrics", response_model=Metrics, responses=NOT_FOUND_OR_NOT_READY)
+def get_metrics(job_id: JobId, store: StoreDep) -> Metrics:
+    """The summary (the paper's Table 1), one row per robot, and the learning curve."""
+    return Metrics.model_validate(store.metrics(job_id))
+
+
+@router.get(
+    "/{job_id}/trajectory",
+    response_model=Trajectory,
+    responses={
+        **NOT_FOUND_OR_NOT_READY,
+        200: {
+            "content": {"application/octet-stream": {}, "text/csv": {}},
+            "description": "JSON, or an .npz / .csv download with ?format=.",
+        },
+    },
+)
+def get_trajectory(
+    job_id: JobId,
+    store: StoreDep,
+    stride: Annotated[int, Query(ge=1, le=1_000_000, description="Keep every N-th step.")] = 1,
+    format: Annotated[Literal["json", "npz", "csv"], Query()] = "json",
+) -> Any:
+    """The evaluation episode's paths, concentrations and distances, every ``stride`` steps."""
+    arrays = store.trajectory(job_id)
+    rows = _rows(arrays, stride)
+    per_step = {"robots", "cells", "obstacles", "concentration", "distance"}
+    strided = {k: (v[rows] if k in per_step else v) for k, v in arrays.items()}
+    name = f"nanonav-job-{job_id}-trajectory"
+    if format == "npz":
+        strided["step"] = rows
+        return Response(
+            pack(strided),
+            media_type="application/octet-stream",
+            headers={"Content-Disposition": f'attachment; filename="{name}.npz"'},
+        )
+    if format == "csv":
+        return Response(
+            _csv(strided, rows),
+            media_type="text/csv; charset=utf-8",
+            headers={"Content-Disposition": f'attachment; filename="{name}.csv"'},
+        )
+    return Trajectory(
+        stride=stride,
+        length=int(arrays["robots"].shape[0] - 1),
+        steps=rows.tolist(),
+        robots=strided["robots"].tolist(),
+        cells=strided["cells"].tolist(),
+        obstacles=strided["obstacles"].tolist(),
+        obstacle_radius=float(arrays["obstacle_radius"]),
+        concentration=strided["concentration"].tolist(),
+        distance=strided["distance"].tolist(),
+        reached=arrays["reached"].tolist(),
+        robot_steps=arrays["steps"].tolist(),
+    )
+
+
+@router.get("/{job_id}/qtable", response_model=QTable, responses=NOT_FOUND_OR_NOT_READY)
+def get_qtable(job_id: JobId, store: StoreDep) -> QTable:
+    """The learned action values and visit counts, with state and action labels."""
+    arrays = store.qtable(job_id)
+    if not arrays:
+        return QTable(states=[], actions=[], values=[], visits=[])
+    return QTable(
+        states=arrays["states"].tolist(),
+        actions=arrays["actions"].tolist(),
+        values=arrays["values"].tolist(),
+        visits=arrays["visits"].tolist(),
+    )
+
+
+@router.get(
+    "/{job_id}/heatmap.png",
+    response_class=Response,
+    responses={**PNG, **NOT_FOUND_OR_NOT_READY},
+)
+def get_heatmap(
+    job_id: JobId,
+    store: StoreDep,
+    plane: Annotated[Literal["xy", "xz", "yz", "all"], Query()] = "xy",
+) -> Response:
+    """The biomarker concentration in a plane through the cells, with the paths drawn on it."""
+    return _png(store.plot(job_id, f"heatmap_{plane}"), job_id, f"heatmap_{plane}")
+
+
+@router.get(
+    "/{job_id}/plots/{name}.png",
+    response_class=Response,
+    responses={**PNG, **NOT_FOUND_OR_NOT_READY},
+)
+def get_plot(
+    job_id: JobId,
+    name: Literal["trajectory", "concentration", "learning"],
+    store: StoreDep,
+) -> Response:
+    """A picture of the run: 3-D trajectory, concentration over time, or learning curve."""
+    return _png(store.plot(job_id, name), job_id, name)
+
+
+def _png(png: bytes | None, job_id: int, name: str) -> Response:
+    if png is None:
+        raise PictureMissing(f"job {job_id} has no picture {name!r}")
+    return Response(png, media_type="image/png")
+
+
+def _encode_cursor(before_id: int) -> str:
+    return base64.urlsafe_b64encode(str(before_id).encode()).decode().rstrip("=")
+
+
+def _decode_cursor(cursor: str) -> int:
+    try:
+        text = base64.urlsafe_b64decode(cursor + "=" * (-len(cursor) % 4)).decode("ascii")
+        if not text.isdigit() or not 0 < int(text) < 2**63:
+            raise ValueError(text)
+        return int(text)
+    except (binascii.Error, ValueError, UnicodeDecodeError):
+        raise InvalidInput(
+            "cursor: not a cursor this API gave out",
+            [field_error(["query", "cursor"], "not a cursor this API gave out", "cursor_invalid")],
+        ) from None
+
+
+def _rows(arrays: dict[str, NDArray[Any]], stride: int) -> NDArray[np.int64]:
+    last = int(arrays["robots"].shape[0] - 1)
+    rows = np.arange(0, last + 1, stride, dtype=np.int64)
+    if rows[-1] != last:
+        rows = np.append(rows, last)
+    return rows
+
+
+def _csv(arrays: dict[str, NDArray[Any]], rows: NDArray[np.int64]) -> str:
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow(["step", "kind", "index", "x", "y", "z", "concentration", "distance"])
+    for i, step in enumerate(rows.tolist()):
+        for r, (x, y, z) in enumerate(arrays["robots"][i].tolist()):
+            c = arrays["concentration"][i, r]
+            d = arrays["distance"][i, r]
+            writer.writerow([step, "robot", r, x, y, z, repr(float(c)), repr(float(d))])
+        for kind in ("cells", "obstacles"):
+            for k, (x, y, z) in enumerate(arrays[kind][i].tolist()):
+                writer.writerow([step, kind[:-1], k, x, y, z, "", ""])
+    return out.getvalue()

@@ -1,0 +1,43 @@
+"""Presets, health and version."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from fastapi import APIRouter, Response
+from sqlalchemy.exc import SQLAlchemyError
+
+import nanonav
+from nanonav.scenario import PRESETS, preset_scenario
+from nanonav.store.migrate import current_revision, head_revision
+from service.deps import StoreDep
+from service.schemas import Health, Version
+
+router = APIRouter(tags=["meta"])
+
+
+@router.get("/presets")
+def list_presets() -> dict[str, dict[str, Any]]:
+    """The named scenarios, fully resolved, to submit as they are or as a base."""
+    return {name: preset_scenario(name).model_dump(mode="json") for name in PRESETS}
+
+
+@router.get("/healthz", response_model=Health, responses={503: {"model": Health}})
+def healthz(store: StoreDep, response: Response) -> Health:
+    """Whether the database answers and its schema is at the newest migration."""
+    head = head_revision()
+    try:
+        revision = current_revision(store.engine)
+    except SQLAlchemyError:
+        response.status_code = 503
+        return Health(status="unavailable", database=False, revision=None, head=head)
+    if revision != head:
+        response.status_code = 503
+        return Health(status="unavailable", database=True, revision=revision, head=head)
+    return Health(status="ok", database=True, revision=revision, head=head)
+
+
+@router.get("/version", response_model=Version)
+def version() -> Version:
+    """The running code's version."""
+    return Version(name="nanonav", version=nanonav.__version__)

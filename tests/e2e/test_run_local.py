@@ -1,0 +1,157 @@
+"""What ``make run`` runs, and ``python -m worker --concurrency``, as real processes."""
+
+from __future__ import annotations
+
+import os
+import re
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import httpx
+import pytest
+
+from nanonav.store import JobStatus, JobStore
+from nanonav.store.migrate import upgrade
+
+pytestmark = pytest.mark.timeout(240)
+TINY: dict[str, Any] = {"robots": {"count": 2}, "learning": {"episodes": 1, "max_steps": 40}}
+
+
+def free_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        port: int = sock.getsockname()[1]
+        return port
+
+
+def clean_environment(**extra: str) -> dict[str, str]:
+    env = {
+        k: v
+        for k, v in os.environ.items()
+        if not k.startswith("NANONAV_") and k not in {"DATABASE_URL", "HOST", "PORT"}
+    }
+    return {**env, **extra}
+
+
+def test_run_local_migrates_serves_runs_a_job_and_stops_on_ctrl_c(tmp_path: Path) -> None:
+    port = free_port()
+    log = tmp_path / "run.log"
+    with log.open("wb") as out:
+        process = subprocess.Popen(
+            [sys.executable, "-m", "nanonav.run_local"],
+            cwd=tmp_path,
+            env=clean_environment(PORT=str(port)),
+            stdout=out,
+            stderr=subprocess.STDOUT,
+        )
+        try:
+            deadline = time.monotonic() + 120
+            while "the API is at" not in log.read_text():
+                assert process.poll() is None, log.read_text()
+                assert time.monotonic() < deadline, log.read_text()
+                time.sleep(0.1)
+            assert f"http://127.0.0.1:{port}" in log.read_text()
+            assert (tmp_path / "var" / "nanonav.db").exists()
+            with httpx.Client(base_url=f"http://127.0.0.1:{port}", timeout=10) as client:
+                assert client.get("/healthz").json()["status"] == "ok"
+                job_id = client.post("/jobs", json=TINY).json()["id"]
+                while client.get(f"/jobs/{job_id}").json()["status"] != "succeeded":
+                    assert time.monotonic() < deadline, log.read_text()
+                    time.sleep(0.1)
+            process.send_signal(signal.SIGINT)
+            assert process.wait(timeout=30) == 0
+        finally:
+            if process.poll() is None:
+                process.kill()
+                process.wait()
+    text = log.read_text()
+    assert "nanonav: stopped" in text
+    assert "Traceback" not in text
+
+
+def test_worker_concurrency_runs_jobs_in_several_processes(tmp_path: Path) -> None:
+    url = f"sqlite:///{tmp_path / 'nanonav.db'}"
+    upgrade(url)
+    store = JobStore.from_url(url)
+    ids = [store.enqueue({**TINY, "seed": s}, robot_steps=1, episodes=2).id for s in range(6)]
+    log = tmp_path / "worker.log"
+    with log.open("wb") as out:
+        process = subprocess.Popen(
+            [sys.executable, "-m", "worker", "--concurrency", "2"],
+            env=clean_environment(NANONAV_DATABASE_URL=url, NANONAV_POLL_INTERVAL_S="0.05"),
+            stdout=out,
+            stderr=subprocess.STDOUT,
+        )
+        try:
+            deadline = time.monotonic() + 180
+            while any(store.get(i).status is not JobStatus.SUCCEEDED for i in ids):
+                assert process.poll() is None, log.read_text()
+                assert time.monotonic() < deadline, log.read_text()
+                time.sleep(0.2)
+            process.send_signal(signal.SIGTERM)
+            assert process.wait(timeout=30) == 0
+        finally:
+            if process.poll() is None:
+                process.kill()
+                process.wait()
+    store.close()
+    ready = set(re.findall(r"worker (\d+) ready", log.read_text()))
+    assert len(ready) == 2
+
+
+def test_the_nanonav_migrate_api_and_worker_commands(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from nanonav.cli import main
+    from nanonav.store.db import make_engine
+    from nanonav.store.migrate import at_head
+
+    url = f"sqlite:///{tmp_path / 'cli.db'}"
+    monkeypatch.setenv("DATABASE_URL", url)
+    monkeypatch.delenv("NANONAV_DATABASE_URL", raising=False)
+    assert main(["migrate"]) == 0
+    engine = make_engine(url)
+    assert at_head(engine)
+    engine.dispose()
+    assert main(["api", "--port", "70000"]) == 2
+    assert main(["worker", "--concurrency", "0"]) == 2
+
+    port = free_port()
+    nanonav = str(Path(sys.executable).with_name("nanonav"))
+    env = clean_environment(DATABASE_URL=url, NANONAV_POLL_INTERVAL_S="0.05")
+    api_log = (tmp_path / "api.log").open("wb")
+    api = subprocess.Popen(
+        [nanonav, "api", "--port", str(port)], env=env, stdout=api_log, stderr=subprocess.STDOUT
+    )
+    worker = subprocess.Popen(
+        [nanonav, "worker", "--concurrency", "1"],
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    try:
+        deadline = time.monotonic() + 120
+        with httpx.Client(base_url=f"http://127.0.0.1:{port}", timeout=10) as client:
+            while True:
+                try:
+                    job_id = client.post("/jobs", json=TINY).json()["id"]
+                    break
+                except httpx.TransportError:
+                    assert api.poll() is None and time.monotonic() < deadline
+                    time.sleep(0.1)
+            while client.get(f"/jobs/{job_id}").json()["status"] != "succeeded":
+                assert worker.poll() is None and time.monotonic() < deadline
+                time.sleep(0.1)
+    finally:
+        for process in (api, worker):
+            process.send_signal(signal.SIGTERM)
+        codes = [process.wait(timeout=30) for process in (api, worker)]
+        api_log.close()
+    # uvicorn shuts down gracefully, then re-raises the signal it caught.
+    assert codes in ([0, 0], [-signal.SIGTERM, 0])
+    assert "Application shutdown complete" in (tmp_path / "api.log").read_text()

@@ -1,0 +1,315 @@
+"""The API's contract without a worker: submission, listing, cancelling, and every 4xx."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from typing import Any
+
+import httpx
+import pytest
+
+from nanonav.settings import Settings
+from nanonav.store import JobStatus
+from service.app import create_app
+from tests.conftest import Api, serve
+
+PROBLEM = "application/problem+json"
+RESULT_PATHS = (
+    "metrics",
+    "trajectory",
+    "trajectory?format=npz",
+    "qtable",
+    "heatmap.png",
+    "plots/learning.png",
+)
+
+
+def submit(api: Api, scenario: dict[str, Any] | None = None) -> dict[str, Any]:
+    response = api.client.post("/jobs", json={} if scenario is None else scenario)
+    assert response.status_code == 202, response.text
+    body: dict[str, Any] = response.json()
+    return body
+
+
+def assert_problem(response: httpx.Response, status: int) -> dict[str, Any]:
+    assert response.status_code == status, response.text
+    assert response.headers["content-type"] == PROBLEM
+    body: dict[str, Any] = response.json()
+    assert body["status"] == status
+    assert body["title"] and body["type"]
+    return body
+
+
+def test_submit_answers_202_with_location_and_the_resolved_scenario(api: Api) -> None:
+    response = api.client.post("/jobs", json={})
+    assert response.status_code == 202
+    job = response.json()
+    assert response.headers["location"] == f"/jobs/{job['id']}"
+    assert job["status"] == "queued"
+    assert job["scenario"]["seed"] == 0
+    assert job["scenario"]["learning"]["episodes"] == 50
+    assert job["progress"] == {"episode": 0, "episodes": 51, "fraction": 0.0}
+    assert job["links"]["plots"]["learning"] == f"/jobs/{job['id']}/plots/learning.png"
+    assert api.store.get(job["id"]).status is JobStatus.QUEUED
+
+
+def test_a_preset_is_applied_and_explicit_fields_override_it(api: Api) -> None:
+    job = submit(api, {"preset": "paper-swarm", "robots": {"speed": 0.7}, "seed": 9})
+    assert job["scenario"]["robots"]["count"] == 15
+    assert job["scenario"]["robots"]["speed"] == 0.7
+    assert job["scenario"]["seed"] == 9
+    assert api.client.get(f"/jobs/{job['id']}").json()["scenario"] == job["scenario"]
+
+
+def test_an_idempotency_key_returns_the_job_it_made(api: Api) -> None:
+    headers = {"Idempotency-Key": "k-1"}
+    first = api.client.post("/jobs", json={"seed": 1}, headers=headers).json()
+    again = api.client.post("/jobs", json={"seed": 2}, headers=headers).json()
+    assert again["id"] == first["id"]
+    assert again["scenario"]["seed"] == 1
+
+
+def test_an_invalid_field_is_422_with_its_pointer(api: Api) -> None:
+    body = assert_problem(api.client.post("/jobs", json={"robots": {"count": 0}}), 422)
+    assert body["errors"][0]["pointer"] == "#/robots/count"
+    assert body["errors"][0]["loc"] == ["body", "robots", "count"]
+    assert "#/robots/count" in body["detail"]
+
+
+def test_an_unknown_field_is_422(api: Api) -> None:
+    body = assert_problem(api.client.post("/jobs", json={"robot": {"count": 1}}), 422)
+    assert body["errors"][0]["pointer"] == "#/robot"
+
+
+def test_pointers_escape_slash_and_tilde(api: Api) -> None:
+    body = assert_problem(api.client.post("/jobs", json={"a/b~c": 1}), 422)
+    assert body["errors"][0]["pointer"] == "#/a~1b~0c"
+
+
+def test_a_scenario_over_the_work_budget_is_refused_with_422(api: Api) -> None:
+    scenario = {"robots": {"count": 10_000}, "learning": {"max_steps": 100_000, "episodes": 1}}
+    body = assert_problem(api.client.post("/jobs", json=scenario), 422)
+    assert body["type"].endswith("budget-exceeded")
+    assert {e["pointer"] for e in body["errors"]} == {
+        "#/robots/count",
+        "#/learning/max_steps",
+        "#/learning/episodes",
+    }
+    assert api.store.page(status=None, limit=10, before_id=None).jobs == []
+
+
+def test_the_budget_comes_from_the_settings(sqlite_url: str) -> None:
+    from nanonav.store.migrate import upgrade
+
+    upgrade(sqlite_url)
+    app = create_app(Settings(database_url=sqlite_url, robot_steps_budget=1000))
+    with serve(app) as url, httpx.Client(base_url=url) as client:
+        small = {"learning": {"episodes": 9, "max_steps": 100}}
+        assert client.post("/jobs", json=small).status_code == 202
+        small["learning"]["episodes"] = 10
+        assert client.post("/jobs", json=small).status_code == 422
+
+
+def test_malformed_json_is_400(api: Api) -> None:
+    response = api.client.post(
+        "/jobs", content=b'{"seed": ', headers={"content-type": "application/json"}
+    )
+    assert assert_problem(response, 400)["type"].endswith("malformed-json")
+
+
+@pytest.mark.parametrize("content_type", ["text/plain", "application/x-www-form-urlencoded", None])
+def test_a_body_not_declared_as_json_is_415(api: Api, content_type: str | None) -> None:
+    headers = {} if content_type is None else {"content-type": content_type}
+    assert_problem(api.client.post("/jobs", content=b"{}", headers=headers), 415)
+
+
+def test_a_missing_body_is_422(api: Api) -> None:
+    assert_problem(api.client.post("/jobs"), 422)
+
+
+def test_a_body_over_the_limit_is_413_by_its_length(api: Api) -> None:
+    big = b'{"seed": 1' + b" " * (65 * 1024) + b"}"
+    response = api.client.post("/jobs", content=big, headers={"content-type": "application/json"})
+    assert_problem(response, 413)
+
+
+def test_a_streamed_body_over_the_limit_is_413(api: Api) -> None:
+    def chunks() -> Iterator[bytes]:
+        yield b'{"seed": 1'
+        for _ in range(70):
+            yield b" " * 1024
+        yield b"}"
+
+    response = api.client.post(
+        "/jobs", content=chunks(), headers={"content-type": "application/json"}
+    )
+    assert "content-length" not in response.request.headers
+    assert_problem(response, 413)
+
+
+@pytest.mark.parametrize(
+    ("path", "parameter"),
+    [
+        ("/jobs?limit=-1", "limit"),
+        ("/jobs?limit=0", "limit"),
+        ("/jobs?limit=1000", "limit"),
+        ("/jobs?limit=ten", "limit"),
+        ("/jobs?cursor=garbage", "cursor"),
+        ("/jobs?cursor=%FF%FE", "cursor"),
+        ("/jobs?cursor=LTE", "cursor"),
+        ("/jobs?status=done", "status"),
+        ("/jobs/abc", "job_id"),
+        ("/jobs/0", "job_id"),
+        ("/jobs/-3", "job_id"),
+        ("/jobs/1e3", "job_id"),
+        ("/jobs/99999999999999999999999", "job_id"),
+        ("/jobs/1/trajectory?stride=0", "stride"),
+        ("/jobs/1/trajectory?stride=x", "stride"),
+        ("/jobs/1/trajectory?format=xml", "format"),
+        ("/jobs/1/heatmap.png?plane=xx", "plane"),
+        ("/jobs/1/plots/radar.png", "name"),
+    ],
+)
+def test_bad_parameters_are_422_naming_the_parameter(api: Api, path: str, parameter: str) -> None:
+    submit(api)
+    body = assert_problem(api.client.get(path), 422)
+    assert body["errors"][0]["parameter"] == parameter
+
+
+def test_an_unknown_job_is_404(api: Api) -> None:
+    for path in ("/jobs/77", "/jobs/77/metrics", "/jobs/77/plots/trajectory.png"):
+        assert_problem(api.client.get(path), 404)
+    assert_problem(api.client.post("/jobs/77/cancel"), 404)
+
+
+def test_results_of_a_job_that_has_not_succeeded_are_409(api: Api) -> None:
+    job = submit(api)
+    for path in RESULT_PATHS:
+        body = assert_problem(api.client.get(f"/jobs/{job['id']}/{path}"), 409)
+        assert "queued" in body["detail"]
+
+
+def test_cancel_of_a_queued_job_is_immediate(api: Api) -> None:
+    job = submit(api)
+    response = api.client.post(f"/jobs/{job['id']}/cancel")
+    assert response.status_code == 200
+    assert response.json()["status"] == "cancelled"
+    assert response.json()["finished_at"] is not None
+    assert api.client.post(f"/jobs/{job['id']}/cancel").json()["status"] == "cancelled"
+    assert_problem(api.client.get(f"/jobs/{job['id']}/metrics"), 409)
+
+
+def test_cancel_of_a_failed_job_is_409(api: Api) -> None:
+    job = submit(api)
+    claim = api.store.claim("test", lease_s=30)
+    assert claim is not None
+    api.store.fail(claim, "boom")
+    body = assert_problem(api.client.post(f"/jobs/{job['id']}/cancel"), 409)
+    assert "failed" in body["detail"]
+
+
+def test_the_job_list_is_newest_first_and_follows_its_cursor(api: Api) -> None:
+    ids = [submit(api, {"seed": i})["id"] for i in range(5)]
+    api.client.post(f"/jobs/{ids[0]}/cancel")
+    seen: list[int] = []
+    url: str | None = "/jobs?limit=2"
+    while url is not None:
+        page = api.client.get(url).json()
+        assert len(page["jobs"]) <= 2
+        seen += [j["id"] for j in page["jobs"]]
+        url = page["next"]
+    assert seen == ids[::-1]
+    cancelled = api.client.get("/jobs", params={"status": "cancelled"}).json()
+    assert [j["id"] for j in cancelled["jobs"]] == [ids[0]]
+    assert cancelled["next_cursor"] is None
+
+
+def test_unknown_routes_and_methods_are_problems(api: Api) -> None:
+    assert_problem(api.client.get("/nowhere"), 404)
+    assert_problem(api.client.delete("/jobs"), 405)
+
+
+@pytest.mark.parametrize(
+    "body",
+    [
+        b"[]",
+        b"null",
+        b"1",
+        b'"x"',
+        b'{"seed": -1}',
+        b'{"seed": 1e400}',
+        b'{"seed": 99999999999999999999999999}',
+        b'{"space": {"size": NaN}}',
+        b'{"space": {"size": Infinity}}',
+        b'{"learning": {"epsilon_end": 0.9, "epsilon_start": 0.1}}',
+        b'{"obstacles": {"count": 1000, "radius": 10}}',
+        b'{"preset": "nope"}',
+        b'{"preset": 3}',
+        b"\xff\xfe\x00",
+        b"[" * 5000 + b"]" * 5000,
+        b'{"robots": {"count": 1, "count": 2}}',
+    ],
+)
+def test_no_body_a_client_can_send_gives_a_500(api: Api, body: bytes) -> None:
+    response = api.client.post("/jobs", content=body, headers={"content-type": "application/json"})
+    assert 400 <= response.status_code < 500 or response.status_code == 202, response.text
+    assert response.headers["content-type"] in (PROBLEM, "application/json")
+
+
+def test_healthz_is_ok_at_head(api: Api) -> None:
+    assert api.client.get("/healthz").json()["status"] == "ok"
+
+
+def test_healthz_is_503_on_an_unmigrated_database(sqlite_url: str) -> None:
+    with serve(create_app(Settings(database_url=sqlite_url))) as url:
+        response = httpx.get(f"{url}/healthz")
+    assert response.status_code == 503
+    assert response.json()["revision"] is None
+
+
+def test_version_and_presets(api: Api) -> None:
+    assert api.client.get("/version").json()["name"] == "nanonav"
+    presets = api.client.get("/presets").json()
+    assert presets["paper-swarm"]["robots"]["count"] == 15
+    assert presets["paper-single"]["robots"]["count"] == 1
+
+
+def test_openapi_documents_every_route_with_models_and_examples(api: Api) -> None:
+    spec = api.client.get("/openapi.json").json()
+    paths = spec["paths"]
+    for path in (
+        "/jobs",
+        "/jobs/{job_id}",
+        "/jobs/{job_id}/cancel",
+        "/jobs/{job_id}/metrics",
+        "/jobs/{job_id}/trajectory",
+        "/jobs/{job_id}/qtable",
+        "/jobs/{job_id}/heatmap.png",
+        "/jobs/{job_id}/plots/{name}.png",
+        "/presets",
+        "/healthz",
+        "/version",
+    ):
+        assert path in paths, path
+    schemas = spec["components"]["schemas"]
+    for name in ("Job", "JobPage", "Metrics", "Trajectory", "QTable", "Problem"):
+        assert schemas[name].get("examples"), name
+    post = paths["/jobs"]["post"]
+    assert "application/problem+json" in post["responses"]["422"]["content"]
+    assert post["requestBody"]["content"]["application/json"]["examples"]
+    assert "image/png" in paths["/jobs/{job_id}/heatmap.png"]["get"]["responses"]["200"]["content"]
+    assert api.client.get("/docs").status_code == 200
+
+
+def test_a_server_fault_is_a_problem_document_without_details(sqlite_url: str) -> None:
+    app = create_app(Settings(database_url=sqlite_url))
+
+    def explode() -> None:
+        raise RuntimeError("secret internals")
+
+    app.add_api_route("/explode", explode)
+    with serve(app) as url:
+        response = httpx.get(f"{url}/explode")
+    body = assert_problem(response, 500)
+    assert "secret" not in response.text
+    assert body["type"].endswith("internal-error")

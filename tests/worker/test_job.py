@@ -1,0 +1,141 @@
+"""The worker's pieces in one process, over a real SQLite store and the real engine."""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from typing import Any
+
+import pytest
+
+from nanonav.engine import Progress
+from nanonav.settings import Settings
+from nanonav.store import Claim, JobStatus, JobStore
+from worker.job import Stop, Watch, finite, heartbeat, run_job
+from worker.loop import work
+
+TINY: dict[str, Any] = {"robots": {"count": 2}, "learning": {"episodes": 1, "max_steps": 40}}
+
+
+class Clock:
+    def __init__(self) -> None:
+        self.now = 100.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+def claimed(store: JobStore, scenario: dict[str, Any] | None = None) -> Claim:
+    store.enqueue(TINY if scenario is None else scenario, robot_steps=1, episodes=2)
+    claim = store.claim("test", lease_s=30)
+    assert claim is not None
+    return claim
+
+
+def settings_for(store: JobStore, **overrides: Any) -> Settings:
+    url = store.engine.url.render_as_string(hide_password=False)
+    return Settings(database_url=url, **overrides)
+
+
+def test_progress_is_written_at_most_once_per_interval(sqlite_store: JobStore) -> None:
+    claim = claimed(sqlite_store)
+    clock = Clock()
+    settings = settings_for(sqlite_store, progress_interval_s=0.25)
+    watch = Watch(sqlite_store, claim, settings, threading.Event(), clock)
+    assert watch(Progress(0, 2, 10, 40))
+    assert sqlite_store.get(claim.job.id).fraction == pytest.approx(10 / 80)
+    clock.now += 0.1
+    assert watch(Progress(0, 2, 30, 40))
+    assert sqlite_store.get(claim.job.id).fraction == pytest.approx(10 / 80)
+    clock.now += 0.2
+    assert watch(Progress(1, 2, 0, 40))
+    job = sqlite_store.get(claim.job.id)
+    assert (job.episode, job.fraction) == (1, pytest.approx(0.5))
+
+
+def test_a_cancel_request_stops_the_run_at_the_next_write(sqlite_store: JobStore) -> None:
+    claim = claimed(sqlite_store)
+    clock = Clock()
+    watch = Watch(sqlite_store, claim, settings_for(sqlite_store), threading.Event(), clock)
+    assert watch(Progress(0, 2, 1, 40))
+    sqlite_store.cancel(claim.job.id)
+    clock.now += 1
+    assert watch(Progress(0, 2, 2, 40)) is False
+    assert watch.stop is Stop.CANCELLED
+
+
+def test_the_time_limit_and_shutdown_stop_the_run(sqlite_store: JobStore) -> None:
+    claim = claimed(sqlite_store)
+    clock = Clock()
+    shutdown = threading.Event()
+    settings = settings_for(sqlite_store, job_time_limit_s=5)
+    watch = Watch(sqlite_store, claim, settings, shutdown, clock)
+    clock.now += 5.5
+    assert watch(Progress(0, 2, 1, 40)) is False
+    assert watch.stop is Stop.TIME_LIMIT
+    other = Watch(sqlite_store, claim, settings, shutdown, clock)
+    shutdown.set()
+    assert other(Progress(0, 2, 1, 40)) is False
+    assert other.stop is Stop.SHUTDOWN
+
+
+def test_a_lost_lease_stops_the_run(sqlite_store: JobStore) -> None:
+    claim = claimed(sqlite_store)
+    stale = Claim(job=claim.job, token="stolen", owner="x")
+    watch = Watch(sqlite_store, stale, settings_for(sqlite_store), threading.Event(), Clock())
+    assert watch(Progress(0, 2, 1, 40)) is False
+    assert watch.stop is Stop.LEASE_LOST
+
+
+def test_run_job_stores_a_finished_run(sqlite_store: JobStore) -> None:
+    claim = claimed(sqlite_store)
+    record = run_job(sqlite_store, claim, settings_for(sqlite_store), threading.Event())
+    assert record is not None and record.status is JobStatus.SUCCEEDED
+    assert set(sqlite_store.trajectory(claim.job.id)) >= {"robots", "cells", "distance"}
+    assert sqlite_store.qtable(claim.job.id)["values"].ndim == 2
+    assert sqlite_store.plot(claim.job.id, "heatmap_all") is not None
+
+
+def test_run_job_fails_an_invalid_scenario_with_its_reason(sqlite_store: JobStore) -> None:
+    claim = claimed(sqlite_store, {"robots": {"count": 0}})
+    record = run_job(sqlite_store, claim, settings_for(sqlite_store), threading.Event())
+    assert record is not None and record.status is JobStatus.FAILED
+    assert record.error is not None and "robots.count" in record.error
+
+
+def test_a_shutdown_gives_the_job_back(sqlite_store: JobStore) -> None:
+    long_run = {"learning": {"episodes": 200, "max_steps": 2000}, "robots": {"policy": "random"}}
+    claim = claimed(sqlite_store, long_run)
+    shutdown = threading.Event()
+    shutdown.set()
+    assert run_job(sqlite_store, claim, settings_for(sqlite_store), shutdown) is None
+    job = sqlite_store.get(claim.job.id)
+    assert (job.status, job.attempts) == (JobStatus.QUEUED, 0)
+
+
+def test_work_runs_queued_jobs_then_returns(store: JobStore) -> None:
+    ids = [store.enqueue({**TINY, "seed": seed}, robot_steps=1, episodes=2).id for seed in (1, 2)]
+    settings = settings_for(store, poll_interval_s=0.01)
+    assert work(settings, threading.Event(), max_jobs=2) == 2
+    assert [store.get(i).status for i in ids] == [JobStatus.SUCCEEDED] * 2
+    first, second = (store.metrics(i) for i in ids)
+    assert first["scenario"]["seed"] == 1 and second["scenario"]["seed"] == 2
+    assert store.trajectory(ids[0])["robots"].shape[1:] == (2, 3)
+
+
+def test_finite_replaces_nan_and_infinity_with_none() -> None:
+    document = {"a": [1.0, math.nan], "b": {"c": -math.inf}, "d": "x", "e": 2}
+    assert finite(document) == {"a": [1.0, None], "b": {"c": None}, "d": "x", "e": 2}
+
+
+def test_the_heartbeat_keeps_the_lease_while_a_slow_step_runs(sqlite_store: JobStore) -> None:
+    sqlite_store.enqueue(TINY, robot_steps=1, episodes=2)
+    claim = sqlite_store.claim("test", lease_s=0.4)
+    assert claim is not None
+    settings = settings_for(sqlite_store, lease_s=0.4)
+    with heartbeat(sqlite_store, claim, settings):
+        time.sleep(1.0)
+        assert sqlite_store.recover_expired(max_attempts=3) == 0
+    time.sleep(0.5)
+    assert sqlite_store.recover_expired(max_attempts=3) == 1

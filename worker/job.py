@@ -1,0 +1,204 @@
+"""Run one claimed job: simulate with progress, cancel and time checks, then store the result."""
+
+from __future__ import annotations
+
+import contextlib
+import enum
+import logging
+import math
+import threading
+import time
+from collections.abc import Callable, Iterator
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from pydantic import ValidationError
+from sqlalchemy.exc import SQLAlchemyError
+
+from nanonav.engine import Progress, SimulationResult, simulate
+from nanonav.plots import render_all
+from nanonav.scenario import Scenario
+from nanonav.settings import Settings
+from nanonav.store import Claim, JobRecord, JobStore, LeaseLost, Outcome
+
+logger = logging.getLogger(__name__)
+
+TRAJECTORY_KEYS = (
+    "robots",
+    "cells",
+    "obstacles",
+    "concentration",
+    "distance",
+    "steps",
+    "reached",
+    "emitter_offsets",
+    "obstacle_radius",
+)
+
+
+class Stop(enum.Enum):
+    """Why a run was stopped before its end."""
+
+    CANCELLED = "cancelled"  # a client asked
+    TIME_LIMIT = "time limit"  # it ran longer than the settings allow
+    SHUTDOWN = "shutdown"  # the worker was told to stop: the job goes back to the queue
+    LEASE_LOST = "lease lost"  # another worker owns the job now: write nothing
+
+
+class Watch:
+    """The progress callback: writes progress at most every ``progress_interval_s`` and decides,
+    from the answer, the clock and the shutdown flag, whether the run goes on."""
+
+    def __init__(
+        self,
+        store: JobStore,
+        claim: Claim,
+        settings: Settings,
+        shutdown: threading.Event,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        self.store = store
+        self.claim = claim
+        self.settings = settings
+        self.shutdown = shutdown
+        self.clock = clock
+        self.started = clock()
+        self.last_write = -math.inf
+        self.stop: Stop | None = None
+
+    def __call__(self, progress: Progress) -> bool:
+        now = self.clock()
+        if self.shutdown.is_set():
+            self.stop = Stop.SHUTDOWN
+        elif now - self.started > self.settings.job_time_limit_s:
+            self.stop = Stop.TIME_LIMIT
+        elif now - self.last_write >= self.settings.progress_interval_s:
+            self.last_write = now
+            try:
+                if self.store.report_progress(
+                    self.claim,
+                    episode=progress.episode,
+                    episodes=progress.episodes,
+                    fraction=progress.fraction,
+                    lease_s=self.settings.lease_s,
+                ):
+                    self.stop = Stop.CANCELLED
+            except LeaseLost:
+                self.stop = Stop.LEASE_LOST
+        return self.stop is None
+
+
+def run_job(
+    store: JobStore, claim: Claim, settings: Settings, shutdown: threading.Event
+) -> JobRecord | None:
+    """Run the claimed job to its end state; None if the job went back to the queue or to
+    another worker."""
+    job_id = claim.job.id
+    try:
+        scenario = Scenario.model_validate(claim.job.scenario)
+    except ValidationError as error:
+        return store.fail(claim, f"the stored scenario is no longer valid: {error}")
+    watch = Watch(store, claim, settings, shutdown)
+    started = time.perf_counter()
+    try:
+        result = simulate(scenario, watch)
+    except Exception as error:
+        logger.exception("job %d failed", job_id)
+        return _fail(store, claim, f"the simulation failed: {type(error).__name__}: {error}")
+    if watch.stop is Stop.LEASE_LOST:
+        logger.warning("job %d: lease lost; its result is dropped", job_id)
+        return None
+    if watch.stop is Stop.TIME_LIMIT and not result.completed:
+        limit = settings.job_time_limit_s
+        return _fail(store, claim, f"stopped: the job ran past its time limit of {limit:g} s")
+    if watch.stop is Stop.SHUTDOWN and not result.completed:
+        logger.info("job %d: given back to the queue on shutdown", job_id)
+        with contextlib.suppress(LeaseLost):
+            store.release(claim)
+        return None
+    simulated = time.perf_counter()
+    plots: dict[str, bytes] = {}
+    if result.completed:
+        try:
+            with heartbeat(store, claim, settings):
+                plots = render_all(result)
+        except Exception as error:
+            logger.exception("job %d: plots failed", job_id)
+            return _fail(
+                store, claim, f"the plots could not be drawn: {type(error).__name__}: {error}"
+            )
+    drawn = time.perf_counter()
+    logger.info(
+        "job %d: simulated in %.2f s, plots drawn in %.2f s",
+        job_id,
+        simulated - started,
+        drawn - simulated,
+    )
+    try:
+        return store.finish(claim, outcome(result, plots))
+    except LeaseLost:
+        logger.warning("job %d: lease lost before its result was stored", job_id)
+        return None
+
+
+@contextlib.contextmanager
+def heartbeat(store: JobStore, claim: Claim, settings: Settings) -> Iterator[None]:
+    """Keep the lease alive from a thread while the block runs (it reports no progress)."""
+    done = threading.Event()
+
+    def beat() -> None:
+        while not done.wait(settings.lease_s / 4):
+            try:
+                store.renew(claim, lease_s=settings.lease_s)
+            except LeaseLost:
+                return
+            except SQLAlchemyError:
+                logger.exception("job %d: heartbeat failed", claim.job.id)
+
+    thread = threading.Thread(target=beat, name=f"heartbeat-{claim.job.id}", daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        done.set()
+        thread.join()
+
+
+def outcome(result: SimulationResult, plots: dict[str, bytes]) -> Outcome:
+    """What the store keeps of a run: metrics as JSON, trajectory and Q-table as arrays."""
+    arrays = result.arrays()
+    trajectory = {k: arrays[k] for k in TRAJECTORY_KEYS if k in arrays}
+    qtable: dict[str, NDArray[Any]] | None = None
+    if result.qtable is not None:
+        qtable = {
+            "states": np.array(result.qtable.states, dtype=np.str_),
+            "actions": np.array(result.qtable.actions, dtype=np.str_),
+            "values": result.qtable.values,
+            "visits": result.qtable.visits,
+        }
+    return Outcome(
+        completed=result.completed,
+        metrics=finite(result.to_dict()),
+        trajectory=trajectory or None,
+        qtable=qtable,
+        plots=plots,
+    )
+
+
+def finite(document: Any) -> Any:
+    """``document`` with NaN and infinities as None: JSON has no such numbers."""
+    if isinstance(document, dict):
+        return {k: finite(v) for k, v in document.items()}
+    if isinstance(document, list | tuple):
+        return [finite(v) for v in document]
+    if isinstance(document, float) and not math.isfinite(document):
+        return None
+    return document
+
+
+def _fail(store: JobStore, claim: Claim, error: str) -> JobRecord | None:
+    try:
+        return store.fail(claim, error)
+    except LeaseLost:
+        return None

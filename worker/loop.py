@@ -1,0 +1,136 @@
+"""The claim loop, its signals, and ``--concurrency`` worker processes under one supervisor.
+
+SIGTERM or SIGINT asks a worker to stop: the job it runs stops at its next progress check and
+goes back to the queue (unless it has just finished), then the process exits.
+"""
+
+from __future__ import annotations
+
+import logging
+import multiprocessing
+import os
+import signal
+import socket
+import threading
+import time
+from types import FrameType
+from typing import Any
+
+from sqlalchemy.exc import SQLAlchemyError
+
+from nanonav.engine import simulate
+from nanonav.scenario import Scenario
+from nanonav.settings import Settings
+from nanonav.store import JobStore
+from worker.job import run_job
+
+logger = logging.getLogger(__name__)
+
+LOG_FORMAT = "%(asctime)s %(levelname)s [%(process)d] %(name)s: %(message)s"
+RECOVERY_INTERVAL_S = 5.0
+WARM_UP = {
+    "robots": {"count": 1},
+    "obstacles": {"count": 0},
+    "learning": {"episodes": 0, "max_steps": 2},
+}
+
+
+def warm_up() -> None:
+    """Compile (or load from cache) the engine's kernels before the first job is claimed."""
+    simulate(Scenario.model_validate(WARM_UP))
+
+
+def work(settings: Settings, shutdown: threading.Event, *, max_jobs: int | None = None) -> int:
+    """Claim and run jobs until ``shutdown`` is set (or ``max_jobs`` ran); returns jobs run."""
+    owner = f"{socket.gethostname()}:{os.getpid()}"
+    store = JobStore.from_url(settings.database_url)
+    ran = 0
+    last_recovery = -RECOVERY_INTERVAL_S
+    try:
+        while not shutdown.is_set() and (max_jobs is None or ran < max_jobs):
+            try:
+                if time.monotonic() - last_recovery >= RECOVERY_INTERVAL_S:
+                    last_recovery = time.monotonic()
+                    if recovered := store.recover_expired(max_attempts=settings.max_attempts):
+                        logger.info("recovered %d job(s) whose worker stopped answering", recovered)
+                claim = store.claim(owner, lease_s=settings.lease_s)
+            except SQLAlchemyError:
+                logger.exception("the store is unavailable; retrying")
+                shutdown.wait(max(settings.poll_interval_s, 1.0))
+                continue
+            if claim is None:
+                shutdown.wait(settings.poll_interval_s)
+                continue
+            logger.info("job %d: claimed (attempt %d)", claim.job.id, claim.job.attempts)
+            try:
+                record = run_job(store, claim, settings, shutdown)
+            except SQLAlchemyError:
+                logger.exception("job %d: the store failed while it ran", claim.job.id)
+                continue
+            ran += 1
+            if record is not None:
+                logger.info("job %d: %s", record.id, record.status.value)
+    finally:
+        store.close()
+    return ran
+
+
+def _on_signals(shutdown: threading.Event) -> None:
+    def stop(signum: int, frame: FrameType | None) -> None:
+        logger.info("signal %d: stopping after the current step", signum)
+        shutdown.set()
+
+    signal.signal(signal.SIGTERM, stop)
+    signal.signal(signal.SIGINT, stop)
+
+
+def run_worker(settings: Settings) -> None:
+    """One worker in this process, until SIGTERM or SIGINT."""
+    shutdown = threading.Event()
+    _on_signals(shutdown)
+    if settings.worker_nice:
+        os.nice(settings.worker_nice)
+    warm_up()
+    logger.info("worker %d ready on %s", os.getpid(), _safe_url(settings))
+    work(settings, shutdown)
+
+
+def _child(settings_data: dict[str, Any]) -> None:
+    logging.basicConfig(level=logging.INFO, format=LOG_FORMAT)
+    run_worker(Settings(**settings_data))
+
+
+def supervise(settings: Settings, concurrency: int) -> None:
+    """``concurrency`` worker processes; a child that dies is replaced; a signal stops all."""
+    if concurrency <= 1:
+        run_worker(settings)
+        return
+    shutdown = threading.Event()
+    _on_signals(shutdown)
+    context = multiprocessing.get_context("spawn")
+    data = settings.model_dump()
+
+    def start() -> multiprocessing.process.BaseProcess:
+        process = context.Process(target=_child, args=(data,), daemon=False)
+        process.start()
+        return process
+
+    children = [start() for _ in range(concurrency)]
+    while not shutdown.wait(0.5):
+        for i, child in enumerate(children):
+            if not child.is_alive():
+                logger.warning(
+                    "worker %s exited with %s; starting another", child.pid, child.exitcode
+                )
+                children[i] = start()
+    for child in children:
+        if child.is_alive() and child.pid is not None:
+            os.kill(child.pid, signal.SIGTERM)
+    for child in children:
+        child.join()
+
+
+def _safe_url(settings: Settings) -> str:
+    from sqlalchemy.engine import make_url
+
+    return make_url(settings.database_url).render_as_string(hide_password=True)
