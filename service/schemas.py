@@ -133,10 +133,38 @@ class Metrics(BaseModel):
                         "duration_s": 0.05,
                         "success_rate": 1.0,
                         "collisions": 2,
+                        "path_efficiency": 0.91,
+                        "mean_steps_to_reach": 312.0,
+                        "mean_return": 42.0,
+                        "robots": 1,
+                        "reached": 1,
                     },
-                    "robots": [{"robot": 0, "reached": True, "steps": 312}],
-                    "episodes": [{"episode": 0, "reward": 12.5, "steps": 640}],
-                    "work": {"robot_steps": 1000},
+                    "robots": [
+                        {
+                            "robot": 0,
+                            "reached": True,
+                            "total_steps": 312,
+                            "final_distance": 0.4,
+                            "average_distance": 9.8,
+                            "average_concentration": 0.41,
+                            "duration_s": 0.05,
+                            "collisions": 2,
+                            "path_length": 156.0,
+                            "path_efficiency": 0.91,
+                            "return": 42.0,
+                        }
+                    ],
+                    "episodes": [
+                        {
+                            "episode": 0,
+                            "steps": 640,
+                            "success_rate": 1.0,
+                            "mean_return": 30.6,
+                            "epsilon": 1.0,
+                            "collisions": 3,
+                        }
+                    ],
+                    "work": {"robot_steps": 40440, "engine_s": 0.038},
                 }
             ]
         },
@@ -180,7 +208,9 @@ class Trajectory(BaseModel):
     cells: list[list[list[float]]] = Field(description="[row][cell][x, y, z]")
     obstacles: list[list[list[float]]] = Field(description="[row][obstacle][x, y, z]")
     obstacle_radius: float
-    concentration: list[list[float]] = Field(description="[row][robot] concentration sensed")
+    concentration: list[list[float]] = Field(
+        description="[row][robot] true biomarker concentration at the robot"
+    )
     distance: list[list[float]] = Field(description="[row][robot] distance to nearest cell")
     reached: list[bool] = Field(description="[robot] whether it reached a cell")
     robot_steps: list[int] = Field(description="[robot] steps it was active")
@@ -193,8 +223,11 @@ class QTable(BaseModel):
         json_schema_extra={
             "examples": [
                 {
-                    "states": ["low/rising/clear/none", "high/falling/near/close"],
-                    "actions": ["follow_gradient", "advance", "avoid", "explore"],
+                    "states": [
+                        "conc=low|trend=rising|obstacle=none|cell=none",
+                        "conc=high|trend=falling|obstacle=near|cell=near",
+                    ],
+                    "actions": ["follow_gradient", "approach_cell", "avoid_obstacle", "explore"],
                     "values": [[0.1, 0.0, -0.2, 0.05], [1.2, 3.4, 0.0, 0.1]],
                     "visits": [[10, 2, 1, 4], [3, 9, 0, 1]],
                 }

@@ -25,6 +25,7 @@ from nanonav.store import Claim, JobRecord, JobStore, LeaseLost, Outcome
 logger = logging.getLogger(__name__)
 
 TRAJECTORY_KEYS = (
+    "step",
     "robots",
     "cells",
     "obstacles",

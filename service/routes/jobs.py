@@ -137,11 +137,10 @@ def get_trajectory(
     """The evaluation episode's paths, concentrations and distances, every ``stride`` steps."""
     arrays = store.trajectory(job_id)
     rows = _rows(arrays, stride)
-    per_step = {"robots", "cells", "obstacles", "concentration", "distance"}
+    per_step = {"step", "robots", "cells", "obstacles", "concentration", "distance"}
     strided = {k: (v[rows] if k in per_step else v) for k, v in arrays.items()}
     name = f"nanonav-job-{job_id}-trajectory"
     if format == "npz":
-        strided["step"] = rows
         return Response(
             pack(strided),
             media_type="application/octet-stream",
@@ -149,14 +148,14 @@ def get_trajectory(
         )
     if format == "csv":
         return Response(
-            _csv(strided, rows),
+            _csv(strided),
             media_type="text/csv; charset=utf-8",
             headers={"Content-Disposition": f'attachment; filename="{name}.csv"'},
         )
     return Trajectory(
         stride=stride,
-        length=int(arrays["robots"].shape[0] - 1),
-        steps=rows.tolist(),
+        length=int(arrays["step"][-1]),
+        steps=strided["step"].tolist(),
         robots=strided["robots"].tolist(),
         cells=strided["cells"].tolist(),
         obstacles=strided["obstacles"].tolist(),
@@ -241,11 +240,11 @@ def _rows(arrays: dict[str, NDArray[Any]], stride: int) -> NDArray[np.int64]:
     return rows
 
 
-def _csv(arrays: dict[str, NDArray[Any]], rows: NDArray[np.int64]) -> str:
+def _csv(arrays: dict[str, NDArray[Any]]) -> str:
     out = io.StringIO()
     writer = csv.writer(out, lineterminator="\n")
     writer.writerow(["step", "kind", "index", "x", "y", "z", "concentration", "distance"])
-    for i, step in enumerate(rows.tolist()):
+    for i, step in enumerate(arrays["step"].tolist()):
         for r, (x, y, z) in enumerate(arrays["robots"][i].tolist()):
             c = arrays["concentration"][i, r]
             d = arrays["distance"][i, r]

@@ -149,6 +149,7 @@ def test_a_submitted_job_runs_and_every_result_comes_back(
     full = api.client.get(f"/jobs/{job_id}/trajectory").json()
     length = full["length"]
     assert 1 <= length <= 60
+    assert length == summary["total_steps"]
     assert full["steps"] == list(range(length + 1))
     assert np.asarray(full["robots"]).shape == (length + 1, 2, 3)
     assert np.asarray(full["cells"]).shape == (length + 1, 1, 3)
