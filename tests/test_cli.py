@@ -184,11 +184,13 @@ def test_ctrl_c_stops_the_run_cleanly_with_exit_130(
 ) -> None:
     """The real engine runs; a SIGINT arrives at its first progress report."""
     finished: list[bool] = []
+    reports: list[Progress] = []
 
     def simulate_then_press_ctrl_c(scenario: Any, progress: Any) -> SimulationResult:
         def interrupted(state: Progress) -> bool | None:
-            if state.episode == 1:
+            if not reports:
                 signal.raise_signal(signal.SIGINT)
+            reports.append(state)
             answer: bool | None = progress(state)
             return answer
 

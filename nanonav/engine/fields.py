@@ -24,7 +24,7 @@ MODEL_CODES = {"gaussian": GAUSSIAN, "inverse_square": INVERSE_SQUARE, "diffusio
 FASTMATH = {"reassoc", "contract", "nsz", "arcp"}
 
 
-@njit(cache=True, fastmath=FASTMATH, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def sample(
     model: int,
     sx: NDArray[np.float64],
@@ -38,7 +38,8 @@ def sample(
     z: float,
 ) -> tuple[float, float, float, float]:
     """Concentration and gradient at (x, y, z) of sources at (sx, sy, sz), each of strength
-    ``weight``; ``length`` is sigma (Gaussian) or lambda (diffusion)."""
+    ``weight``; ``length`` is sigma (Gaussian) or lambda (diffusion). It is inlined into
+    ``sample_many``, the one caller, whose fast-math flags let the sum over sources vectorise."""
     c = 0.0
     gx = 0.0
     gy = 0.0
@@ -113,8 +114,8 @@ def place_sources(
             sz[j] = cells[j, 2]
 
 
-@njit(cache=True)
-def _sample_points(
+@njit(cache=True, fastmath=FASTMATH, error_model="numpy")
+def sample_many(
     model: int,
     sx: NDArray[np.float64],
     sy: NDArray[np.float64],
@@ -123,10 +124,14 @@ def _sample_points(
     length: float,
     softening: float,
     points: NDArray[np.float64],
+    wanted: NDArray[np.bool_],
     conc: NDArray[np.float64],
     grad: NDArray[np.float64],
 ) -> None:
+    """``sample`` at every point whose ``wanted`` flag is set, into ``conc`` and ``grad``."""
     for p in range(points.shape[0]):
+        if not wanted[p]:
+            continue
         c, gx, gy, gz = sample(
             model, sx, sy, sz, weight, length, softening, points[p, 0], points[p, 1], points[p, 2]
         )
@@ -175,7 +180,7 @@ def field_and_gradient(
     place_sources(model, cells, offsets, sx, sy, sz)
     conc = np.empty(points.shape[0])
     grad = np.empty((points.shape[0], 3))
-    _sample_points(
+    sample_many(
         model,
         sx,
         sy,
@@ -184,6 +189,7 @@ def field_and_gradient(
         length_scale(biomarker),
         biomarker.softening,
         points,
+        np.ones(points.shape[0], dtype=np.bool_),
         conc,
         grad,
     )
@@ -199,7 +205,7 @@ def radial_profile(biomarker: Biomarker, distances: NDArray[np.float64]) -> NDAr
     one = np.zeros(1)
     conc = np.empty(len(distances))
     grad = np.empty((len(distances), 3))
-    _sample_points(
+    sample_many(
         model,
         one,
         one,
@@ -208,6 +214,7 @@ def radial_profile(biomarker: Biomarker, distances: NDArray[np.float64]) -> NDAr
         length_scale(biomarker),
         biomarker.softening,
         points,
+        np.ones(len(distances), dtype=np.bool_),
         conc,
         grad,
     )

@@ -14,7 +14,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from nanonav.engine.fields import place_sources, sample
+from nanonav.engine.fields import place_sources, sample_many
 from nanonav.engine.qlearning import (
     APPROACH_CELL,
     AVOID_OBSTACLE,
@@ -23,11 +23,19 @@ from nanonav.engine.qlearning import (
 )
 from nanonav.engine.state import (
     BEHAVIORS,
+    CURVE_COLLISIONS,
+    CURVE_REACHED,
+    CURVE_RETURN,
+    CURVE_ROBOT_STEPS,
+    CURVE_STEPS,
+    EPISODE,
+    EPISODE_START,
     GRADIENT,
     LAYOUT_STATUS,
     Q_LEARNING,
     ROBOT_STEPS,
     RUN_AND_TUMBLE,
+    STEP,
     KernelParams,
     Learner,
     Recording,
@@ -42,7 +50,7 @@ OBSTACLE_NEAR_STEPS = 2.0
 CELL_NEAR_STEPS = 3.0
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def _random_unit(rng: np.random.Generator) -> tuple[float, float, float]:
     while True:
         x = rng.standard_normal()
@@ -53,7 +61,7 @@ def _random_unit(rng: np.random.Generator) -> tuple[float, float, float]:
             return x / n, y / n, z / n
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def _reflect(v: float, half: float) -> float:
     if v > half:
         return 2.0 * half - v
@@ -62,7 +70,7 @@ def _reflect(v: float, half: float) -> float:
     return v
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def _nearest_cell(cells: NDArray[np.float64], x: float, y: float, z: float) -> tuple[int, float]:
     best = -1
     best_d2 = np.inf
@@ -77,7 +85,7 @@ def _nearest_cell(cells: NDArray[np.float64], x: float, y: float, z: float) -> t
     return best, math.sqrt(best_d2)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def _nearest_obstacle(
     obstacles: NDArray[np.float64], radius: float, x: float, y: float, z: float
 ) -> tuple[int, float]:
@@ -97,7 +105,7 @@ def _nearest_obstacle(
     return best, math.sqrt(best_d2) - radius
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def _inside_obstacle(
     obstacles: NDArray[np.float64], radius: float, x: float, y: float, z: float
 ) -> bool:
@@ -111,12 +119,23 @@ def _inside_obstacle(
     return False
 
 
-@njit(cache=True)
-def _sense(
-    p: KernelParams, rng: np.random.Generator, w: World, x: float, y: float, z: float
-) -> tuple[float, float, float, float]:
-    """A robot's reading of the concentration and its gradient, with relative sensor noise."""
-    c, gx, gy, gz = sample(p.model, w.sx, w.sy, w.sz, p.weight, p.length, p.softening, x, y, z)
+@njit(cache=True, error_model="numpy", inline="always")
+def _sense_all(p: KernelParams, w: World, s: Swarm, wanted: NDArray[np.bool_]) -> None:
+    """The true field and gradient at every ``wanted`` robot, in one pass over the swarm (the
+    sources' loop vectorises there, unlike inside the robot loop)."""
+    sample_many(
+        p.model, w.sx, w.sy, w.sz, p.weight, p.length, p.softening, s.pos, wanted,
+        s.reading, s.reading_grad,
+    )  # fmt: skip
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _sense(p: KernelParams, rng: np.random.Generator, s: Swarm, i: int) -> tuple[float, ...]:
+    """Robot ``i``'s reading of the concentration and its gradient, with relative sensor noise."""
+    c = s.reading[i]
+    gx = s.reading_grad[i, 0]
+    gy = s.reading_grad[i, 1]
+    gz = s.reading_grad[i, 2]
     if p.noise > 0.0:
         c *= 1.0 + p.noise * rng.standard_normal()
         gx *= 1.0 + p.noise * rng.standard_normal()
@@ -125,7 +144,7 @@ def _sense(
     return c, gx, gy, gz
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def _state(
     p: KernelParams,
     c: float,
@@ -162,13 +181,13 @@ def _state(
     return index * 2 + (1 if near_obstacle else 0)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def _choose(
-    p: KernelParams, rng: np.random.Generator, q: NDArray[np.float64], table: int, state: int
+    epsilon: float, rng: np.random.Generator, q: NDArray[np.float64], table: int, state: int
 ) -> int:
     """Epsilon-greedy over one row of the table; ties among the best are broken at random."""
     actions = q.shape[2]
-    if p.epsilon > 0.0 and rng.random() < p.epsilon:
+    if epsilon > 0.0 and rng.random() < epsilon:
         return int(rng.integers(0, actions))
     best = q[table, state, 0]
     ties = 1
@@ -188,7 +207,7 @@ def _choose(
     return 0
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def _unit_or_random(
     rng: np.random.Generator, x: float, y: float, z: float
 ) -> tuple[float, float, float]:
@@ -198,16 +217,17 @@ def _unit_or_random(
     return _random_unit(rng)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def _behavior_direction(
     p: KernelParams,
     rng: np.random.Generator,
     w: World,
+    s: Swarm,
+    robot: int,
     action: int,
     px: float,
     py: float,
     pz: float,
-    heading: NDArray[np.float64],
     gx: float,
     gy: float,
     gz: float,
@@ -216,24 +236,28 @@ def _behavior_direction(
     cell: int,
     cell_d: float,
 ) -> tuple[float, float, float, float]:
-    """Unit direction and step length of one of the paper's behaviours."""
+    """Unit direction and step length of one of the paper's behaviours. (Arrays are indexed
+    element by element here: taking row views in this hot path costs reference counting.)"""
     if action == EXPLORE:
         dx, dy, dz = _random_unit(rng)
         return dx, dy, dz, p.speed
     if action == APPROACH_CELL:
         if cell_d <= p.sensing_radius and cell_d > 0.0:
-            c = w.cells[cell]
             return (
-                (c[0] - px) / cell_d,
-                (c[1] - py) / cell_d,
-                (c[2] - pz) / cell_d,
+                (w.cells[cell, 0] - px) / cell_d,
+                (w.cells[cell, 1] - py) / cell_d,
+                (w.cells[cell, 2] - pz) / cell_d,
                 min(p.speed, cell_d),
             )
-        return heading[0], heading[1], heading[2], p.speed
+        return s.heading[robot, 0], s.heading[robot, 1], s.heading[robot, 2], p.speed
     dx, dy, dz = _unit_or_random(rng, gx, gy, gz)
     if action == AVOID_OBSTACLE and obstacle >= 0 and obstacle_gap <= p.sensing_radius:
-        o = w.obstacles[obstacle]
-        nx, ny, nz = _unit_or_random(rng, px - o[0], py - o[1], pz - o[2])
+        nx, ny, nz = _unit_or_random(
+            rng,
+            px - w.obstacles[obstacle, 0],
+            py - w.obstacles[obstacle, 1],
+            pz - w.obstacles[obstacle, 2],
+        )
         inward = dx * nx + dy * ny + dz * nz
         if inward < 0.0:
             # slide along the tangent plane: a tangential step never enters the sphere
@@ -248,7 +272,7 @@ def _behavior_direction(
     return dx, dy, dz, p.speed
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def _learn(
     p: KernelParams, q: NDArray[np.float64], table: int, s: int, a: int, target: float
 ) -> None:
@@ -256,7 +280,7 @@ def _learn(
     q[table, s, a] += p.alpha * (target - q[table, s, a])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def _bootstrap(p: KernelParams, q: NDArray[np.float64], table: int, s: int, reward: float) -> float:
     best: float = q[table, s, 0]
     for a in range(1, q.shape[2]):
@@ -264,7 +288,7 @@ def _bootstrap(p: KernelParams, q: NDArray[np.float64], table: int, s: int, rewa
     return reward + p.gamma * best
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _move_cells(p: KernelParams, rng: np.random.Generator, w: World) -> None:
     """Random walk of the cells (paper 3.1); a move into an obstacle is refused."""
     for j in range(w.cells.shape[0]):
@@ -277,7 +301,7 @@ def _move_cells(p: KernelParams, rng: np.random.Generator, w: World) -> None:
             w.cells[j, 2] = z
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _move_obstacles(p: KernelParams, rng: np.random.Generator, w: World, s: Swarm) -> None:
     """Obstacle drift (paper 2.6); a move that would engulf a robot or a cell is refused."""
     r = p.obstacle_radius
@@ -308,7 +332,7 @@ def _move_obstacles(p: KernelParams, rng: np.random.Generator, w: World, s: Swar
             w.obstacles[j, 2] = z
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def observe(p: KernelParams, w: World, s: Swarm, rec: Recording, t: int, final: bool) -> None:
     """Measure the true field and distance at every robot after step ``t``: add them to the
     per-robot sums of robots still moving at ``t``, and store a history row every
@@ -318,12 +342,10 @@ def observe(p: KernelParams, w: World, s: Swarm, rec: Recording, t: int, final: 
     if final and not on_row:
         row += 1
     keep = on_row or final
+    _sense_all(p, w, s, np.ones(s.pos.shape[0], dtype=np.bool_))
     for i in range(s.pos.shape[0]):
-        x = s.pos[i, 0]
-        y = s.pos[i, 1]
-        z = s.pos[i, 2]
-        c, _, _, _ = sample(p.model, w.sx, w.sy, w.sz, p.weight, p.length, p.softening, x, y, z)
-        d = _nearest_cell(w.cells, x, y, z)[1]
+        c = s.reading[i]
+        d = _nearest_cell(w.cells, s.pos[i, 0], s.pos[i, 1], s.pos[i, 2])[1]
         if not final and s.steps[i] == t:
             s.sum_conc[i] += c
             s.sum_dist[i] += d
@@ -338,36 +360,115 @@ def observe(p: KernelParams, w: World, s: Swarm, rec: Recording, t: int, final: 
         rec.step[row] = t
 
 
-@njit(cache=True)
-def run_steps(
+@njit(cache=True, error_model="numpy")
+def _begin_episode(
+    p: KernelParams, world_rng: np.random.Generator, w: World, s: Swarm, rec: Recording,
+    record: bool,
+) -> int:  # fmt: skip
+    """Reset the swarm and draw a fresh world; returns ``draw_world``'s status."""
+    s.active[:] = True
+    s.steps[:] = 0
+    s.prev_conc[:] = -1.0
+    s.returns[:] = 0.0
+    s.collisions[:] = 0
+    s.path_length[:] = 0.0
+    s.pending[:] = False
+    s.sum_conc[:] = 0.0
+    s.sum_dist[:] = 0.0
+    s.last_dist[:] = 0.0
+    status = draw_world(p, world_rng, w, s)
+    if status == 0:
+        place_sources(p.model, w.cells, w.offsets, w.sx, w.sy, w.sz)
+        if record:
+            observe(p, w, s, rec, 0, False)
+    return status
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _over(p: KernelParams, s: Swarm, t: int) -> bool:
+    return t >= p.max_steps or not s.active.any()
+
+
+@njit(cache=True, error_model="numpy")
+def run(
     p: KernelParams,
+    epsilons: NDArray[np.float64],
+    world_rng: np.random.Generator,
+    rng: np.random.Generator,
+    w: World,
+    s: Swarm,
+    lrn: Learner,
+    rec: Recording,
+    counters: NDArray[np.int64],
+    curve: NDArray[np.float64],
+    budget: int,
+) -> None:
+    """Run episodes from where ``counters`` says (episode, step) until about ``budget``
+    robot-steps are spent, the training episodes are over, or the evaluation episode is.
+
+    ``epsilons`` holds one rate per training episode; the evaluation episode follows them
+    (greedy, not learning, recorded). ``curve[e]`` receives episode ``e``'s steps, robots that
+    reached, summed return, collisions and robot-steps. A world with no room stops the run with
+    ``counters[LAYOUT_STATUS]`` set.
+    """
+    training = epsilons.shape[0]
+    episode = counters[EPISODE]
+    t = counters[STEP]
+    while budget > 0 and episode <= training:
+        evaluating = episode == training
+        eps = 0.0 if evaluating else epsilons[episode]
+        learn = p.learn and not evaluating
+        if t == 0:
+            status = _begin_episode(p, world_rng, w, s, rec, evaluating)
+            if status != 0:
+                counters[LAYOUT_STATUS] = status
+                break
+        spent = counters[ROBOT_STEPS]
+        t = _run_steps(p, eps, learn, evaluating, rng, w, s, lrn, rec, t, budget, counters)
+        budget -= counters[ROBOT_STEPS] - spent
+        if not _over(p, s, t):
+            continue
+        reached = 0
+        for i in range(s.pos.shape[0]):
+            if not s.active[i]:
+                reached += 1
+        curve[episode, CURVE_STEPS] = t
+        curve[episode, CURVE_REACHED] = reached
+        curve[episode, CURVE_RETURN] = s.returns.sum()
+        curve[episode, CURVE_COLLISIONS] = s.collisions.sum()
+        curve[episode, CURVE_ROBOT_STEPS] = counters[ROBOT_STEPS] - counters[EPISODE_START]
+        counters[EPISODE_START] = counters[ROBOT_STEPS]
+        episode += 1
+        if evaluating:
+            break
+        t = 0
+        if episode == training:
+            break  # the evaluation starts in a call of its own, so that it is timed alone
+    counters[EPISODE] = episode
+    counters[STEP] = t
+
+
+@njit(cache=True, error_model="numpy")
+def _run_steps(
+    p: KernelParams,
+    epsilon: float,
+    learn: bool,
+    record: bool,
     rng: np.random.Generator,
     w: World,
     s: Swarm,
     lrn: Learner,
     rec: Recording,
     t: int,
-    n_steps: int,
+    budget: int,
     counters: NDArray[np.int64],
 ) -> int:
-    """Advance the episode from step ``t`` by up to ``n_steps`` steps; return the new step.
-
-    At step 0 the world is drawn first (``counters[LAYOUT_STATUS]`` says whether it fitted).
-    The episode ends when every robot has reached a cell or at ``max_steps``; the last
-    transitions are then learned and the final row recorded. ``counters[ROBOT_STEPS]`` counts the
-    robot-steps simulated.
-    """
-    if t == 0:
-        status = draw_world(p, rng, w, s)
-        counters[LAYOUT_STATUS] = status
-        if status != 0:
-            return 0
-        place_sources(p.model, w.cells, w.offsets, w.sx, w.sy, w.sz)
-        if p.record:
-            observe(p, w, s, rec, 0, False)
+    """Advance the episode from step ``t`` until it ends or about ``budget`` robot-steps are
+    spent; return the new step. When the episode ends (every robot reached a cell, or
+    ``max_steps``) the last transitions are learned and the final row recorded."""
     n = s.pos.shape[0]
-    end = min(t + n_steps, p.max_steps)
-    while t < end:
+    stop_at = counters[ROBOT_STEPS] + budget
+    while t < p.max_steps and counters[ROBOT_STEPS] < stop_at:
         n_active = 0
         for i in range(n):
             if s.active[i]:
@@ -380,6 +481,7 @@ def run_steps(
         if p.obstacle_std > 0.0 and w.obstacles.shape[0] > 0:
             _move_obstacles(p, rng, w, s)
         place_sources(p.model, w.cells, w.offsets, w.sx, w.sy, w.sz)
+        _sense_all(p, w, s, s.active)
         for i in range(n):
             if not s.active[i]:
                 continue
@@ -392,7 +494,7 @@ def run_steps(
                 # a drifting cell came within reach: the robot spends this step receiving it
                 s.steps[i] += 1
                 s.returns[i] += p.reward_reach
-                if p.learn and s.pending[i]:
+                if learn and s.pending[i]:
                     _learn(
                         p, lrn.q, table, s.last_state[i], s.last_action[i],
                         s.last_reward[i] + p.reward_reach,
@@ -400,19 +502,19 @@ def run_steps(
                 s.pending[i] = False
                 s.active[i] = False
                 continue
-            c, gx, gy, gz = _sense(p, rng, w, px, py, pz)
+            c, gx, gy, gz = _sense(p, rng, s, i)
             obstacle, gap = _nearest_obstacle(w.obstacles, p.obstacle_radius, px, py, pz)
 
             if p.policy == Q_LEARNING:
                 state = _state(p, c, s.prev_conc[i], gx, gy, gz, gap, cell_d)
-                if p.learn and s.pending[i]:
+                if learn and s.pending[i]:
                     target = _bootstrap(p, lrn.q, table, state, s.last_reward[i])
                     _learn(p, lrn.q, table, s.last_state[i], s.last_action[i], target)
-                action = _choose(p, rng, lrn.q, table, state)
+                action = _choose(epsilon, rng, lrn.q, table, state)
                 lrn.visits[table, state, action] += 1
                 if p.action_set == BEHAVIORS:
                     dx, dy, dz, step = _behavior_direction(
-                        p, rng, w, action, px, py, pz, s.heading[i], gx, gy, gz,
+                        p, rng, w, s, i, action, px, py, pz, gx, gy, gz,
                         obstacle, gap, cell, cell_d,
                     )  # fmt: skip
                 else:
@@ -470,7 +572,7 @@ def run_steps(
                 reward += p.reward_reach
                 s.active[i] = False
             s.returns[i] += reward
-            if p.policy == Q_LEARNING and p.learn:
+            if learn:
                 if reached:
                     _learn(p, lrn.q, table, state, action, reward)
                     s.pending[i] = False
@@ -480,23 +582,23 @@ def run_steps(
                     s.last_action[i] = action
                     s.last_reward[i] = reward
         t += 1
-        if p.record:
+        if record:
             observe(p, w, s, rec, t, False)
-    if t >= p.max_steps or not s.active.any():
-        _finish_episode(p, rng, w, s, lrn)
-        if p.record and t % p.record_stride:
+    if _over(p, s, t):
+        if learn:
+            _finish_episode(p, rng, w, s, lrn)
+        if record and t % p.record_stride:
             observe(p, w, s, rec, t, True)
     return t
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _finish_episode(
     p: KernelParams, rng: np.random.Generator, w: World, s: Swarm, lrn: Learner
 ) -> None:
     """Bootstrap the last transition of every robot the step limit stopped (not terminal)."""
-    if not (p.learn and p.policy == Q_LEARNING):
-        return
     place_sources(p.model, w.cells, w.offsets, w.sx, w.sy, w.sz)
+    _sense_all(p, w, s, s.pending)
     for i in range(s.pos.shape[0]):
         if not s.pending[i]:
             continue
@@ -504,7 +606,7 @@ def _finish_episode(
         px = s.pos[i, 0]
         py = s.pos[i, 1]
         pz = s.pos[i, 2]
-        c, gx, gy, gz = _sense(p, rng, w, px, py, pz)
+        c, gx, gy, gz = _sense(p, rng, s, i)
         gap = _nearest_obstacle(w.obstacles, p.obstacle_radius, px, py, pz)[1]
         cell_d = _nearest_cell(w.cells, px, py, pz)[1]
         state = _state(p, c, s.prev_conc[i], gx, gy, gz, gap, cell_d)

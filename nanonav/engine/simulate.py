@@ -17,7 +17,7 @@ import numpy as np
 from nanonav.engine import fields, kernel, metrics, qlearning, state
 from nanonav.engine.result import QTable, SimulationResult, Trajectory
 from nanonav.engine.state import KernelParams, Learner, Recording, Swarm, World
-from nanonav.engine.world import episode_generator, raise_for_layout
+from nanonav.engine.world import DYNAMICS_STREAM, WORLD_STREAM, raise_for_layout, stream
 from nanonav.scenario import Scenario
 
 # Robot-steps per compiled call between progress reports (about 0.1 s of work).
@@ -46,7 +46,7 @@ ProgressCallback = Callable[[Progress], bool | None]
 
 
 def _params(scenario: Scenario) -> KernelParams:
-    """The kernel's constants for training episodes; evaluation swaps a few with ``_replace``."""
+    """The kernel's constants, flattened from the scenario."""
     b = scenario.biomarker
     base = max(scenario.robots.sensing_radius, scenario.robots.speed)
     levels = fields.radial_profile(b, base * np.array(qlearning.LEVEL_DISTANCES))
@@ -69,7 +69,6 @@ def _params(scenario: Scenario) -> KernelParams:
         learn=scenario.robots.policy == "q_learning",
         alpha=scenario.learning.alpha,
         gamma=scenario.learning.gamma,
-        epsilon=0.0,
         reward_reach=scenario.rewards.reach,
         reward_collision=scenario.rewards.collision,
         reward_approach=scenario.rewards.approach,
@@ -77,7 +76,6 @@ def _params(scenario: Scenario) -> KernelParams:
         level_2=float(levels[1]),
         level_3=float(levels[2]),
         max_steps=scenario.learning.max_steps,
-        record=False,
         record_stride=record_stride(scenario.robots.count, scenario.learning.max_steps),
         emitter_scatter=b.emitter_scatter,
     )
@@ -103,17 +101,22 @@ def record_stride(robots: int, max_steps: int) -> int:
     return max(1, math.ceil(max_steps / rows))
 
 
-class _Episode:
-    """One episode: its arrays, its generator and its step counter. The kernel draws the world
-    on the first ``advance``."""
+class _Run:
+    """The arrays of one run, allocated once and reused by every episode, and the two
+    generators: one draws the worlds (so every policy faces the same ones), one the dynamics."""
 
-    def __init__(
-        self, scenario: Scenario, index: int, params: KernelParams, learner: Learner
-    ) -> None:
+    def __init__(self, scenario: Scenario, params: KernelParams) -> None:
         self.scenario = scenario
-        self.rng = episode_generator(scenario.seed, index)
         self.params = params
-        self.learner = learner
+        self.learner = _learner(scenario)
+        learning = scenario.learning
+        self.epsilons = np.array(
+            [qlearning.epsilon(learning, e) for e in range(learning.episodes)]
+            if params.learn
+            else np.zeros(learning.episodes)
+        )
+        self.world_rng = stream(scenario.seed, WORLD_STREAM)
+        self.rng = stream(scenario.seed, DYNAMICS_STREAM)
         n = scenario.robots.count
         cells = scenario.cells.count
         obstacles = scenario.obstacles.count
@@ -143,8 +146,10 @@ class _Episode:
             sum_conc=np.zeros(n),
             sum_dist=np.zeros(n),
             last_dist=np.zeros(n),
+            reading=np.zeros(n),
+            reading_grad=np.zeros((n, 3)),
         )
-        rows = params.max_steps // params.record_stride + 2 if params.record else 1
+        rows = params.max_steps // params.record_stride + 2
         self.recording = Recording(
             pos=np.zeros((rows, n, 3)),
             cells=np.zeros((rows, cells, 3)),
@@ -153,29 +158,50 @@ class _Episode:
             dist=np.zeros((rows, n)),
             step=np.zeros(rows, dtype=np.int64),
         )
-        self.t = 0
-        self.counters = np.zeros(2, dtype=np.int64)
+        self.counters = np.zeros(state.COUNTERS, dtype=np.int64)
+        self.curve = np.zeros((learning.episodes + 1, state.CURVE_COLUMNS))
 
     @property
-    def over(self) -> bool:
-        return self.t >= self.params.max_steps or not self.swarm.active.any()
+    def episode(self) -> int:
+        return int(self.counters[state.EPISODE])
 
-    def advance(self, n_steps: int) -> None:
-        self.t = kernel.run_steps(
-            self.params, self.rng, self.world, self.swarm, self.learner, self.recording,
-            self.t, n_steps, self.counters,
-        )  # fmt: skip
-        raise_for_layout(int(self.counters[state.LAYOUT_STATUS]), self.scenario)
+    @property
+    def step(self) -> int:
+        return int(self.counters[state.STEP])
 
     @property
     def robot_steps(self) -> int:
         return int(self.counters[state.ROBOT_STEPS])
 
+    def advance(self, budget: int) -> None:
+        """Run about ``budget`` robot-steps, stopping early at the end of training or of the
+        evaluation."""
+        kernel.run(
+            self.params, self.epsilons, self.world_rng, self.rng, self.world, self.swarm,
+            self.learner, self.recording, self.counters, self.curve, budget,
+        )  # fmt: skip
+        raise_for_layout(int(self.counters[state.LAYOUT_STATUS]), self.scenario)
+
+    def learning_curve(self, episodes: int) -> list[dict[str, Any]]:
+        robots = self.scenario.robots.count
+        return [
+            {
+                "episode": e,
+                "steps": int(row[state.CURVE_STEPS]),
+                "success_rate": float(row[state.CURVE_REACHED] / robots),
+                "mean_return": float(row[state.CURVE_RETURN] / robots),
+                "epsilon": float(self.epsilons[e]),
+                "collisions": int(row[state.CURVE_COLLISIONS]),
+            }
+            for e, row in enumerate(self.curve[:episodes])
+        ]
+
     def trajectory(self) -> Trajectory:
+        """The evaluation episode's history (valid once it has ended)."""
+        length = int(self.curve[-1, state.CURVE_STEPS])
         stride = self.params.record_stride
-        rows = self.t // stride + 1 + (1 if self.t % stride else 0)
+        rows = length // stride + 1 + (1 if length % stride else 0)
         r = self.recording
-        cells = self.scenario.cells.count
         return Trajectory(
             step=r.step[:rows].copy(),
             robots=r.pos[:rows].copy(),
@@ -185,7 +211,7 @@ class _Episode:
             distance=r.dist[:rows].copy(),
             steps=self.swarm.steps.copy(),
             reached=~self.swarm.active,
-            emitter_offsets=self.world.offsets.reshape(cells, -1, 3).copy(),
+            emitter_offsets=self.world.offsets.reshape(self.scenario.cells.count, -1, 3).copy(),
             obstacle_radius=self.params.obstacle_radius,
             stride=stride,
         )
@@ -201,13 +227,13 @@ def _warm_up() -> None:
     if _compiled:
         return
     tiny = Scenario.model_validate(
-        {"learning": {"episodes": 0, "max_steps": 2}, "obstacles": {"count": 1}}
+        {"learning": {"episodes": 1, "max_steps": 2}, "obstacles": {"count": 1}}
     )
-    params = _params(tiny)._replace(record=True)
-    episode = _Episode(tiny, 0, params, _learner(tiny))
-    episode.advance(2)
+    run = _Run(tiny, _params(tiny))
+    while run.episode <= tiny.learning.episodes:
+        run.advance(CHUNK_ROBOT_STEPS)
     fields.field_and_gradient(
-        tiny.biomarker, episode.world.cells, np.zeros((1, 0, 3)), np.zeros((1, 3))
+        tiny.biomarker, run.world.cells, np.zeros((1, 0, 3)), np.zeros((1, 3))
     )
     _compiled = True
 
@@ -215,76 +241,42 @@ def _warm_up() -> None:
 def simulate(scenario: Scenario, progress: ProgressCallback | None = None) -> SimulationResult:
     """Train for ``learning.episodes`` episodes, then record one greedy evaluation episode.
 
-    ``progress`` is called between chunks of steps and after every episode; returning False
-    stops the run, and the result keeps the episodes finished so far (``completed`` False).
+    ``progress`` is called between chunks of about 0.1 s of work and at the end of training;
+    returning False stops the run, and the result keeps the episodes finished so far
+    (``completed`` False).
     """
     _warm_up()
     learning = scenario.learning
     total = learning.episodes + 1
-    chunk = max(1, CHUNK_ROBOT_STEPS // scenario.robots.count)
-    learner = _learner(scenario)
-    is_q = scenario.robots.policy == "q_learning"
-    training = _params(scenario)
-
-    curve: list[dict[str, Any]] = []
-    robot_steps = 0
+    run = _Run(scenario, _params(scenario))
     engine_s = 0.0
-    evaluation: _Episode | None = None
     eval_s = 0.0
-
-    def report(done: int, step: int) -> bool:
-        if progress is None:
-            return True
-        return progress(Progress(done, total, step, learning.max_steps)) is not False
-
-    for index in range(total):
-        evaluating = index == learning.episodes
-        eps = 0.0 if evaluating or not is_q else qlearning.epsilon(learning, index)
+    while run.episode < total:
+        evaluating = run.episode == learning.episodes
         started = time.perf_counter()
+        run.advance(CHUNK_ROBOT_STEPS)
+        elapsed = time.perf_counter() - started
+        engine_s += elapsed
         if evaluating:
-            params = training._replace(epsilon=0.0, learn=False, record=True)
-        else:
-            params = training._replace(epsilon=eps)
-        episode = _Episode(scenario, index, params, learner)
-        episode_s = 0.0
-        while not episode.over:
-            episode.advance(chunk)
-            episode_s += time.perf_counter() - started
-            if not episode.over and not report(index, episode.t):
+            eval_s += elapsed
+        if progress is not None:
+            where = Progress(run.episode, total, run.step, learning.max_steps)
+            if progress(where) is False:
                 break
-            started = time.perf_counter()
-        engine_s += episode_s
-        robot_steps += episode.robot_steps
-        if not episode.over:
-            break
-        if evaluating:
-            evaluation = episode
-            eval_s = episode_s
-        else:
-            s = episode.swarm
-            curve.append(
-                {
-                    "episode": index,
-                    "steps": episode.t,
-                    "success_rate": float(np.mean(~s.active)),
-                    "mean_return": float(np.mean(s.returns)),
-                    "epsilon": eps,
-                    "collisions": int(s.collisions.sum()),
-                }
-            )
-        if not report(index + 1, 0):
-            break
 
-    work = {"robot_steps": robot_steps, "engine_s": engine_s}
+    finished = min(run.episode, learning.episodes)
+    curve = run.learning_curve(finished)
+    work = {"robot_steps": run.robot_steps, "engine_s": engine_s}
     qtable = None
-    if is_q:
+    if run.params.learn:
         states, actions = qlearning.labels(learning.actions)
+        learner = run.learner
         values = learner.q[0] if learning.shared_table else learner.q
         visits = learner.visits[0] if learning.shared_table else learner.visits
         qtable = QTable(states, actions, values.copy(), visits.copy())
-    if evaluation is None:
+    if run.episode < total:
         return SimulationResult(scenario, {}, [], curve, work, None, qtable, completed=False)
-    rows = metrics.robot_rows(evaluation.swarm, eval_s, evaluation.t)
-    summary = metrics.swarm_summary(rows, evaluation.t, eval_s)
-    trajectory = evaluation.trajectory()
-    return SimulationResult(scenario, summary, rows, curve, work, trajectory, qtable)
+    length = int(run.curve[-1, state.CURVE_STEPS])
+    rows = metrics.robot_rows(run.swarm, eval_s, length)
+    summary = metrics.swarm_summary(rows, length, eval_s)
+    return SimulationResult(scenario, summary, rows, curve, work, run.trajectory(), qtable)

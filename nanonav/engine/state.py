@@ -37,10 +37,9 @@ class KernelParams(NamedTuple):
     policy: int
     action_set: int
     shared: bool
-    learn: bool
+    learn: bool  # the policy learns (q_learning) in training episodes
     alpha: float
     gamma: float
-    epsilon: float
     reward_reach: float
     reward_collision: float
     reward_approach: float
@@ -48,7 +47,6 @@ class KernelParams(NamedTuple):
     level_2: float
     level_3: float
     max_steps: int
-    record: bool
     record_stride: int
     emitter_scatter: float
 
@@ -72,6 +70,8 @@ class Swarm(NamedTuple):
     sum_conc: NDArray[np.float64]  # true concentration summed over the robot's steps
     sum_dist: NDArray[np.float64]  # distance to the nearest cell summed likewise
     last_dist: NDArray[np.float64]  # distance at the robot's last step
+    reading: NDArray[np.float64]  # true concentration at the robot this step, before noise
+    reading_grad: NDArray[np.float64]  # (N, 3) its gradient
 
 
 class World(NamedTuple):
@@ -94,8 +94,7 @@ class Learner(NamedTuple):
 
 
 class Recording(NamedTuple):
-    """History of the evaluation episode, a row every ``record_stride`` steps (``(1, ...)``
-    placeholders in training episodes)."""
+    """History of the evaluation episode, a row every ``record_stride`` steps."""
 
     pos: NDArray[np.float64]  # (T+1, N, 3)
     cells: NDArray[np.float64]  # (T+1, C, 3)
@@ -105,6 +104,18 @@ class Recording(NamedTuple):
     step: NDArray[np.int64]  # (T+1,) the step each row shows
 
 
-# counters[] slots filled by the kernel
-ROBOT_STEPS = 0
-LAYOUT_STATUS = 1
+# counters[] slots: where the run is, and what it has spent
+ROBOT_STEPS = 0  # robot-steps simulated so far
+LAYOUT_STATUS = 1  # non-zero when a world had no room (see world.draw_world)
+EPISODE = 2  # the episode in progress (training episodes, then the evaluation)
+STEP = 3  # its step
+EPISODE_START = 4  # ROBOT_STEPS when it began
+COUNTERS = 5
+
+# curve[episode, ...] columns written by the kernel when an episode ends
+CURVE_STEPS = 0
+CURVE_REACHED = 1
+CURVE_RETURN = 2
+CURVE_COLLISIONS = 3
+CURVE_ROBOT_STEPS = 4
+CURVE_COLUMNS = 5

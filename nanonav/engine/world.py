@@ -1,8 +1,8 @@
 """A fresh world for each episode: cells, robot starts, obstacles and emitters, drawn at random.
 
-Each episode has its own generator, and the world is drawn from it first, in a fixed order, before
-anything moves: the same seed and episode give the same world whatever the policy, so methods
-compared on the same seeds face the same worlds.
+Worlds come from a generator of their own, in a fixed order, and how many numbers a world takes
+depends on the scenario alone: the same seed gives the same sequence of worlds whatever the
+policy, so methods compared on the same seeds face the same worlds.
 """
 
 from __future__ import annotations
@@ -23,18 +23,23 @@ PLACEMENT_ATTEMPTS = 10_000
 NO_ROOM_FOR_ROBOTS = -1
 
 
-def episode_generator(seed: int, episode: int) -> np.random.Generator:
-    """The generator of one episode of one seed, independent of every other episode's."""
-    return np.random.Generator(np.random.PCG64(np.random.SeedSequence(seed, spawn_key=(episode,))))
+WORLD_STREAM = 0
+DYNAMICS_STREAM = 1
 
 
-@njit(cache=True)
+def stream(seed: int, which: int) -> np.random.Generator:
+    """One of a seed's independent generators: ``WORLD_STREAM`` draws nothing but the worlds, so
+    the same seed gives the same world for each episode whatever happens in the episodes."""
+    return np.random.Generator(np.random.PCG64(np.random.SeedSequence(seed, spawn_key=(which,))))
+
+
+@njit(cache=True, error_model="numpy")
 def _uniform(rng: np.random.Generator, out: NDArray[np.float64], low: float, high: float) -> None:
     for k in range(out.shape[0]):
         out[k] = low + (high - low) * rng.random()
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _clear(point: NDArray[np.float64], others: NDArray[np.float64], distance: float) -> bool:
     for j in range(others.shape[0]):
         d2 = 0.0
@@ -46,7 +51,7 @@ def _clear(point: NDArray[np.float64], others: NDArray[np.float64], distance: fl
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def draw_world(p: KernelParams, rng: np.random.Generator, w: World, s: Swarm) -> int:
     """Draw cells, robot starts and headings, obstacles clear of both, and emitter offsets, in
     place. Returns 0; ``NO_ROOM_FOR_ROBOTS``; or 1 + the index of an obstacle with no room."""

@@ -164,9 +164,14 @@ def test_a_callback_can_stop_the_run_and_keep_finished_episodes() -> None:
         seen.append(p)
         return p.episode < 3
 
-    result = simulate(scenario(learning={"episodes": 10, "max_steps": 100}), stop_after_three)
+    # 50 random walkers: an episode is about half of the work between two progress reports
+    walkers = scenario(
+        robots={"count": 50, "policy": "random"}, learning={"episodes": 20, "max_steps": 1000}
+    )
+    result = simulate(walkers, stop_after_three)
     assert not result.completed
-    assert len(result.episodes) == 3
+    assert 3 <= len(result.episodes) == seen[-1].episode < 20
+    assert [e["episode"] for e in result.episodes] == list(range(len(result.episodes)))
     assert result.trajectory is None and result.summary == {}
     fractions = [p.fraction for p in seen]
     assert fractions == sorted(fractions) and fractions[0] >= 0.0 and fractions[-1] <= 1.0
