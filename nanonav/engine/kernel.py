@@ -71,13 +71,14 @@ def _reflect(v: float, half: float) -> float:
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _nearest_cell(cells: NDArray[np.float64], x: float, y: float, z: float) -> tuple[int, float]:
+def _nearest(points: NDArray[np.float64], x: float, y: float, z: float) -> tuple[int, float]:
+    """Index of the point nearest to (x, y, z) and its distance (-1 and inf if none)."""
     best = -1
     best_d2 = np.inf
-    for j in range(cells.shape[0]):
-        dx = cells[j, 0] - x
-        dy = cells[j, 1] - y
-        dz = cells[j, 2] - z
+    for j in range(points.shape[0]):
+        dx = points[j, 0] - x
+        dy = points[j, 1] - y
+        dz = points[j, 2] - z
         d2 = dx * dx + dy * dy + dz * dz
         if d2 < best_d2:
             best_d2 = d2
@@ -90,19 +91,8 @@ def _nearest_obstacle(
     obstacles: NDArray[np.float64], radius: float, x: float, y: float, z: float
 ) -> tuple[int, float]:
     """Index of the nearest obstacle and the distance to its surface (inf if none)."""
-    best = -1
-    best_d2 = np.inf
-    for j in range(obstacles.shape[0]):
-        dx = obstacles[j, 0] - x
-        dy = obstacles[j, 1] - y
-        dz = obstacles[j, 2] - z
-        d2 = dx * dx + dy * dy + dz * dz
-        if d2 < best_d2:
-            best_d2 = d2
-            best = j
-    if best < 0:
-        return -1, np.inf
-    return best, math.sqrt(best_d2) - radius
+    best, distance = _nearest(obstacles, x, y, z)
+    return best, distance - radius
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -345,7 +335,7 @@ def observe(p: KernelParams, w: World, s: Swarm, rec: Recording, t: int, final: 
     _sense_all(p, w, s, np.ones(s.pos.shape[0], dtype=np.bool_))
     for i in range(s.pos.shape[0]):
         c = s.reading[i]
-        d = _nearest_cell(w.cells, s.pos[i, 0], s.pos[i, 1], s.pos[i, 2])[1]
+        d = _nearest(w.cells, s.pos[i, 0], s.pos[i, 1], s.pos[i, 2])[1]
         if not final and s.steps[i] == t:
             s.sum_conc[i] += c
             s.sum_dist[i] += d
@@ -489,7 +479,7 @@ def _run_steps(
             px = s.pos[i, 0]
             py = s.pos[i, 1]
             pz = s.pos[i, 2]
-            cell, cell_d = _nearest_cell(w.cells, px, py, pz)
+            cell, cell_d = _nearest(w.cells, px, py, pz)
             if cell_d <= p.reach_distance:
                 # a drifting cell came within reach: the robot spends this step receiving it
                 s.steps[i] += 1
@@ -564,7 +554,7 @@ def _run_steps(
             s.pos[i, 1] = ny
             s.pos[i, 2] = nz
             s.steps[i] += 1
-            new_d = _nearest_cell(w.cells, nx, ny, nz)[1]
+            new_d = _nearest(w.cells, nx, ny, nz)[1]
             # paper 2.7: +approach per unit moved toward the source, +reach on arrival
             reward += p.reward_approach * (cell_d - new_d)
             reached = new_d <= p.reach_distance
@@ -608,7 +598,7 @@ def _finish_episode(
         pz = s.pos[i, 2]
         c, gx, gy, gz = _sense(p, rng, s, i)
         gap = _nearest_obstacle(w.obstacles, p.obstacle_radius, px, py, pz)[1]
-        cell_d = _nearest_cell(w.cells, px, py, pz)[1]
+        cell_d = _nearest(w.cells, px, py, pz)[1]
         state = _state(p, c, s.prev_conc[i], gx, gy, gz, gap, cell_d)
         target = _bootstrap(p, lrn.q, table, state, s.last_reward[i])
         _learn(p, lrn.q, table, s.last_state[i], s.last_action[i], target)

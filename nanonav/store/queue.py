@@ -288,9 +288,7 @@ class JobStore:
         if outcome.completed:
             values.update(fraction=1.0, episode=Job.episodes)
         with unit_of_work(self._sessions, write=True) as session:
-            row = session.scalars(_fenced(claim).values(**values).returning(Job)).one_or_none()
-            if row is None:
-                raise LeaseLost(claim.job.id)
+            row = _write_fenced(session, claim, values)
             session.add(
                 JobResult(
                     job_id=claim.job.id,
@@ -311,12 +309,7 @@ class JobStore:
         now = now or utcnow()
         values = {"status": JobStatus.FAILED, "finished_at": now, "error": error}
         with unit_of_work(self._sessions) as session:
-            row = session.scalars(
-                _fenced(claim).values(**values, **_lease_cleared()).returning(Job)
-            ).one_or_none()
-            if row is None:
-                raise LeaseLost(claim.job.id)
-            return JobRecord.of(row)
+            return JobRecord.of(_write_fenced(session, claim, {**values, **_lease_cleared()}))
 
     def release(self, claim: Claim) -> JobRecord:
         """Give the job back to the queue untouched, as if this claim had never happened."""
@@ -328,12 +321,7 @@ class JobStore:
             "fraction": 0.0,
         }
         with unit_of_work(self._sessions) as session:
-            row = session.scalars(
-                _fenced(claim).values(**values, **_lease_cleared()).returning(Job)
-            ).one_or_none()
-            if row is None:
-                raise LeaseLost(claim.job.id)
-            return JobRecord.of(row)
+            return JobRecord.of(_write_fenced(session, claim, {**values, **_lease_cleared()}))
 
     def recover_expired(self, *, max_attempts: int, now: datetime | None = None) -> int:
         """Jobs whose lease ran out (their worker died) are queued again, or failed once they
@@ -381,6 +369,14 @@ def _fenced(claim: Claim) -> Any:
         )
         .execution_options(synchronize_session=False)
     )
+
+
+def _write_fenced(session: Session, claim: Claim, values: Mapping[str, Any]) -> Job:
+    """Apply ``values`` to the claimed job's row, if the claim still holds its lease."""
+    row: Job | None = session.scalars(_fenced(claim).values(**values).returning(Job)).one_or_none()
+    if row is None:
+        raise LeaseLost(claim.job.id)
+    return row
 
 
 def _job(session: Session, job_id: int) -> Job:
