@@ -41,7 +41,7 @@ def _field_error(model: str, loc: tuple[str, ...], value: Any, message: str) -> 
 
 
 class _Part(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
 class Space(_Part):

@@ -48,6 +48,7 @@ def test_a_resolved_scenario_round_trips() -> None:
         ({"learning": {"gamma": 1.5}}, "learning.gamma"),
         ({"learning": {"episodes": "many"}}, "learning.episodes"),
         ({"space": {"size": "nan"}}, "space.size"),
+        ({"biomarker": {"peak": float("inf")}}, "biomarker.peak"),
         ({"seed": -1}, "seed"),
         ({"preset": "paper-huge"}, "preset"),
         ({"robots": {"colour": "blue"}}, "robots.colour"),
