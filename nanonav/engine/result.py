@@ -37,7 +37,7 @@ class Trajectory:
     distance: NDArray[np.float64]  # (rows, robots) true distance to the nearest cell
     steps: NDArray[np.int64]  # (robots,) steps each robot was active (to its reach, or T)
     reached: NDArray[np.bool_]  # (robots,) whether each robot reached a cell
-    emitter_offsets: NDArray[np.float64]  # (cells, emitters, 3) inverse-square emitters
+    emitter_offsets: NDArray[np.float64]  # (cells, emitters, 3); the inverse-square field's
     obstacle_radius: float
     stride: int = 1
 

@@ -124,7 +124,8 @@ class _Run:
         self.world = World(
             cells=np.empty((cells, 3)),
             obstacles=np.empty((obstacles, 3)),
-            offsets=np.zeros((k if params.model == fields.INVERSE_SQUARE else 0, 3)),
+            # drawn for every field model, so that all of them see the same worlds
+            offsets=np.zeros((cells * scenario.biomarker.emitters_per_cell, 3)),
             sx=np.empty(k),
             sy=np.empty(k),
             sz=np.empty(k),

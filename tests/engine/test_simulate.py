@@ -216,3 +216,27 @@ def test_the_episode_ends_on_the_step_the_last_robot_reaches_a_cell() -> None:
         for i in np.flatnonzero(t.reached):
             assert t.distance[t.steps[i], i] <= s.reach_distance
             assert result.robots[i]["final_distance"] == t.distance[t.steps[i], i]
+
+
+def test_methods_and_fields_compared_on_one_seed_face_the_same_worlds() -> None:
+    starts = []
+    for policy, model in [
+        ("q_learning", "gaussian"),
+        ("random", "gaussian"),
+        ("gradient", "inverse_square"),
+        ("run_and_tumble", "diffusion"),
+    ]:
+        s = scenario(
+            preset="paper-swarm",
+            seed=21,
+            robots={"policy": policy},
+            biomarker={"model": model},
+            learning={"episodes": 5, "max_steps": 200},
+        )
+        t = simulate(s).trajectory
+        assert t is not None
+        starts.append((t.robots[0], t.cells[0], t.obstacles[0]))
+    for robots, cells, obstacles in starts[1:]:
+        assert np.array_equal(robots, starts[0][0])
+        assert np.array_equal(cells, starts[0][1])
+        assert np.array_equal(obstacles, starts[0][2])
