@@ -72,24 +72,27 @@ def database_url(request: pytest.FixtureRequest) -> str:
     return str(request.getfixturevalue(name))
 
 
-@pytest.fixture
-def store(database_url: str) -> Iterator[JobStore]:
-    upgrade(database_url)
-    job_store = JobStore.from_url(database_url)
+@contextmanager
+def migrated_store(url: str) -> Iterator[JobStore]:
+    """A store on ``url`` with the schema at the newest migration, closed afterwards."""
+    upgrade(url)
+    job_store = JobStore.from_url(url)
     try:
         yield job_store
     finally:
         job_store.close()
+
+
+@pytest.fixture
+def store(database_url: str) -> Iterator[JobStore]:
+    with migrated_store(database_url) as job_store:
+        yield job_store
 
 
 @pytest.fixture
 def sqlite_store(sqlite_url: str) -> Iterator[JobStore]:
-    upgrade(sqlite_url)
-    job_store = JobStore.from_url(sqlite_url)
-    try:
+    with migrated_store(sqlite_url) as job_store:
         yield job_store
-    finally:
-        job_store.close()
 
 
 @contextmanager

@@ -9,6 +9,8 @@ import socket
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -38,37 +40,41 @@ def clean_environment(**extra: str) -> dict[str, str]:
     return {**env, **extra}
 
 
-def test_run_local_migrates_serves_runs_a_job_and_stops_on_ctrl_c(tmp_path: Path) -> None:
-    port = free_port()
-    log = tmp_path / "run.log"
+@contextmanager
+def running(
+    command: list[str], log: Path, env: dict[str, str], cwd: Path | None = None
+) -> Iterator[subprocess.Popen[bytes]]:
+    """``command`` as a real process writing to ``log``; killed if the block leaves it alive."""
     with log.open("wb") as out:
-        process = subprocess.Popen(
-            [sys.executable, "-m", "nanonav.run_local"],
-            cwd=tmp_path,
-            env=clean_environment(PORT=str(port)),
-            stdout=out,
-            stderr=subprocess.STDOUT,
-        )
+        process = subprocess.Popen(command, cwd=cwd, env=env, stdout=out, stderr=subprocess.STDOUT)
         try:
-            deadline = time.monotonic() + 120
-            while "the API is at" not in log.read_text():
-                assert process.poll() is None, log.read_text()
-                assert time.monotonic() < deadline, log.read_text()
-                time.sleep(0.1)
-            assert f"http://127.0.0.1:{port}" in log.read_text()
-            assert (tmp_path / "var" / "nanonav.db").exists()
-            with httpx.Client(base_url=f"http://127.0.0.1:{port}", timeout=10) as client:
-                assert client.get("/healthz").json()["status"] == "ok"
-                job_id = client.post("/jobs", json=TINY).json()["id"]
-                while client.get(f"/jobs/{job_id}").json()["status"] != "succeeded":
-                    assert time.monotonic() < deadline, log.read_text()
-                    time.sleep(0.1)
-            process.send_signal(signal.SIGINT)
-            assert process.wait(timeout=30) == 0
+            yield process
         finally:
             if process.poll() is None:
                 process.kill()
                 process.wait()
+
+
+def test_run_local_migrates_serves_runs_a_job_and_stops_on_ctrl_c(tmp_path: Path) -> None:
+    port = free_port()
+    log = tmp_path / "run.log"
+    command = [sys.executable, "-m", "nanonav.run_local"]
+    with running(command, log, clean_environment(PORT=str(port)), cwd=tmp_path) as process:
+        deadline = time.monotonic() + 120
+        while "the API is at" not in log.read_text():
+            assert process.poll() is None, log.read_text()
+            assert time.monotonic() < deadline, log.read_text()
+            time.sleep(0.1)
+        assert f"http://127.0.0.1:{port}" in log.read_text()
+        assert (tmp_path / "var" / "nanonav.db").exists()
+        with httpx.Client(base_url=f"http://127.0.0.1:{port}", timeout=10) as client:
+            assert client.get("/healthz").json()["status"] == "ok"
+            job_id = client.post("/jobs", json=TINY).json()["id"]
+            while client.get(f"/jobs/{job_id}").json()["status"] != "succeeded":
+                assert time.monotonic() < deadline, log.read_text()
+                time.sleep(0.1)
+        process.send_signal(signal.SIGINT)
+        assert process.wait(timeout=30) == 0
     text = log.read_text()
     assert "nanonav: stopped" in text
     assert "Traceback" not in text
@@ -80,25 +86,16 @@ def test_worker_concurrency_runs_jobs_in_several_processes(tmp_path: Path) -> No
     store = JobStore.from_url(url)
     ids = [store.enqueue({**TINY, "seed": s}, robot_steps=1, episodes=2).id for s in range(6)]
     log = tmp_path / "worker.log"
-    with log.open("wb") as out:
-        process = subprocess.Popen(
-            [sys.executable, "-m", "worker", "--concurrency", "2"],
-            env=clean_environment(NANONAV_DATABASE_URL=url, NANONAV_POLL_INTERVAL_S="0.05"),
-            stdout=out,
-            stderr=subprocess.STDOUT,
-        )
-        try:
-            deadline = time.monotonic() + 180
-            while any(store.get(i).status is not JobStatus.SUCCEEDED for i in ids):
-                assert process.poll() is None, log.read_text()
-                assert time.monotonic() < deadline, log.read_text()
-                time.sleep(0.2)
-            process.send_signal(signal.SIGTERM)
-            assert process.wait(timeout=30) == 0
-        finally:
-            if process.poll() is None:
-                process.kill()
-                process.wait()
+    command = [sys.executable, "-m", "worker", "--concurrency", "2"]
+    env = clean_environment(NANONAV_DATABASE_URL=url, NANONAV_POLL_INTERVAL_S="0.05")
+    with running(command, log, env) as process:
+        deadline = time.monotonic() + 180
+        while any(store.get(i).status is not JobStatus.SUCCEEDED for i in ids):
+            assert process.poll() is None, log.read_text()
+            assert time.monotonic() < deadline, log.read_text()
+            time.sleep(0.2)
+        process.send_signal(signal.SIGTERM)
+        assert process.wait(timeout=30) == 0
     store.close()
     ready = set(re.findall(r"worker (\d+) ready", log.read_text()))
     assert len(ready) == 2
