@@ -1,9 +1,13 @@
 """The job service's speed, measured on real processes: one uvicorn API, two workers, SQLite.
 
-Prints: submit-to-succeeded latency of a small job (p50, p95) with idle workers; jobs per second
-through the API and two workers; and the latency of ``GET /jobs/{id}`` while both workers are busy.
+Prints, for a tiny job (1 robot, 1 training episode + the evaluation, 50 steps):
+- submit-to-succeeded latency, one job at a time (p50, p95);
+- throughput: jobs per second through the API and both workers, all submitted at once;
+- pictures: the first request of each (drawn then), and later requests (read from the store);
+- ``GET /jobs/{id}`` and ``POST /jobs`` latency while both workers run longer jobs;
+- the database's growth per tiny job.
 
-    .venv/bin/python benchmarks/service.py [--latency-jobs 20] [--throughput-jobs 40]
+    .venv/bin/python benchmarks/service.py [--quick] [--throughput-jobs 500]
 """
 
 from __future__ import annotations
@@ -18,18 +22,45 @@ import sys
 import tempfile
 import threading
 import time
+from collections.abc import Callable, Iterator
+from concurrent.futures import ThreadPoolExecutor
+from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import httpx
 
-SMALL: dict[str, Any] = {"robots": {"count": 1}, "learning": {"episodes": 1, "max_steps": 50}}
+TINY: dict[str, Any] = {"robots": {"count": 1}, "learning": {"episodes": 1, "max_steps": 50}}
+# About two seconds of simulation each: keeps both workers busy while latency is measured.
+BUSY: dict[str, Any] = {"preset": "paper-swarm", "learning": {"episodes": 300}}
+PICTURES = (
+    "heatmap.png?plane=xy",
+    "heatmap.png?plane=all",
+    "plots/trajectory.png",
+    "plots/concentration.png",
+    "plots/learning.png",
+)
+SUBMITTERS = 8
 
 
 def percentile(values: list[float], q: float) -> float:
     ordered = sorted(values)
     index = min(len(ordered) - 1, max(0, round(q / 100 * (len(ordered) - 1))))
     return ordered[index]
+
+
+def spread(values: list[float], unit: float = 1000.0, suffix: str = "ms") -> str:
+    """p50, p95, p99 and max of ``values`` (seconds), shown in ``suffix``."""
+    return "   ".join(
+        f"{name} {unit * value:.1f} {suffix}"
+        for name, value in (
+            ("p50", percentile(values, 50)),
+            ("p95", percentile(values, 95)),
+            ("p99", percentile(values, 99)),
+            ("max", max(values)),
+        )
+    )
 
 
 def free_port() -> int:
@@ -39,26 +70,18 @@ def free_port() -> int:
         return port
 
 
-def wait_succeeded(client: httpx.Client, job_id: int, timeout: float = 300) -> None:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        status = client.get(f"/jobs/{job_id}").json()["status"]
-        if status == "succeeded":
-            return
-        if status in {"failed", "cancelled"}:
-            raise RuntimeError(f"job {job_id} ended {status}")
-        time.sleep(0.005)
-    raise TimeoutError(f"job {job_id} did not finish")
+@dataclass
+class Service:
+    client: httpx.Client
+    database: Path
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--latency-jobs", type=int, default=20)
-    parser.add_argument("--throughput-jobs", type=int, default=40)
-    args = parser.parse_args()
-
+@contextmanager
+def service(workers: int = 2) -> Iterator[Service]:
+    """A migrated SQLite file, one API process and ``workers`` worker processes."""
     workdir = Path(tempfile.mkdtemp(prefix="nanonav-bench-"))
-    database_url = f"sqlite:///{workdir / 'nanonav.db'}"
+    database = workdir / "nanonav.db"
+    database_url = f"sqlite:///{database}"
     port = free_port()
     env = {
         **{k: v for k, v in os.environ.items() if k not in {"DATABASE_URL", "HOST", "PORT"}},
@@ -68,89 +91,179 @@ def main() -> None:
     from nanonav.store.migrate import upgrade
 
     upgrade(database_url)
-    logs = [open(workdir / f"{name}.log", "wb") for name in ("api", "worker-0", "worker-1")]  # noqa: SIM115
+    names = ["api", *(f"worker-{i}" for i in range(workers))]
+    logs = {name: open(workdir / f"{name}.log", "wb") for name in names}  # noqa: SIM115
     api = subprocess.Popen(
         [sys.executable, "-m", "uvicorn", "service.app:create_app", "--factory",
          "--port", str(port), "--log-level", "warning"],
-        env=env, stdout=logs[0], stderr=subprocess.STDOUT,
+        env=env, stdout=logs["api"], stderr=subprocess.STDOUT,
     )  # fmt: skip
-    workers = [
+    children = [api] + [
         subprocess.Popen(
-            [sys.executable, "-m", "worker"], env=env, stdout=log, stderr=subprocess.STDOUT
+            [sys.executable, "-m", "worker"], env=env, stdout=logs[n], stderr=subprocess.STDOUT
         )
-        for log in logs[1:]
+        for n in names[1:]
     ]
-    children = [api, *workers]
     try:
         deadline = time.monotonic() + 120
-        while not all(b"ready" in (workdir / f"worker-{i}.log").read_bytes() for i in range(2)):
+        while not all(b"ready" in (workdir / f"{n}.log").read_bytes() for n in names[1:]):
             if time.monotonic() > deadline:
-                raise TimeoutError("the workers did not start")
+                raise TimeoutError(f"the workers did not start; see {workdir}")
             time.sleep(0.1)
-        with httpx.Client(base_url=f"http://127.0.0.1:{port}", timeout=30) as client:
+        with httpx.Client(base_url=f"http://127.0.0.1:{port}", timeout=60) as client:
             while True:
                 try:
                     if client.get("/healthz").status_code == 200:
                         break
                 except httpx.TransportError:
-                    time.sleep(0.1)
-            run(client, args.latency_jobs, args.throughput_jobs)
+                    pass
+                if time.monotonic() > deadline:
+                    raise TimeoutError(f"the API did not start; see {workdir}")
+                time.sleep(0.1)
+            yield Service(client, database)
     finally:
         for child in children:
             child.send_signal(signal.SIGTERM)
         for child in children:
             child.wait(timeout=30)
-        for log in logs:
+        for log in logs.values():
             log.close()
 
 
-def run(client: httpx.Client, latency_jobs: int, throughput_jobs: int) -> None:
-    print(f"scenario: {SMALL} (1 robot, 1 training episode + evaluation, 50 steps)")
-    print(f"cores: {os.cpu_count()}, SQLite, 1 API process, 2 worker processes\n")
+def submit(client: httpx.Client, scenario: dict[str, Any]) -> int:
+    response = client.post("/jobs", json=scenario)
+    response.raise_for_status()
+    job_id: int = response.json()["id"]
+    return job_id
 
-    latencies = []
-    for seed in range(latency_jobs):
+
+def wait_all(client: httpx.Client, ids: list[int], timeout: float = 600) -> None:
+    """Until every job in ``ids`` has succeeded, reading the job list (one request a round)."""
+    waiting = set(ids)
+    deadline = time.monotonic() + timeout
+    while waiting:
+        if time.monotonic() > deadline:
+            raise TimeoutError(f"{len(waiting)} jobs did not finish")
+        for job_id in sorted(waiting):
+            status = client.get(f"/jobs/{job_id}").json()["status"]
+            if status in {"failed", "cancelled"}:
+                raise RuntimeError(f"job {job_id} ended {status}")
+            if status != "succeeded":
+                break
+            waiting.discard(job_id)
+        if waiting:
+            time.sleep(0.02)
+
+
+def latency(client: httpx.Client, jobs: int) -> None:
+    times = []
+    for seed in range(jobs):
         started = time.perf_counter()
-        response = client.post("/jobs", json={**SMALL, "seed": seed})
-        wait_succeeded(client, response.json()["id"])
-        latencies.append(time.perf_counter() - started)
-    print(f"submit-to-succeeded latency, {latency_jobs} jobs one at a time:")
-    print(f"  p50 {percentile(latencies, 50):.3f} s   p95 {percentile(latencies, 95):.3f} s")
+        job_id = submit(client, {**TINY, "seed": seed})
+        wait_all(client, [job_id])
+        times.append(time.perf_counter() - started)
+    print(f"submit-to-succeeded latency, {jobs} tiny jobs one at a time:")
+    print(f"  {spread(times)}")
 
-    get_latencies: list[float] = []
-    busy = threading.Event()
 
-    def poll_while_busy(job_id: int) -> None:
-        with httpx.Client(base_url=client.base_url, timeout=30) as reader:
-            while not busy.is_set():
-                started = time.perf_counter()
-                reader.get(f"/jobs/{job_id}").raise_for_status()
-                get_latencies.append(time.perf_counter() - started)
+def throughput(service: Service, jobs: int) -> list[int]:
+    client = service.client
+    size_before = service.database.stat().st_size
+    started = time.perf_counter()
+    with ThreadPoolExecutor(SUBMITTERS) as pool:
+        scenarios = [{**TINY, "seed": 1000 + seed} for seed in range(jobs)]
+        ids = list(pool.map(lambda scenario: submit(client, scenario), scenarios))
+    submitted = time.perf_counter() - started
+    wait_all(client, ids)
+    elapsed = time.perf_counter() - started
+    wal = service.database.with_name(service.database.name + "-wal")
+    client.get("/healthz")
+    grown = service.database.stat().st_size - size_before
+    print(f"\nthroughput, {jobs} tiny jobs submitted at once by {SUBMITTERS} clients:")
+    print(f"  {jobs / elapsed:.1f} jobs/s: {elapsed:.2f} s from the first submission to the last")
+    print(f"  job's success; {submitted:.2f} s to submit them ({jobs / submitted:.0f} per second)")
+    wal_size = wal.stat().st_size if wal.exists() else 0
+    print(
+        f"  database growth: {grown / jobs / 1024:.1f} KiB per job "
+        f"(not counting {wal_size / 1e6:.1f} MB of write-ahead log not yet checkpointed)"
+    )
+    return ids
+
+
+def pictures(client: httpx.Client, job_id: int, repeats: int) -> None:
+    first: dict[str, float] = {}
+    later: list[float] = []
+    for path in PICTURES:
+        started = time.perf_counter()
+        response = client.get(f"/jobs/{job_id}/{path}")
+        first[path] = time.perf_counter() - started
+        response.raise_for_status()
+    for _ in range(repeats):
+        for path in PICTURES:
+            started = time.perf_counter()
+            client.get(f"/jobs/{job_id}/{path}").raise_for_status()
+            later.append(time.perf_counter() - started)
+    print(f"\npictures of job {job_id}, first request (drawn then) and later ones (read):")
+    for path, seconds in first.items():
+        print(f"  first  {path:<26} {1000 * seconds:7.1f} ms")
+    print(f"  later  {len(later)} requests: {spread(later)}")
+
+
+def while_busy(client: httpx.Client, tiny_job: int, busy_jobs: int) -> None:
+    """Latency of reads and submissions while both workers run longer jobs."""
+    ids = [submit(client, {**BUSY, "seed": seed}) for seed in range(busy_jobs)]
+    gets: list[float] = []
+    posts: list[float] = []
+    done = threading.Event()
+
+    def timed(samples: list[float], call: Callable[[], httpx.Response]) -> None:
+        started = time.perf_counter()
+        call().raise_for_status()
+        samples.append(time.perf_counter() - started)
+
+    def poll() -> None:
+        with httpx.Client(base_url=client.base_url, timeout=60) as reader:
+            while not done.is_set():
+                timed(gets, lambda: reader.get(f"/jobs/{ids[0]}"))
+                timed(gets, lambda: reader.get(f"/jobs/{tiny_job}"))
                 time.sleep(0.01)
 
-    started = time.perf_counter()
-    ids = [
-        client.post("/jobs", json={**SMALL, "seed": 1000 + i}).json()["id"]
-        for i in range(throughput_jobs)
-    ]
-    submitted = time.perf_counter() - started
-    reader = threading.Thread(target=poll_while_busy, args=(ids[len(ids) // 2],))
+    reader = threading.Thread(target=poll)
     reader.start()
-    for job_id in ids:
-        wait_succeeded(client, job_id)
-    elapsed = time.perf_counter() - started
-    busy.set()
+    started = time.perf_counter()
+    while time.perf_counter() - started < 1.0:
+        timed(posts, lambda: client.post("/jobs", json={**TINY, "seed": 5}))
+        time.sleep(0.05)
+    wait_all(client, ids)
+    done.set()
     reader.join()
-    print(f"\nthroughput, {throughput_jobs} jobs submitted at once ({submitted:.2f} s to submit):")
-    print(f"  {throughput_jobs / elapsed:.2f} jobs/s ({elapsed:.1f} s in all)")
-    print(f"\nGET /jobs/{{id}} while both workers are busy, {len(get_latencies)} requests:")
-    print(
-        f"  p50 {1000 * percentile(get_latencies, 50):.1f} ms   "
-        f"p95 {1000 * percentile(get_latencies, 95):.1f} ms   "
-        f"p99 {1000 * percentile(get_latencies, 99):.1f} ms   "
-        f"mean {1000 * statistics.fmean(get_latencies):.1f} ms"
-    )
+    print(f"\nwhile both workers run {busy_jobs} jobs of about 2 s ({BUSY}):")
+    print(f"  GET /jobs/{{id}}  {len(gets)} requests: {spread(gets)}")
+    print(f"  POST /jobs      {len(posts)} requests: {spread(posts)}")
+    print(f"  mean GET {1000 * statistics.fmean(gets):.1f} ms")
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
+    parser.add_argument("--latency-jobs", type=int, default=20)
+    parser.add_argument("--throughput-jobs", type=int, default=500)
+    parser.add_argument("--picture-repeats", type=int, default=20)
+    parser.add_argument("--busy-jobs", type=int, default=4)
+    parser.add_argument("--quick", action="store_true", help="a smoke run with few jobs")
+    args = parser.parse_args(argv)
+    if args.quick:
+        args.latency_jobs, args.throughput_jobs = 3, 20
+        args.picture_repeats, args.busy_jobs = 2, 0
+    print(f"tiny job: {TINY}")
+    print(f"cores: {os.cpu_count()}, SQLite, 1 API process, 2 worker processes\n")
+    with service() as running:
+        latency(running.client, args.latency_jobs)
+        ids = throughput(running, args.throughput_jobs)
+        pictures(running.client, ids[-1], args.picture_repeats)
+        if args.busy_jobs:
+            while_busy(running.client, ids[0], args.busy_jobs)
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -512,6 +512,19 @@ def learning_png(result: SimulationResult) -> bytes:
 # ---------------------------------------------------------------- all of them
 
 
+def render(result: SimulationResult, name: str, *, scale: ColourScale = "auto") -> bytes:
+    """The one picture ``name`` (one of ``PICTURE_NAMES``), drawn on its own."""
+    planes: dict[str, Plane] = {"heatmap_xy": "xy", "heatmap_xz": "xz", "heatmap_yz": "yz",
+                                "heatmap_all": "all"}  # fmt: skip
+    if name in planes:
+        return heatmap_png(result, planes[name], scale=scale)
+    drawers = {"trajectory": trajectory_png, "concentration": concentration_png,
+               "learning": learning_png}  # fmt: skip
+    if name not in drawers:
+        raise ValueError(f"there is no picture {name!r}; there are {', '.join(PICTURE_NAMES)}")
+    return drawers[name](result)
+
+
 def render_all(result: SimulationResult, *, scale: ColourScale = "auto") -> dict[str, bytes]:
     """Every picture, keyed by ``PICTURE_NAMES``; the field is evaluated once for the four
     heatmaps."""

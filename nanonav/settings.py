@@ -98,6 +98,15 @@ class Settings(BaseSettings):
         description="Worker processes `nanonav worker` starts unless --concurrency says otherwise.",
     )
 
+    drawing_queue: int = Field(
+        32,
+        ge=1,
+        le=10_000,
+        validation_alias=_aliases("drawing_queue"),
+        description="Pictures an API process may have waiting to be drawn (it draws one at a "
+        "time, the first time each is asked for); a request beyond them gets 503.",
+    )
+
     @field_validator("database_url")
     @classmethod
     def _known_url(cls, value: str) -> str:

@@ -11,6 +11,7 @@ import nanonav
 from nanonav.settings import Settings
 from nanonav.store import JobStore
 from service import problems
+from service.drawing import Drawer
 from service.limits import BodySizeLimit
 from service.routes import jobs, meta
 
@@ -41,6 +42,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     )
     app.state.settings = settings
     app.state.store = store
+    app.state.drawer = Drawer(settings.drawing_queue)
     app.add_middleware(BodySizeLimit, max_bytes=settings.max_body_bytes)
     problems.install(app)
     app.include_router(jobs.router)

@@ -8,6 +8,7 @@ from fastapi import Depends, Request
 
 from nanonav.settings import Settings
 from nanonav.store import JobStore
+from service.drawing import Drawer
 from service.problems import UnsupportedMediaType
 
 
@@ -19,6 +20,11 @@ def _store(request: Request) -> JobStore:
 def _settings(request: Request) -> Settings:
     settings: Settings = request.app.state.settings
     return settings
+
+
+def _drawer(request: Request) -> Drawer:
+    drawer: Drawer = request.app.state.drawer
+    return drawer
 
 
 async def require_json(request: Request) -> None:
@@ -35,4 +41,5 @@ async def require_json(request: Request) -> None:
 
 StoreDep = Annotated[JobStore, Depends(_store)]
 SettingsDep = Annotated[Settings, Depends(_settings)]
+DrawerDep = Annotated[Drawer, Depends(_drawer)]
 JsonBody = Depends(require_json)

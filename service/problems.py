@@ -70,6 +70,7 @@ class ProblemError(Exception):
     status = 400
     slug = "bad-request"
     title = "Bad request"
+    headers: dict[str, str] = {}  # noqa: RUF012  (read-only, per subclass)
 
     def __init__(self, detail: str, errors: Sequence[FieldError] = ()) -> None:
         super().__init__(detail)
@@ -88,12 +89,6 @@ class UnsupportedMediaType(ProblemError):
     status = 415
     slug = "unsupported-media-type"
     title = "Unsupported media type"
-
-
-class PictureMissing(ProblemError):
-    status = 404
-    slug = "picture-not-found"
-    title = "Picture not found"
 
 
 class InvalidInput(ProblemError):
@@ -157,7 +152,9 @@ def install(app: FastAPI) -> None:
 
     async def on_problem(request: Request, exc: Exception) -> Response:
         assert isinstance(exc, ProblemError)
-        return respond(request, exc.status, exc.slug, exc.title, exc.detail, exc.errors)
+        response = respond(request, exc.status, exc.slug, exc.title, exc.detail, exc.errors)
+        response.headers.update(exc.headers)
+        return response
 
     async def on_not_found(request: Request, exc: Exception) -> Response:
         return respond(request, 404, "job-not-found", "Job not found", str(exc))

@@ -1,4 +1,7 @@
-"""Run one claimed job: simulate with progress, cancel and time checks, then store the result."""
+"""Run one claimed job: simulate with progress, cancel and time checks, then store the result.
+
+Pictures are not drawn here: the API draws each one the first time it is asked for, so a job
+costs what its simulation costs."""
 
 from __future__ import annotations
 
@@ -8,16 +11,14 @@ import logging
 import math
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 from pydantic import ValidationError
-from sqlalchemy.exc import SQLAlchemyError
 
 from nanonav.engine import Progress, SimulationResult, simulate
-from nanonav.plots import render_all
 from nanonav.scenario import Scenario
 from nanonav.settings import Settings
 from nanonav.store import Claim, JobRecord, JobStore, LeaseLost, Outcome
@@ -118,55 +119,22 @@ def run_job(
         with contextlib.suppress(LeaseLost):
             store.release(claim)
         return None
-    simulated = time.perf_counter()
-    plots: dict[str, bytes] = {}
-    if result.completed:
-        try:
-            with heartbeat(store, claim, settings):
-                plots = render_all(result)
-        except Exception as error:
-            logger.exception("job %d: plots failed", job_id)
-            return _fail(
-                store, claim, f"the plots could not be drawn: {type(error).__name__}: {error}"
-            )
-    drawn = time.perf_counter()
-    logger.info(
-        "job %d: simulated in %.2f s, plots drawn in %.2f s",
-        job_id,
-        simulated - started,
-        drawn - simulated,
-    )
+    stored = time.perf_counter()
     try:
-        return store.finish(claim, outcome(result, plots))
+        record = store.finish(claim, outcome(result))
     except LeaseLost:
         logger.warning("job %d: lease lost before its result was stored", job_id)
         return None
+    logger.info(
+        "job %d: simulated in %.3f s, stored in %.3f s",
+        job_id,
+        stored - started,
+        time.perf_counter() - stored,
+    )
+    return record
 
 
-@contextlib.contextmanager
-def heartbeat(store: JobStore, claim: Claim, settings: Settings) -> Iterator[None]:
-    """Keep the lease alive from a thread while the block runs (it reports no progress)."""
-    done = threading.Event()
-
-    def beat() -> None:
-        while not done.wait(settings.lease_s / 4):
-            try:
-                store.renew(claim, lease_s=settings.lease_s)
-            except LeaseLost:
-                return
-            except SQLAlchemyError:
-                logger.exception("job %d: heartbeat failed", claim.job.id)
-
-    thread = threading.Thread(target=beat, name=f"heartbeat-{claim.job.id}", daemon=True)
-    thread.start()
-    try:
-        yield
-    finally:
-        done.set()
-        thread.join()
-
-
-def outcome(result: SimulationResult, plots: dict[str, bytes]) -> Outcome:
+def outcome(result: SimulationResult) -> Outcome:
     """What the store keeps of a run: metrics as JSON, trajectory and Q-table as arrays."""
     arrays = result.arrays()
     trajectory = {k: arrays[k] for k in TRAJECTORY_KEYS if k in arrays}
@@ -183,7 +151,6 @@ def outcome(result: SimulationResult, plots: dict[str, bytes]) -> Outcome:
         metrics=finite(result.to_dict()),
         trajectory=trajectory or None,
         qtable=qtable,
-        plots=plots,
     )
 
 

@@ -95,6 +95,40 @@ class SimulationResult:
             "work": self.work,
         }
 
+    @classmethod
+    def from_stored(
+        cls, document: dict[str, Any], arrays: dict[str, NDArray[Any]]
+    ) -> SimulationResult:
+        """The result again, from its metrics document (``to_dict``) and its trajectory arrays
+        (``arrays``), as a store keeps them: enough to draw its pictures later. The Q-table is
+        not needed for that and is left out."""
+        trajectory = None
+        if "step" in arrays:
+            step = arrays["step"]
+            trajectory = Trajectory(
+                step=step,
+                robots=arrays["robots"],
+                cells=arrays["cells"],
+                obstacles=arrays["obstacles"],
+                concentration=arrays["concentration"],
+                distance=arrays["distance"],
+                steps=arrays["steps"],
+                reached=arrays["reached"],
+                emitter_offsets=arrays["emitter_offsets"],
+                obstacle_radius=float(arrays["obstacle_radius"]),
+                stride=int(step[1] - step[0]) if step.shape[0] > 1 else 1,
+            )
+        return cls(
+            scenario=Scenario.model_validate(document["scenario"]),
+            summary=document.get("summary") or {},
+            robots=document.get("robots") or [],
+            episodes=document.get("episodes") or [],
+            work=document.get("work") or {},
+            trajectory=trajectory,
+            qtable=None,
+            completed=bool(document.get("completed", True)),
+        )
+
     def arrays(self) -> dict[str, NDArray[Any]]:
         """The trajectory and Q-table as named arrays, for ``numpy.savez`` and binary storage."""
         out: dict[str, NDArray[Any]] = {}

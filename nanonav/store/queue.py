@@ -90,7 +90,6 @@ class Outcome:
     metrics: dict[str, Any]
     trajectory: Mapping[str, NDArray[Any]] | None
     qtable: Mapping[str, NDArray[Any]] | None
-    plots: Mapping[str, bytes]
 
 
 class JobStore:
@@ -178,32 +177,51 @@ class JobStore:
 
     def metrics(self, job_id: int) -> dict[str, Any]:
         with unit_of_work(self._sessions) as session:
-            return _result(session, job_id).metrics
+            metrics: dict[str, Any] = _result_column(session, job_id, JobResult.metrics)
+            return metrics
 
     def trajectory(self, job_id: int) -> dict[str, NDArray[Any]]:
-        with unit_of_work(self._sessions) as session:
-            blob = _result(session, job_id).trajectory
+        blob = self.trajectory_npz(job_id)
         return unpack(blob) if blob is not None else {}
+
+    def trajectory_npz(self, job_id: int) -> bytes | None:
+        """The trajectory as the ``.npz`` bytes it is stored as, without decoding it."""
+        with unit_of_work(self._sessions) as session:
+            blob: bytes | None = _result_column(session, job_id, JobResult.trajectory)
+            return blob
 
     def qtable(self, job_id: int) -> dict[str, NDArray[Any]]:
         with unit_of_work(self._sessions) as session:
-            blob = _result(session, job_id).qtable
+            blob: bytes | None = _result_column(session, job_id, JobResult.qtable)
         return unpack(blob) if blob is not None else {}
 
     def plot(self, job_id: int, name: str) -> bytes | None:
-        """The PNG ``name`` of a succeeded job, or None if the job has no such picture."""
+        """The PNG ``name`` of a succeeded job if it has been drawn, else None."""
         with unit_of_work(self._sessions) as session:
             _succeeded(session, job_id)
             return session.scalars(
                 select(JobPlot.png).where(JobPlot.job_id == job_id, JobPlot.name == name)
             ).one_or_none()
 
+    def save_plot(self, job_id: int, name: str, png: bytes) -> None:
+        """Keep a picture drawn for a succeeded job; if another process kept one first, that
+        one stays (both were drawn from the same stored result)."""
+        try:
+            with unit_of_work(self._sessions) as session:
+                session.add(JobPlot(job_id=job_id, name=name, png=png))
+        except IntegrityError:
+            with unit_of_work(self._sessions) as session:
+                if session.get(JobPlot, (job_id, name)) is None:
+                    raise
+
     def partial_result(self, job_id: int) -> dict[str, Any] | None:
         """The metrics a job stored whatever its status (a cancelled job keeps its episodes)."""
         with unit_of_work(self._sessions) as session:
             _job(session, job_id)
-            row = session.get(JobResult, job_id)
-            return None if row is None else row.metrics
+            metrics: dict[str, Any] | None = session.scalars(
+                select(JobResult.metrics).where(JobResult.job_id == job_id)
+            ).one_or_none()
+            return metrics
 
     # -- the worker's side ------------------------------------------------------------------
 
@@ -298,10 +316,6 @@ class JobStore:
                     qtable=None if outcome.qtable is None else pack(outcome.qtable),
                 )
             )
-            session.add_all(
-                JobPlot(job_id=claim.job.id, name=name, png=png)
-                for name, png in outcome.plots.items()
-            )
             return JobRecord.of(row)
 
     def fail(self, claim: Claim, error: str, *, now: datetime | None = None) -> JobRecord:
@@ -393,9 +407,10 @@ def _succeeded(session: Session, job_id: int) -> Job:
     return row
 
 
-def _result(session: Session, job_id: int) -> JobResult:
+def _result_column(session: Session, job_id: int, column: Any) -> Any:
+    """One column of a succeeded job's results, loading none of the others (blobs are large)."""
     _succeeded(session, job_id)
-    row = session.get(JobResult, job_id)
-    if row is None:
+    found = session.execute(select(column).where(JobResult.job_id == job_id)).one_or_none()
+    if found is None:
         raise ResultsUnavailable(job_id, JobStatus.SUCCEEDED)
-    return row
+    return found[0]

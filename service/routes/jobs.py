@@ -6,22 +6,29 @@ import base64
 import binascii
 import csv
 import io
+from functools import partial
 from typing import Annotated, Any, Literal
 
 import numpy as np
 from fastapi import APIRouter, Body, Header, Path, Query, Response
+from fastapi.concurrency import run_in_threadpool
 from numpy.typing import NDArray
 
+from nanonav import plots
+from nanonav.engine import SimulationResult
 from nanonav.scenario import Scenario
-from nanonav.store import JobStatus
+from nanonav.store import JobStatus, JobStore
 from nanonav.store.arrays import pack
-from service.deps import JsonBody, SettingsDep, StoreDep
-from service.problems import BudgetExceeded, InvalidInput, PictureMissing, field_error, problems
+from service.deps import DrawerDep, JsonBody, SettingsDep, StoreDep
+from service.drawing import Drawer
+from service.problems import BudgetExceeded, InvalidInput, field_error, problems
 from service.schemas import Job, JobPage, Metrics, QTable, Trajectory
 
 router = APIRouter(prefix="/jobs", tags=["jobs"])
 
 JobId = Annotated[int, Path(ge=1, le=2**63 - 1, description="The job's id.")]
+# A succeeded job's results never change.
+IMMUTABLE = {"Cache-Control": "max-age=86400, immutable"}
 PNG: dict[int | str, dict[str, Any]] = {
     200: {"content": {"image/png": {}}, "description": "A PNG picture."}
 }
@@ -184,35 +191,47 @@ def get_qtable(job_id: JobId, store: StoreDep) -> QTable:
 @router.get(
     "/{job_id}/heatmap.png",
     response_class=Response,
-    responses={**PNG, **NOT_FOUND_OR_NOT_READY},
+    responses={**PNG, **problems(404, 409, 422, 503)},
 )
-def get_heatmap(
+async def get_heatmap(
     job_id: JobId,
     store: StoreDep,
+    drawer: DrawerDep,
     plane: Annotated[Literal["xy", "xz", "yz", "all"], Query()] = "xy",
 ) -> Response:
     """The biomarker concentration in a plane through the cells, with the paths drawn on it."""
-    return _png(store.plot(job_id, f"heatmap_{plane}"), job_id, f"heatmap_{plane}")
+    return await _picture(store, drawer, job_id, f"heatmap_{plane}")
 
 
 @router.get(
     "/{job_id}/plots/{name}.png",
     response_class=Response,
-    responses={**PNG, **NOT_FOUND_OR_NOT_READY},
+    responses={**PNG, **problems(404, 409, 422, 503)},
 )
-def get_plot(
+async def get_plot(
     job_id: JobId,
     name: Literal["trajectory", "concentration", "learning"],
     store: StoreDep,
+    drawer: DrawerDep,
 ) -> Response:
     """A picture of the run: 3-D trajectory, concentration over time, or learning curve."""
-    return _png(store.plot(job_id, name), job_id, name)
+    return await _picture(store, drawer, job_id, name)
 
 
-def _png(png: bytes | None, job_id: int, name: str) -> Response:
+async def _picture(store: JobStore, drawer: Drawer, job_id: int, name: str) -> Response:
+    """The stored picture, or drawn now (off the event loop) and stored for next time."""
+    png = await run_in_threadpool(store.plot, job_id, name)
     if png is None:
-        raise PictureMissing(f"job {job_id} has no picture {name!r}")
-    return Response(png, media_type="image/png")
+        png = await drawer.draw(("job", job_id, name), partial(_draw, store, job_id, name))
+    return Response(png, media_type="image/png", headers=IMMUTABLE)
+
+
+def _draw(store: JobStore, job_id: int, name: str) -> bytes:
+    metrics = store.metrics(job_id)
+    arrays = {} if name == "learning" else store.trajectory(job_id)
+    png = plots.render(SimulationResult.from_stored(metrics, arrays), name)
+    store.save_plot(job_id, name, png)
+    return png
 
 
 def _encode_cursor(before_id: int) -> str:

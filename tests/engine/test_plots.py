@@ -149,3 +149,18 @@ def test_large_swarm_draws_a_subset_of_paths() -> None:
     )
     assert_picture(plots.trajectory_png(big), EXPECTED_SIZE["trajectory"])
     assert_picture(plots.learning_png(big), EXPECTED_SIZE["learning"])
+
+
+def test_a_stored_result_draws_the_same_pictures_as_the_live_one(swarm: SimulationResult) -> None:
+    stored = SimulationResult.from_stored(swarm.to_dict(), swarm.arrays())
+    assert stored.trajectory is not None and swarm.trajectory is not None
+    assert stored.trajectory.stride == swarm.trajectory.stride
+    for name in ("heatmap_xy", "trajectory", "learning"):
+        assert plots.render(stored, name) == plots.render(swarm, name)
+
+
+def test_render_names_every_picture_and_refuses_others(single: SimulationResult) -> None:
+    for name in plots.PICTURE_NAMES:
+        assert_picture(plots.render(single, name), EXPECTED_SIZE[name])
+    with pytest.raises(ValueError, match="no picture 'heatmap_xx'"):
+        plots.render(single, "heatmap_xx")

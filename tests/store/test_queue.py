@@ -47,7 +47,6 @@ def outcome(completed: bool = True) -> Outcome:
             "values": np.ones((2, 3), dtype=np.float64),
             "visits": np.zeros((2, 3), dtype=np.int64),
         },
-        plots={"trajectory": b"\x89PNG fake"} if completed else {},
     )
 
 
@@ -183,7 +182,7 @@ def test_a_live_lease_is_not_recovered(store: JobStore) -> None:
     assert store.recover_expired(max_attempts=3) == 0
 
 
-def test_finish_stores_metrics_arrays_with_dtype_and_shape_and_plots(store: JobStore) -> None:
+def test_finish_stores_metrics_and_arrays_with_dtype_and_shape(store: JobStore) -> None:
     enqueue(store)
     claimed = claim(store)
     with pytest.raises(ResultsUnavailable):
@@ -201,7 +200,16 @@ def test_finish_stores_metrics_arrays_with_dtype_and_shape_and_plots(store: JobS
     qtable = store.qtable(done.id)
     assert qtable["states"].tolist() == ["low", "high"]
     assert qtable["visits"].dtype == np.int64
-    assert store.plot(done.id, "trajectory") == b"\x89PNG fake"
+    assert store.trajectory_npz(done.id) is not None
+    assert store.plot(done.id, "trajectory") is None
+
+
+def test_a_drawn_picture_is_kept_once(store: JobStore) -> None:
+    enqueue(store)
+    done = store.finish(claim(store), outcome())
+    store.save_plot(done.id, "trajectory", b"\x89PNG first")
+    store.save_plot(done.id, "trajectory", b"\x89PNG second")
+    assert store.plot(done.id, "trajectory") == b"\x89PNG first"
     assert store.plot(done.id, "learning") is None
 
 
