@@ -107,6 +107,14 @@ class Settings(BaseSettings):
         "time, the first time each is asked for); a request beyond them gets 503.",
     )
 
+    trajectory_json_values: int = Field(
+        2_000_000,
+        ge=1000,
+        validation_alias=_aliases("trajectory_json_values"),
+        description="Most numbers a trajectory answered as JSON may hold (about 20 bytes each); "
+        "a larger one is refused with 422 that says to use ?stride= or ?format=npz.",
+    )
+
     @field_validator("database_url")
     @classmethod
     def _known_url(cls, value: str) -> str:

@@ -206,7 +206,9 @@ class Trajectory(BaseModel):
     steps: list[int] = Field(description="The step number of every row below.")
     robots: list[list[list[float]]] = Field(description="[row][robot][x, y, z]")
     cells: list[list[list[float]]] = Field(description="[row][cell][x, y, z]")
-    obstacles: list[list[list[float]]] = Field(description="[row][obstacle][x, y, z]")
+    obstacles: list[list[list[float]]] = Field(
+        description="[row][obstacle][x, y, z]; a single row when the obstacles do not move"
+    )
     obstacle_radius: float
     concentration: list[list[float]] = Field(
         description="[row][robot] true biomarker concentration at the robot"

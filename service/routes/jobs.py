@@ -6,12 +6,14 @@ import base64
 import binascii
 import csv
 import io
+from collections.abc import Iterator
 from functools import partial
 from typing import Annotated, Any, Literal
 
 import numpy as np
 from fastapi import APIRouter, Body, Header, Path, Query, Response
 from fastapi.concurrency import run_in_threadpool
+from fastapi.responses import JSONResponse, StreamingResponse
 from numpy.typing import NDArray
 
 from nanonav import plots
@@ -138,39 +140,52 @@ def get_metrics(job_id: JobId, store: StoreDep) -> Metrics:
 def get_trajectory(
     job_id: JobId,
     store: StoreDep,
+    settings: SettingsDep,
     stride: Annotated[int, Query(ge=1, le=1_000_000, description="Keep every N-th step.")] = 1,
     format: Annotated[Literal["json", "npz", "csv"], Query()] = "json",
 ) -> Any:
-    """The evaluation episode's paths, concentrations and distances, every ``stride`` steps."""
+    """The evaluation episode's paths, concentrations and distances, every ``stride`` steps.
+
+    A JSON answer holds at most ``NANONAV_TRAJECTORY_JSON_VALUES`` numbers; a larger one is
+    refused with 422 naming the stride that fits. ``npz`` is the stored file itself (at
+    stride 1) and CSV is streamed, so both work at any size."""
+    name = f"nanonav-job-{job_id}-trajectory"
+    download = {"Content-Disposition": f'attachment; filename="{name}.{format}"', **IMMUTABLE}
+    if format == "npz" and stride == 1:
+        blob = store.trajectory_npz(job_id) or pack({})
+        return Response(blob, media_type="application/octet-stream", headers=download)
     arrays = store.trajectory(job_id)
     rows = _rows(arrays, stride)
-    per_step = {"step", "robots", "cells", "obstacles", "concentration", "distance"}
-    strided = {k: (v[rows] if k in per_step else v) for k, v in arrays.items()}
-    name = f"nanonav-job-{job_id}-trajectory"
+    strided = {k: (v[rows] if _per_row(arrays, k) else v) for k, v in arrays.items()}
     if format == "npz":
-        return Response(
-            pack(strided),
-            media_type="application/octet-stream",
-            headers={"Content-Disposition": f'attachment; filename="{name}.npz"'},
-        )
+        return Response(pack(strided), media_type="application/octet-stream", headers=download)
     if format == "csv":
-        return Response(
-            _csv(strided),
-            media_type="text/csv; charset=utf-8",
-            headers={"Content-Disposition": f'attachment; filename="{name}.csv"'},
+        return StreamingResponse(
+            _csv_lines(strided), media_type="text/csv; charset=utf-8", headers=download
         )
-    return Trajectory(
-        stride=stride,
-        length=int(arrays["step"][-1]),
-        steps=strided["step"].tolist(),
-        robots=strided["robots"].tolist(),
-        cells=strided["cells"].tolist(),
-        obstacles=strided["obstacles"].tolist(),
-        obstacle_radius=float(arrays["obstacle_radius"]),
-        concentration=strided["concentration"].tolist(),
-        distance=strided["distance"].tolist(),
-        reached=arrays["reached"].tolist(),
-        robot_steps=arrays["steps"].tolist(),
+    limit = settings.trajectory_json_values
+    values = _json_values(arrays, len(rows))
+    if values > limit:
+        detail = (
+            f"the trajectory at stride {stride} holds {values:,} numbers, over the {limit:,} a "
+            f"JSON answer may hold: {_fitting_stride(arrays, limit)}"
+        )
+        raise InvalidInput(detail, [field_error(["query", "stride"], detail, "too_large")])
+    return JSONResponse(
+        Trajectory(
+            stride=stride,
+            length=int(arrays["step"][-1]),
+            steps=strided["step"].tolist(),
+            robots=strided["robots"].tolist(),
+            cells=strided["cells"].tolist(),
+            obstacles=strided["obstacles"].tolist(),
+            obstacle_radius=float(arrays["obstacle_radius"]),
+            concentration=strided["concentration"].tolist(),
+            distance=strided["distance"].tolist(),
+            reached=arrays["reached"].tolist(),
+            robot_steps=arrays["steps"].tolist(),
+        ).model_dump(),
+        headers=IMMUTABLE,
     )
 
 
@@ -251,6 +266,30 @@ def _decode_cursor(cursor: str) -> int:
         ) from None
 
 
+PER_ROW = ("step", "robots", "cells", "obstacles", "concentration", "distance")
+
+
+def _per_row(arrays: dict[str, NDArray[Any]], key: str) -> bool:
+    """Whether ``key`` has a row per recorded step (obstacles that never move have one row)."""
+    return key in PER_ROW and arrays[key].shape[0] == arrays["step"].shape[0]
+
+
+def _json_values(arrays: dict[str, NDArray[Any]], rows: int) -> int:
+    """How many numbers a JSON answer with ``rows`` rows holds."""
+    per_row = sum(int(arrays[k][0].size) for k in PER_ROW if _per_row(arrays, k))
+    once = [k for k in PER_ROW if not _per_row(arrays, k)]
+    fixed = sum(int(arrays[k].size) for k in (*once, "reached", "steps"))
+    return rows * per_row + fixed
+
+
+def _fitting_stride(arrays: dict[str, NDArray[Any]], limit: int) -> str:
+    total = int(arrays["step"].shape[0])
+    for stride in (2, 5, 10, 20, 50, 100, 200, 500, 1000, 10_000, 100_000):
+        if stride < total and _json_values(arrays, -(-total // stride) + 1) <= limit:
+            return f"ask for ?stride={stride} or more, or for ?format=npz"
+    return "ask for ?format=npz (or ?format=csv)"
+
+
 def _rows(arrays: dict[str, NDArray[Any]], stride: int) -> NDArray[np.int64]:
     last = int(arrays["robots"].shape[0] - 1)
     rows = np.arange(0, last + 1, stride, dtype=np.int64)
@@ -259,16 +298,22 @@ def _rows(arrays: dict[str, NDArray[Any]], stride: int) -> NDArray[np.int64]:
     return rows
 
 
-def _csv(arrays: dict[str, NDArray[Any]]) -> str:
+def _csv_lines(arrays: dict[str, NDArray[Any]]) -> Iterator[str]:
+    """The trajectory as CSV, a recorded step at a time, so a large one is never held whole."""
     out = io.StringIO()
     writer = csv.writer(out, lineterminator="\n")
     writer.writerow(["step", "kind", "index", "x", "y", "z", "concentration", "distance"])
+    obstacles_move = _per_row(arrays, "obstacles")
     for i, step in enumerate(arrays["step"].tolist()):
         for r, (x, y, z) in enumerate(arrays["robots"][i].tolist()):
             c = arrays["concentration"][i, r]
             d = arrays["distance"][i, r]
             writer.writerow([step, "robot", r, x, y, z, repr(float(c)), repr(float(d))])
-        for kind in ("cells", "obstacles"):
-            for k, (x, y, z) in enumerate(arrays[kind][i].tolist()):
-                writer.writerow([step, kind[:-1], k, x, y, z, "", ""])
-    return out.getvalue()
+        for k, (x, y, z) in enumerate(arrays["cells"][i].tolist()):
+            writer.writerow([step, "cell", k, x, y, z, "", ""])
+        if obstacles_move or i == 0:
+            for k, (x, y, z) in enumerate(arrays["obstacles"][i].tolist()):
+                writer.writerow([step, "obstacle", k, x, y, z, "", ""])
+        yield out.getvalue()
+        out.seek(0)
+        out.truncate()
