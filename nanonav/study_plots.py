@@ -1,0 +1,422 @@
+"""Pictures of a batch study, as PNG bytes: one metric across the swept values of a parameter,
+and the mean learning curves of several scenarios.
+
+The numbers arrive already summarised (means and confidence bounds, see ``nanonav.stats``); this
+module only draws them, so it reads no result, job or database. As in ``nanonav.plots``, each
+figure is its own ``matplotlib.figure.Figure`` on the Agg canvas, saved to a ``BytesIO``, never
+pyplot, and each PNG is exactly ``figsize x DPI`` pixels.
+
+A series keeps its colour in every picture of a study: colours are given by the order in which
+labels first appear in a call, so callers pass the scenarios in the same (the study's) order.
+"""
+
+from __future__ import annotations
+
+import io
+import math
+import numbers
+from collections.abc import Hashable, Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from matplotlib.artist import Artist
+from matplotlib.axes import Axes
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.patches import Patch
+from matplotlib.ticker import NullLocator
+from matplotlib.typing import LineStyleType
+from numpy.typing import NDArray
+
+DPI = 100
+METRIC_FIGSIZE = (8.0, 5.0)
+LEARNING_WIDTH = 8.0
+LEARNING_PANEL_HEIGHT = 3.0
+NO_DATA = "no finished jobs yet"
+# A learning curve longer than this is drawn as this many bin averages: tens of thousands of
+# episodes would otherwise make the PNG slow to draw and no easier to read.
+MAX_CURVE_POINTS = 2000
+# Up to this many distinct swept values, each gets its own tick, labelled with its value.
+MAX_TICKED_VALUES = 12
+# Swept values that are all positive and span this ratio or more go on a logarithmic axis
+# (robot counts 1, 15, 100, 1000 would otherwise crowd at the left).
+LOG_AXIS_RATIO = 100.0
+# Series at the same x are spread over this fraction of the gap between neighbouring x values,
+# so their error bars stand apart.
+DODGE = 0.15
+# About how many characters of legend text fit across an 8-inch figure, handles included.
+LEGEND_WIDTH_CHARS = 90
+
+# matplotlib's tab10, in order; after ten series the colours repeat with another line style,
+# marker and hatch.
+SERIES_COLOURS: tuple[str, ...] = (
+    "#1f77b4",
+    "#ff7f0e",
+    "#2ca02c",
+    "#d62728",
+    "#9467bd",
+    "#8c564b",
+    "#e377c2",
+    "#7f7f7f",
+    "#bcbd22",
+    "#17becf",
+)
+_LINE_STYLES: tuple[LineStyleType, ...] = ("-", "--", ":", "-.")
+_MARKERS = ("o", "s", "^", "D")
+_HATCHES = ("", "//", "..", "xx")
+
+_TITLE_SIZE = 14
+_LABEL_SIZE = 12
+_TICK_SIZE = 10.5
+_LEGEND_SIZE = 10.5
+_GRID_ALPHA = 0.3
+_BAND_ALPHA = 0.2
+
+
+@dataclass(frozen=True)
+class Series:
+    """One scenario's summary along an axis: a mean and its confidence bounds at each x. A
+    ``None`` mean is a gap (no data there); a ``None`` bound means no interval (e.g. n < 2)."""
+
+    label: str
+    x: Sequence[float | int | str]
+    mean: Sequence[float | None]
+    low: Sequence[float | None]
+    high: Sequence[float | None]
+
+    def __post_init__(self) -> None:
+        lengths = (len(self.x), len(self.mean), len(self.low), len(self.high))
+        if len(set(lengths)) != 1:
+            raise ValueError(
+                f"series {self.label!r}: x, mean, low and high must have one value per point, "
+                f"not {lengths[0]}, {lengths[1]}, {lengths[2]} and {lengths[3]}"
+            )
+
+
+@dataclass(frozen=True)
+class _Style:
+    colour: str
+    line_style: LineStyleType
+    marker: str
+    hatch: str
+
+
+def _styles(series: Sequence[Series]) -> dict[str, _Style]:
+    styles: dict[str, _Style] = {}
+    for one in series:
+        if one.label not in styles:
+            i = len(styles)
+            cycle = i // len(SERIES_COLOURS) % len(_LINE_STYLES)
+            styles[one.label] = _Style(
+                SERIES_COLOURS[i % len(SERIES_COLOURS)],
+                _LINE_STYLES[cycle],
+                _MARKERS[cycle],
+                _HATCHES[cycle],
+            )
+    return styles
+
+
+def _figure(width: float, height: float) -> Figure:
+    fig = Figure(figsize=(width, height), dpi=DPI, layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def _png(fig: Figure) -> bytes:
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=DPI)
+    return buffer.getvalue()
+
+
+def _floats(values: Sequence[float | None]) -> NDArray[np.float64]:
+    """``None`` (and NaN or infinity) become NaN, which matplotlib leaves undrawn: a gap."""
+    out = np.array([np.nan if v is None else float(v) for v in values], dtype=np.float64)
+    out[~np.isfinite(out)] = np.nan
+    return out
+
+
+def _has_data(series: Series) -> bool:
+    return bool(np.isfinite(_floats(series.mean)).any())
+
+
+def _is_number(value: object) -> bool:
+    return isinstance(value, numbers.Real) and not isinstance(value, bool | np.bool_)
+
+
+def _readable(metric: str) -> str:
+    return metric.replace("_", " ")
+
+
+def _tick_label(value: object) -> str:
+    return f"{value:g}" if isinstance(value, float) else str(value)
+
+
+def _style_axes(ax: Axes) -> None:
+    ax.tick_params(labelsize=_TICK_SIZE)
+    ax.grid(alpha=_GRID_ALPHA)
+    ax.set_axisbelow(True)
+
+
+def _say_no_data(ax: Axes) -> None:
+    ax.text(
+        0.5,
+        0.5,
+        NO_DATA,
+        transform=ax.transAxes,
+        ha="center",
+        va="center",
+        fontsize=_LABEL_SIZE + 1,
+        color="0.4",
+    )
+    ax.set_yticks([])
+
+
+def _error_bars(
+    ax: Axes,
+    x: NDArray[np.float64],
+    mean: NDArray[np.float64],
+    low: NDArray[np.float64],
+    high: NDArray[np.float64],
+    colour: str,
+) -> None:
+    shown = np.isfinite(mean) & np.isfinite(low) & np.isfinite(high)
+    if not shown.any():
+        return
+    below = np.clip(mean[shown] - low[shown], 0.0, None)
+    above = np.clip(high[shown] - mean[shown], 0.0, None)
+    ax.errorbar(
+        x[shown],
+        mean[shown],
+        yerr=np.vstack([below, above]),
+        fmt="none",
+        ecolor=colour,
+        elinewidth=1.4,
+        capsize=4,
+        capthick=1.4,
+    )
+
+
+def _draw_lines(ax: Axes, series: Sequence[Series], styles: Mapping[str, _Style]) -> list[Artist]:
+    every_x = np.array([float(v) for one in series for v in one.x])
+    distinct = np.unique(every_x[np.isfinite(every_x)])
+    log = len(distinct) >= 2 and distinct[0] > 0 and distinct[-1] / distinct[0] >= LOG_AXIS_RATIO
+    positions = np.log10(distinct) if log else distinct
+    gap = float(np.min(np.diff(positions))) if len(positions) >= 2 else 1.0
+    step = DODGE * gap / (len(series) - 1) if len(series) > 1 else 0.0
+    handles: list[Artist] = []
+    for i, one in enumerate(series):
+        style = styles[one.label]
+        x = np.array([float(v) for v in one.x])
+        order = np.argsort(x, kind="stable")
+        x = x[order]
+        mean, low, high = (_floats(v)[order] for v in (one.mean, one.low, one.high))
+        shift = (i - (len(series) - 1) / 2) * step
+        drawn_x = 10.0 ** (np.log10(x) + shift) if log else x + shift
+        ax.plot(
+            drawn_x,
+            mean,
+            color=style.colour,
+            linestyle=style.line_style,
+            marker=style.marker,
+            markersize=6,
+            linewidth=1.8,
+        )
+        _error_bars(ax, drawn_x, mean, low, high, style.colour)
+        handles.append(
+            Line2D(
+                [],
+                [],
+                color=style.colour,
+                linestyle=style.line_style,
+                marker=style.marker,
+                markersize=6,
+                linewidth=1.8,
+                label=one.label,
+            )
+        )
+    if log:
+        ax.set_xscale("log")
+    if len(distinct) <= MAX_TICKED_VALUES:
+        ax.set_xticks(distinct, labels=[f"{v:g}" for v in distinct])
+        ax.xaxis.set_minor_locator(NullLocator())
+    _style_axes(ax)
+    return handles
+
+
+def _draw_bars(ax: Axes, series: Sequence[Series], styles: Mapping[str, _Style]) -> list[Artist]:
+    groups: dict[Hashable, int] = {}
+    labels: list[str] = []
+    for one in series:
+        for value in one.x:
+            if value not in groups:
+                groups[value] = len(groups)
+                labels.append(_tick_label(value))
+    width = 0.8 / len(series)
+    handles: list[Artist] = []
+    for i, one in enumerate(series):
+        style = styles[one.label]
+        x = (
+            np.array([groups[v] for v in one.x], dtype=np.float64)
+            + (i - (len(series) - 1) / 2) * width
+        )
+        mean, low, high = (_floats(v) for v in (one.mean, one.low, one.high))
+        present = np.isfinite(mean)
+        ax.bar(
+            x[present],
+            mean[present],
+            width=width * 0.92,
+            color=style.colour,
+            hatch=style.hatch,
+            edgecolor="white",
+            linewidth=0.6,
+        )
+        _error_bars(ax, x, mean, low, high, "0.15")
+        handles.append(
+            Patch(facecolor=style.colour, hatch=style.hatch, edgecolor="white", label=one.label)
+        )
+    crowded = sum(len(label) for label in labels) > 70
+    ax.set_xticks(
+        range(len(labels)),
+        labels=labels,
+        rotation=25 if crowded else 0,
+        ha="right" if crowded else "center",
+    )
+    ax.set_xlim(-0.6, len(labels) - 0.4)
+    ax.axhline(0.0, color="0.3", linewidth=0.8)
+    _style_axes(ax)
+    ax.grid(False, axis="x")
+    return handles
+
+
+def _legend(fig: Figure, handles: list[Artist]) -> None:
+    """Below the axes, never over the data; as many columns as labels of this length fit."""
+    if len(handles) <= 1:
+        return
+    longest = max(len(str(h.get_label())) for h in handles)
+    fig.legend(
+        handles=handles,
+        fontsize=_LEGEND_SIZE,
+        loc="outside lower center",
+        ncols=max(1, min(len(handles), LEGEND_WIDTH_CHARS // (longest + 6))),
+        frameon=False,
+    )
+
+
+def metric_png(
+    metric: str, series: Sequence[Series], *, x_label: str | None, title: str | None = None
+) -> bytes:
+    """One metric (mean and confidence interval) for each series at each swept value.
+
+    When every x is a number, one line per series with markers and error bars, series nudged
+    apart on x so their bars do not hide each other; the axis is logarithmic when the values are
+    positive and span a factor of 100 or more. Otherwise (policies, field models: names), a
+    grouped bar chart, one group per x in first-seen order. Without any mean to draw, the axes
+    say so, and the PNG is still valid and of the same size.
+    """
+    fig = _figure(*METRIC_FIGSIZE)
+    ax = fig.add_subplot()
+    handles: list[Artist] = []
+    if not any(_has_data(one) for one in series):
+        _say_no_data(ax)
+        ax.set_xticks([])
+    elif all(_is_number(v) for one in series for v in one.x):
+        handles = _draw_lines(ax, series, _styles(series))
+    else:
+        handles = _draw_bars(ax, series, _styles(series))
+    ax.set_ylabel(_readable(metric), fontsize=_LABEL_SIZE)
+    if x_label:
+        ax.set_xlabel(x_label, fontsize=_LABEL_SIZE)
+    if title:
+        ax.set_title(title, fontsize=_TITLE_SIZE)
+    _legend(fig, handles)
+    return _png(fig)
+
+
+def _bin_average(columns: NDArray[np.float64], limit: int) -> NDArray[np.float64]:
+    """Rows of ``columns`` (one per quantity, points along axis 1) averaged over consecutive bins
+    so that at most ``limit`` points remain. NaN (no data) is left out of a bin's mean; a bin
+    with no data at all stays NaN, a gap."""
+    rows, n = columns.shape
+    if n <= limit:
+        return columns
+    size = math.ceil(n / limit)
+    bins = math.ceil(n / size)
+    padded = np.full((rows, bins * size), np.nan)
+    padded[:, :n] = columns
+    blocks = padded.reshape(rows, bins, size)
+    finite = np.isfinite(blocks)
+    counts = finite.sum(axis=2)
+    sums = np.where(finite, blocks, 0.0).sum(axis=2)
+    averages = np.full((rows, bins), np.nan)
+    np.divide(sums, counts, out=averages, where=counts > 0)
+    return averages
+
+
+def _draw_curve(ax: Axes, one: Series, style: _Style) -> None:
+    if not all(_is_number(v) for v in one.x):
+        raise ValueError(f"series {one.label!r}: a learning curve needs numeric episodes on x")
+    x = np.array([float(v) for v in one.x])
+    order = np.argsort(x, kind="stable")
+    columns = np.vstack([x[order]] + [_floats(v)[order] for v in (one.mean, one.low, one.high)])
+    x, mean, low, high = _bin_average(columns, MAX_CURVE_POINTS)
+    band = np.isfinite(low) & np.isfinite(high)
+    if band.any():
+        ax.fill_between(
+            x,
+            np.where(band, low, 0.0),
+            np.where(band, high, 0.0),
+            where=band,
+            color=style.colour,
+            alpha=_BAND_ALPHA,
+            linewidth=0,
+        )
+    ax.plot(
+        x,
+        mean,
+        color=style.colour,
+        linestyle=style.line_style,
+        linewidth=1.6,
+        marker=style.marker if len(x) <= 60 else None,
+        markersize=3.5,
+    )
+
+
+def learning_png(panels: Mapping[str, Sequence[Series]], *, title: str | None = None) -> bytes:
+    """Mean learning curves with their confidence bands, one panel per quantity (the key is the
+    panel's y label), stacked on a shared episode axis.
+
+    Curves longer than ``MAX_CURVE_POINTS`` are drawn as bin averages (of the mean and of each
+    bound), so thousands of episodes draw quickly. A panel without data says so; with no panel
+    at all, one empty panel does.
+    """
+    count = max(len(panels), 1)
+    fig = _figure(LEARNING_WIDTH, LEARNING_PANEL_HEIGHT * count)
+    axes = fig.subplots(count, 1, sharex=True, squeeze=False)[:, 0]
+    styles = _styles([one for group in panels.values() for one in group])
+    drawn = False
+    if not panels:
+        _say_no_data(axes[0])
+    for ax, (name, group) in zip(axes, panels.items(), strict=False):
+        ax.set_ylabel(name, fontsize=_LABEL_SIZE)
+        _style_axes(ax)
+        if not any(_has_data(one) for one in group):
+            _say_no_data(ax)
+            continue
+        for one in group:
+            _draw_curve(ax, one, styles[one.label])
+        drawn = True
+    axes[-1].set_xlabel("episode", fontsize=_LABEL_SIZE)
+    if title:
+        fig.suptitle(title, fontsize=_TITLE_SIZE)
+    if drawn:
+        _legend(
+            fig,
+            [
+                Line2D([], [], color=s.colour, linestyle=s.line_style, linewidth=2.2, label=label)
+                for label, s in styles.items()
+            ],
+        )
+    else:
+        axes[-1].set_xticks([])
+    return _png(fig)

@@ -1,0 +1,268 @@
+"""Means, t intervals and paired comparisons: against hand computations, against scipy, at the
+edges, and the interval's coverage over simulated samples."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+from scipy import stats as scipy_stats
+
+from nanonav import stats
+from nanonav.stats import Description, PairedComparison, describe, paired
+
+T_975_1 = 12.706204736174698  # Student t quantile 0.975, 1 degree of freedom
+T_975_2 = 4.302652729911275  # ... 2 degrees of freedom
+
+
+def test_three_values_give_the_hand_computed_t_interval() -> None:
+    result = describe([1.0, 2.0, 3.0])
+    half_width = T_975_2 * 1.0 / math.sqrt(3)
+    assert result.n == 3
+    assert result.mean == pytest.approx(2.0)
+    assert result.sd == pytest.approx(1.0)
+    assert result.ci_low == pytest.approx(2.0 - half_width)
+    assert result.ci_high == pytest.approx(2.0 + half_width)
+    assert result.ci_low == pytest.approx(-0.4841377117503)
+
+
+def test_two_values_use_one_degree_of_freedom() -> None:
+    result = describe([1.0, 3.0])
+    assert result.sd == pytest.approx(math.sqrt(2))
+    assert result.ci_low == pytest.approx(2.0 - T_975_1)
+    assert result.ci_high == pytest.approx(2.0 + T_975_1)
+
+
+def test_interval_matches_scipy_t_interval_at_any_confidence() -> None:
+    values = np.random.default_rng(11).gamma(2.0, 3.0, size=17)
+    for confidence in (0.8, 0.95, 0.99):
+        result = describe(list(values), confidence)
+        low, high = scipy_stats.t.interval(
+            confidence, len(values) - 1, loc=values.mean(), scale=scipy_stats.sem(values)
+        )
+        assert result.mean == pytest.approx(values.mean())
+        assert result.sd == pytest.approx(values.std(ddof=1))
+        assert result.ci_low == pytest.approx(low)
+        assert result.ci_high == pytest.approx(high)
+
+
+def test_higher_confidence_gives_a_wider_interval() -> None:
+    values = [3.0, 5.0, 4.0, 8.0, 6.0]
+    narrow, wide = describe(values, 0.8), describe(values, 0.99)
+    assert narrow.ci_low is not None and narrow.ci_high is not None
+    assert wide.ci_low is not None and wide.ci_high is not None
+    assert wide.ci_low < narrow.ci_low < narrow.ci_high < wide.ci_high
+
+
+def test_no_values_have_no_mean() -> None:
+    assert describe([]) == Description(n=0, mean=None, sd=None, ci_low=None, ci_high=None)
+
+
+def test_one_value_has_a_mean_but_no_spread() -> None:
+    assert describe([4.5]) == Description(n=1, mean=4.5, sd=None, ci_low=None, ci_high=None)
+
+
+def test_equal_values_give_exactly_a_point_interval() -> None:
+    # The float mean of three 0.1s is not 0.1; the interval must still be exactly [0.1, 0.1].
+    result = describe([0.1, 0.1, 0.1])
+    assert result == Description(n=3, mean=0.1, sd=0.0, ci_low=0.1, ci_high=0.1)
+
+
+def test_integers_are_summarised_as_floats() -> None:
+    result = describe([200, 180, 190])
+    assert isinstance(result.mean, float)
+    assert result.mean == pytest.approx(190.0)
+
+
+@pytest.mark.parametrize("bad", [float("nan"), None, float("inf"), -float("inf")])
+def test_missing_and_non_finite_values_are_refused(bad: object) -> None:
+    with pytest.raises(ValueError, match=r"values\[1\]"):
+        describe([1.0, bad, 2.0])  # type: ignore[list-item]
+
+
+@pytest.mark.parametrize("confidence", [0.0, 1.0, 95.0, -0.5])
+def test_confidence_outside_zero_one_is_refused(confidence: float) -> None:
+    with pytest.raises(ValueError, match="confidence"):
+        describe([1.0, 2.0], confidence)
+    with pytest.raises(ValueError, match="confidence"):
+        paired([1.0, 2.0], [0.0, 0.0], confidence)
+
+
+def test_to_dict_is_plain_json() -> None:
+    description = describe([1.0, 2.0, 3.0]).to_dict()
+    assert list(description) == ["n", "mean", "sd", "ci_low", "ci_high"]
+    assert all(type(v) in (int, float) for v in description.values())
+    comparison = paired([1.0, 2.0], [0.0, 0.0]).to_dict()
+    assert list(comparison) == ["n", "mean_difference", "sd", "ci_low", "ci_high", "p_value"]
+    assert json.loads(json.dumps(comparison)) == comparison
+    assert describe([]).to_dict() == {
+        "n": 0,
+        "mean": None,
+        "sd": None,
+        "ci_low": None,
+        "ci_high": None,
+    }
+
+
+@pytest.mark.parametrize("size", [3, 10])
+def test_interval_covers_the_true_mean_in_about_95_percent_of_samples(size: int) -> None:
+    # At n = 3 the normal quantile (1.96 instead of 4.30) would cover only about 80 %.
+    rng = np.random.default_rng(2024 + size)
+    true_mean = 3.0
+    samples = rng.normal(true_mean, 2.0, size=(2000, size))
+    covered = 0
+    for sample in samples:
+        result = describe(list(sample))
+        assert result.ci_low is not None and result.ci_high is not None
+        covered += result.ci_low <= true_mean <= result.ci_high
+    assert 0.93 <= covered / len(samples) <= 0.97
+
+
+def test_paired_interval_covers_the_true_difference_in_about_95_percent_of_samples() -> None:
+    rng = np.random.default_rng(7)
+    covered = 0
+    for _ in range(2000):
+        seed_effect = rng.normal(0.0, 5.0, size=6)  # shared by both arms: the pairing removes it
+        baseline = 10.0 + seed_effect + rng.normal(0.0, 1.0, size=6)
+        treatment = 11.5 + seed_effect + rng.normal(0.0, 1.0, size=6)
+        result = paired(list(treatment), list(baseline))
+        assert result.ci_low is not None and result.ci_high is not None
+        covered += result.ci_low <= 1.5 <= result.ci_high
+    assert 0.93 <= covered / 2000 <= 0.97
+
+
+# ---------------------------------------------------------------- paired comparisons
+
+
+def test_paired_difference_is_treatment_minus_baseline_by_position() -> None:
+    result = paired([5.0, 7.0, 9.0], [4.0, 5.0, 6.0])  # differences 1, 2, 3
+    assert result.n == 3
+    assert result.mean_difference == pytest.approx(2.0)
+    assert result.sd == pytest.approx(1.0)
+    assert result.ci_low == pytest.approx(2.0 - T_975_2 / math.sqrt(3))
+    assert result.ci_high == pytest.approx(2.0 + T_975_2 / math.sqrt(3))
+
+
+def test_paired_is_antisymmetric() -> None:
+    rng = np.random.default_rng(3)
+    a, b = list(rng.normal(size=9)), list(rng.normal(size=9))
+    forward, backward = paired(a, b), paired(b, a)
+    assert forward.mean_difference == pytest.approx(-(backward.mean_difference or 0.0))
+    assert forward.ci_low == pytest.approx(-(backward.ci_high or 0.0))
+    assert forward.p_value == pytest.approx(backward.p_value)
+
+
+def test_five_pairs_that_all_agree_give_the_exact_p_value() -> None:
+    # All 2**5 sign patterns are equally likely under the null; two of them are as extreme.
+    assert paired([1.0, 2.0, 3.0, 4.0, 5.0], [0.0] * 5).p_value == pytest.approx(2 / 32)
+
+
+def test_one_disagreeing_pair_gives_the_hand_counted_exact_p_value() -> None:
+    # Differences 1, 2, 3, -4, 5: W- = 4, and 7 of the 32 subsets of {1..5} sum to 4 or less.
+    result = paired([1.0, 2.0, 3.0, -4.0, 5.0], [0.0] * 5)
+    assert result.p_value == pytest.approx(2 * 7 / 32)
+
+
+def test_tied_differences_share_their_mean_rank_and_stay_exact() -> None:
+    # Ranks 1.5, 1.5, 3, all positive: 1 of the 8 sign patterns reaches W+ = 6.
+    assert paired([1.0, 1.0, 2.0], [0.0] * 3).p_value == pytest.approx(2 / 8)
+
+
+def test_zero_differences_are_dropped_from_the_test_but_not_from_the_mean() -> None:
+    result = paired([0.0, 0.0, 1.0, 2.0, 3.0], [0.0] * 5)
+    assert result.n == 5
+    assert result.mean_difference == pytest.approx(1.2)
+    assert result.p_value == pytest.approx(paired([1.0, 2.0, 3.0], [0.0] * 3).p_value)
+    assert result.p_value == pytest.approx(2 / 8)
+
+
+def test_all_differences_zero_give_p_one() -> None:
+    result = paired([3.0, 5.0, 8.0], [3.0, 5.0, 8.0])
+    assert result == PairedComparison(
+        n=3, mean_difference=0.0, sd=0.0, ci_low=0.0, ci_high=0.0, p_value=1.0
+    )
+
+
+def test_a_single_non_zero_difference_gives_p_one() -> None:
+    assert paired([1.0, 4.0, 5.0], [1.0, 4.0, 2.0]).p_value == pytest.approx(1.0)
+
+
+def test_fewer_than_two_pairs_have_no_p_value() -> None:
+    assert paired([], []) == PairedComparison(
+        n=0, mean_difference=None, sd=None, ci_low=None, ci_high=None, p_value=None
+    )
+    assert paired([2.0], [1.5]) == PairedComparison(
+        n=1, mean_difference=0.5, sd=None, ci_low=None, ci_high=None, p_value=None
+    )
+    two = paired([2.0, 4.0], [1.0, 1.0])
+    assert two.p_value == pytest.approx(0.5)
+    assert two.ci_low == pytest.approx(2.0 - T_975_1 * math.sqrt(2) / math.sqrt(2))
+
+
+def test_unequal_lengths_are_refused() -> None:
+    with pytest.raises(ValueError, match="pair up"):
+        paired([1.0, 2.0, 3.0], [1.0, 2.0])
+
+
+def test_nan_in_either_arm_is_refused() -> None:
+    with pytest.raises(ValueError, match=r"treatment\[0\]"):
+        paired([float("nan"), 1.0], [1.0, 2.0])
+    with pytest.raises(ValueError, match=r"baseline\[1\]"):
+        paired([1.0, 1.0], [1.0, None])  # type: ignore[list-item]
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_p_value_matches_scipy_auto_for_up_to_13_pairs(seed: int) -> None:
+    # Small integer differences: many ties and zeros, as with step counts and success rates.
+    rng = np.random.default_rng(seed)
+    size = int(rng.integers(2, 14))
+    treatment = rng.integers(0, 6, size=size).astype(float)
+    baseline = rng.integers(0, 6, size=size).astype(float)
+    expected = scipy_stats.wilcoxon(treatment - baseline).pvalue
+    if np.all(treatment == baseline):
+        expected = 1.0
+    assert paired(list(treatment), list(baseline)).p_value == pytest.approx(expected, rel=1e-12)
+
+
+def test_p_value_without_ties_is_scipy_exact_on_the_non_zero_pairs() -> None:
+    rng = np.random.default_rng(5)
+    differences = rng.normal(0.3, 1.0, size=40)
+    differences[:12] = 0.0  # 28 non-zero: exact, where scipy's "auto" would count 40 pairs
+    expected = scipy_stats.wilcoxon(differences[12:], method="exact").pvalue
+    result = paired(list(differences), [0.0] * 40)
+    assert result.p_value == pytest.approx(expected, rel=1e-12)
+
+
+def test_many_tied_pairs_use_scipy_normal_approximation() -> None:
+    rng = np.random.default_rng(9)
+    differences = rng.integers(-3, 6, size=60).astype(float)
+    nonzero = differences[differences != 0]
+    expected = scipy_stats.wilcoxon(nonzero, method="asymptotic").pvalue
+    result = paired(list(differences), [0.0] * 60)
+    assert result.p_value == pytest.approx(expected, rel=1e-12)
+    assert result.p_value is not None and result.p_value < 0.01
+
+
+def test_a_clear_improvement_is_significant_and_no_difference_is_not() -> None:
+    rng = np.random.default_rng(1)
+    baseline = rng.normal(100.0, 10.0, size=20)
+    improved = paired(list(baseline - 8.0 + rng.normal(0.0, 2.0, size=20)), list(baseline))
+    same = paired(list(baseline + rng.normal(0.0, 2.0, size=20)), list(baseline))
+    assert improved.p_value is not None and improved.p_value < 0.001
+    assert improved.ci_high is not None and improved.ci_high < 0.0
+    assert same.p_value is not None and same.p_value > 0.05
+
+
+def test_the_test_rejects_a_true_null_no_more_than_its_level() -> None:
+    rng = np.random.default_rng(17)
+    rejections = sum(
+        (paired(list(rng.normal(size=10)), list(rng.normal(size=10))).p_value or 1.0) < 0.05
+        for _ in range(1000)
+    )
+    assert rejections / 1000 <= 0.065
+
+
+def test_methods_name_the_interval_and_the_test() -> None:
+    assert stats.CONFIDENCE_METHOD.startswith("95% Student t")
+    assert "Wilcoxon signed-rank" in stats.TEST_METHOD
+    assert "two-sided" in stats.TEST_METHOD
