@@ -98,6 +98,12 @@ class Settings(BaseSettings):
         description="Worker processes `nanonav worker` starts unless --concurrency says otherwise.",
     )
 
+    study_max_jobs: int = Field(
+        2000,
+        ge=1,
+        validation_alias=_aliases("study_max_jobs"),
+        description="Most jobs one study may make (grid points x seeds); larger ones get 422.",
+    )
     drawing_queue: int = Field(
         32,
         ge=1,

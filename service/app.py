@@ -9,15 +9,17 @@ from fastapi import FastAPI
 
 import nanonav
 from nanonav.settings import Settings
-from nanonav.store import JobStore
+from nanonav.store import JobStore, StudyStore
 from service import problems
 from service.drawing import Drawer
 from service.limits import BodySizeLimit
-from service.routes import jobs, meta
+from service.routes import jobs, meta, studies
 
 DESCRIPTION = """Submit nanorobot scenarios, watch them run, and fetch their results.
 
-`POST /jobs` queues a scenario (`{}` is all defaults); worker processes run it. Errors are
+`POST /jobs` queues a scenario (`{}` is all defaults); worker processes run it. `POST /studies`
+queues a grid of scenarios x seeds and answers with means, confidence intervals and paired
+comparisons as its jobs finish. Errors are
 `application/problem+json` (RFC 9457); a 422 names the offending fields.
 """
 
@@ -42,9 +44,11 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     )
     app.state.settings = settings
     app.state.store = store
+    app.state.studies = StudyStore(store.engine)
     app.state.drawer = Drawer(settings.drawing_queue)
     app.add_middleware(BodySizeLimit, max_bytes=settings.max_body_bytes)
     problems.install(app)
     app.include_router(jobs.router)
+    app.include_router(studies.router)
     app.include_router(meta.router)
     return app

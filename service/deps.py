@@ -7,7 +7,7 @@ from typing import Annotated
 from fastapi import Depends, Request
 
 from nanonav.settings import Settings
-from nanonav.store import JobStore
+from nanonav.store import JobStore, StudyStore
 from service.drawing import Drawer
 from service.problems import UnsupportedMediaType
 
@@ -20,6 +20,11 @@ def _store(request: Request) -> JobStore:
 def _settings(request: Request) -> Settings:
     settings: Settings = request.app.state.settings
     return settings
+
+
+def _studies(request: Request) -> StudyStore:
+    studies: StudyStore = request.app.state.studies
+    return studies
 
 
 def _drawer(request: Request) -> Drawer:
@@ -42,4 +47,5 @@ async def require_json(request: Request) -> None:
 StoreDep = Annotated[JobStore, Depends(_store)]
 SettingsDep = Annotated[Settings, Depends(_settings)]
 DrawerDep = Annotated[Drawer, Depends(_drawer)]
+StudiesDep = Annotated[StudyStore, Depends(_studies)]
 JsonBody = Depends(require_json)

@@ -14,12 +14,12 @@ from typing import Any
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
 from sqlalchemy.exc import OperationalError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.responses import Response
 
-from nanonav.store import JobAlreadyFinished, JobNotFound, ResultsUnavailable
+from nanonav.store import JobAlreadyFinished, JobNotFound, ResultsUnavailable, StudyNotFound
 
 PROBLEM_JSON = "application/problem+json"
 PROBLEM_BASE = "urn:nanonav:problem:"
@@ -91,6 +91,12 @@ class UnsupportedMediaType(ProblemError):
     title = "Unsupported media type"
 
 
+class StudyFinished(ProblemError):
+    status = 409
+    slug = "study-finished"
+    title = "Study already finished"
+
+
 class InvalidInput(ProblemError):
     status = 422
     slug = "invalid-input"
@@ -129,6 +135,16 @@ def field_error(loc: Sequence[str | int], detail: str, kind: str) -> FieldError:
     return FieldError(parameter=parameter, loc=where, detail=detail, type=kind)
 
 
+def invalid_body(error: ValidationError) -> InvalidInput:
+    """A validation error raised after the body was parsed, as the 422 a parsing error gets."""
+    errors = [
+        field_error(["body", *item["loc"]], item["msg"], item["type"])
+        for item in error.errors(include_url=False)
+    ]
+    first = errors[0]
+    return InvalidInput(f"{first.pointer}: {first.detail}", errors)
+
+
 def install(app: FastAPI) -> None:
     """Map every error type to its problem document, once for the whole app."""
 
@@ -158,6 +174,9 @@ def install(app: FastAPI) -> None:
 
     async def on_not_found(request: Request, exc: Exception) -> Response:
         return respond(request, 404, "job-not-found", "Job not found", str(exc))
+
+    async def on_study_not_found(request: Request, exc: Exception) -> Response:
+        return respond(request, 404, "study-not-found", "Study not found", str(exc))
 
     async def on_unavailable(request: Request, exc: Exception) -> Response:
         return respond(request, 409, "results-unavailable", "Results unavailable", str(exc))
@@ -226,6 +245,7 @@ def install(app: FastAPI) -> None:
 
     app.add_exception_handler(ProblemError, on_problem)
     app.add_exception_handler(JobNotFound, on_not_found)
+    app.add_exception_handler(StudyNotFound, on_study_not_found)
     app.add_exception_handler(ResultsUnavailable, on_unavailable)
     app.add_exception_handler(JobAlreadyFinished, on_finished)
     app.add_exception_handler(RequestValidationError, on_validation)

@@ -52,6 +52,7 @@ class JobLinks(BaseModel):
     qtable: str
     heatmap: str
     plots: dict[str, str]
+    study: str | None = Field(None, description="The study the job belongs to, if any.")
 
 
 class Job(BaseModel):
@@ -71,6 +72,7 @@ class Job(BaseModel):
     error: str | None = Field(description="Why a failed job failed, in words.")
     attempts: int = Field(description="How many times a worker claimed the job.")
     cancel_requested: bool
+    study_id: int | None = Field(None, description="The study the job is part of.")
     links: JobLinks
 
     @classmethod
@@ -87,6 +89,7 @@ class Job(BaseModel):
             error=job.error,
             attempts=job.attempts,
             cancel_requested=job.cancel_requested,
+            study_id=job.study_id,
             links=JobLinks(
                 self_=base,
                 cancel=f"{base}/cancel",
@@ -95,6 +98,7 @@ class Job(BaseModel):
                 qtable=f"{base}/qtable",
                 heatmap=f"{base}/heatmap.png",
                 plots={name: f"{base}/plots/{name}.png" for name in PLOTS},
+                study=None if job.study_id is None else f"/studies/{job.study_id}",
             ),
         )
 
@@ -243,10 +247,31 @@ class QTable(BaseModel):
     visits: list[Any]
 
 
+class Queue(BaseModel):
+    queued: int = Field(description="Jobs waiting for a worker.")
+    running: int = Field(description="Jobs a worker holds.")
+    oldest_queued_at: datetime | None = Field(description="When the longest-waiting job came.")
+
+
+class Workers(BaseModel):
+    seen: int = Field(description="Worker processes that said they were alive lately.")
+    window_s: float = Field(description="How far back 'lately' reaches, in seconds.")
+
+
 class Health(BaseModel):
     model_config = ConfigDict(
         json_schema_extra={
-            "examples": [{"status": "ok", "database": True, "revision": "0001", "head": "0001"}]
+            "examples": [
+                {
+                    "status": "ok",
+                    "database": True,
+                    "revision": "0002",
+                    "head": "0002",
+                    "queue": {"queued": 3, "running": 2, "oldest_queued_at": "2026-11-30T04:00Z"},
+                    "workers": {"seen": 2, "window_s": 30.0},
+                    "note": None,
+                }
+            ]
         }
     )
 
@@ -254,6 +279,11 @@ class Health(BaseModel):
     database: bool = Field(description="Whether the database answered.")
     revision: str | None = Field(description="The database's migration revision.")
     head: str | None = Field(description="The newest migration this code knows.")
+    queue: Queue | None = Field(None, description="The queue, when the database answered.")
+    workers: Workers | None = Field(None, description="Workers seen, when the database answered.")
+    note: str | None = Field(
+        None, description="Why queued jobs may not be moving, e.g. that no worker is running."
+    )
 
 
 class Version(BaseModel):
@@ -263,3 +293,106 @@ class Version(BaseModel):
 
     name: str
     version: str
+
+
+# ---------------------------------------------------------------- studies
+
+GridValue = bool | int | float | str
+
+
+class JobCounts(BaseModel):
+    total: int
+    queued: int
+    running: int
+    succeeded: int
+    failed: int = Field(description="Failed jobs are counted here, never averaged in.")
+    cancelled: int
+
+
+class Interval(BaseModel):
+    """A metric over a grid point's succeeded seeds."""
+
+    n: int = Field(description="Succeeded jobs with a value for this metric.")
+    mean: float | None
+    sd: float | None = Field(description="Sample standard deviation (n - 1); null when n < 2.")
+    ci_low: float | None = Field(description="95% Student t interval of the mean.")
+    ci_high: float | None
+
+
+class Difference(BaseModel):
+    """One method minus the baseline, over the seeds where both succeeded."""
+
+    n: int = Field(description="Seeds paired.")
+    mean_difference: float | None
+    sd: float | None
+    ci_low: float | None = Field(description="95% Student t interval of the mean difference.")
+    ci_high: float | None
+    p_value: float | None = Field(description="Wilcoxon signed-rank, two-sided; null when n < 2.")
+
+
+class StudyPoint(BaseModel):
+    index: int
+    values: dict[str, GridValue] = Field(description="This point's value of every grid key.")
+    jobs: dict[str, int] = Field(description="Its jobs per status.")
+    metrics: dict[str, Interval]
+
+
+class StudyComparison(BaseModel):
+    values: dict[str, GridValue] = Field(description="The other grid keys' values.")
+    method: GridValue = Field(description="The compared key's value measured...")
+    baseline: GridValue = Field(description="...against this one, its first listed value.")
+    metrics: dict[str, Difference]
+
+
+class StudyLinks(BaseModel):
+    model_config = ConfigDict(populate_by_name=True)
+
+    self_: str = Field(alias="self")
+    cancel: str
+    jobs: str
+    results_csv: str
+    results_parquet: str
+    plots: dict[str, str]
+
+
+STUDY_STATUS_DOC = (
+    "queued, running, then succeeded (every job succeeded), failed (a job failed) or cancelled"
+)
+
+
+class StudySummary(BaseModel):
+    """A study as lists show it."""
+
+    id: int
+    name: str
+    status: Literal["queued", "running", "succeeded", "failed", "cancelled"] = Field(
+        description=STUDY_STATUS_DOC
+    )
+    created_at: datetime
+    cancel_requested: bool
+    jobs: JobCounts
+    links: StudyLinks
+
+
+class Study(StudySummary):
+    """A study, its jobs per status, and its statistics so far."""
+
+    finished_at: datetime | None = Field(description="When its last job finished.")
+    progress: float = Field(ge=0.0, le=1.0, description="Share of its jobs' work done.")
+    spec: dict[str, Any] = Field(description="The study as submitted, seeds resolved.")
+    interval: str = Field(description="How the confidence intervals are computed.")
+    test: str = Field(description="How the paired p-values are computed.")
+    metrics: list[str]
+    points: list[StudyPoint]
+    comparisons: list[StudyComparison] = Field(
+        description="With 'compare': each value of the compared key against the first, at every "
+        "combination of the other keys, seed by seed."
+    )
+
+
+class StudyPage(BaseModel):
+    """A page of studies, newest first."""
+
+    studies: list[StudySummary]
+    next_cursor: str | None
+    next: str | None

@@ -22,6 +22,7 @@ from nanonav.engine import Progress, SimulationResult, simulate
 from nanonav.scenario import Scenario
 from nanonav.settings import Settings
 from nanonav.store import Claim, JobRecord, JobStore, LeaseLost, Outcome
+from nanonav.studies.report import job_digest
 
 logger = logging.getLogger(__name__)
 
@@ -146,11 +147,13 @@ def outcome(result: SimulationResult) -> Outcome:
             "values": result.qtable.values,
             "visits": result.qtable.visits,
         }
+    metrics = finite(result.to_dict())
     return Outcome(
         completed=result.completed,
-        metrics=finite(result.to_dict()),
+        metrics=metrics,
         trajectory=trajectory or None,
         qtable=qtable,
+        digest=job_digest(metrics) if result.completed else None,
     )
 
 

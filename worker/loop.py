@@ -6,6 +6,7 @@ goes back to the queue (unless it has just finished), then the process exits.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import multiprocessing
 import os
@@ -13,6 +14,7 @@ import signal
 import socket
 import threading
 import time
+from datetime import UTC, datetime
 from types import FrameType
 from typing import Any
 
@@ -22,12 +24,14 @@ from nanonav.engine import simulate
 from nanonav.scenario import Scenario
 from nanonav.settings import Settings
 from nanonav.store import JobStore
+from nanonav.store.queue import PRESENCE_INTERVAL_S
 from worker.job import run_job
 
 logger = logging.getLogger(__name__)
 
 LOG_FORMAT = "%(asctime)s %(levelname)s [%(process)d] %(name)s: %(message)s"
 RECOVERY_INTERVAL_S = 5.0
+
 WARM_UP = {
     "robots": {"count": 1},
     "obstacles": {"count": 0},
@@ -46,6 +50,11 @@ def work(settings: Settings, shutdown: threading.Event, *, max_jobs: int | None 
     store = JobStore.from_url(settings.database_url)
     ran = 0
     last_recovery = -RECOVERY_INTERVAL_S
+    stopped = threading.Event()
+    presence = threading.Thread(
+        target=_announce, args=(store, owner, stopped), name="presence", daemon=True
+    )
+    presence.start()
     try:
         while not shutdown.is_set() and (max_jobs is None or ran < max_jobs):
             try:
@@ -71,8 +80,24 @@ def work(settings: Settings, shutdown: threading.Event, *, max_jobs: int | None 
             if record is not None:
                 logger.info("job %d: %s", record.id, record.status.value)
     finally:
+        stopped.set()
+        presence.join()
+        with contextlib.suppress(SQLAlchemyError):
+            store.worker_gone(owner)
         store.close()
     return ran
+
+
+def _announce(store: JobStore, owner: str, stopped: threading.Event) -> None:
+    """Say every few seconds that this worker is alive, whether it runs a job or waits."""
+    started = datetime.now(UTC)
+    while True:
+        try:
+            store.worker_seen(owner, started_at=started)
+        except SQLAlchemyError:
+            logger.warning("could not record that this worker is alive; retrying")
+        if stopped.wait(PRESENCE_INTERVAL_S):
+            return
 
 
 def _on_signals(shutdown: threading.Event) -> None:

@@ -6,11 +6,14 @@ from nanonav.store.errors import (
     LeaseLost,
     ResultsUnavailable,
     StoreError,
+    StudyNotFound,
 )
 from nanonav.store.models import JobStatus
-from nanonav.store.queue import Claim, JobRecord, JobStore, Outcome, Page
+from nanonav.store.queue import Census, Claim, JobRecord, JobStore, Outcome, Page
+from nanonav.store.studies import StudyJob, StudyJobState, StudyPage, StudyRecord, StudyStore
 
 __all__ = [
+    "Census",
     "Claim",
     "JobAlreadyFinished",
     "JobNotFound",
@@ -22,4 +25,10 @@ __all__ = [
     "Page",
     "ResultsUnavailable",
     "StoreError",
+    "StudyJob",
+    "StudyJobState",
+    "StudyNotFound",
+    "StudyPage",
+    "StudyRecord",
+    "StudyStore",
 ]

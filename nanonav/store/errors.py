@@ -15,6 +15,12 @@ class JobNotFound(StoreError):
         self.job_id = job_id
 
 
+class StudyNotFound(StoreError):
+    def __init__(self, study_id: int) -> None:
+        super().__init__(f"there is no study {study_id}")
+        self.study_id = study_id
+
+
 class JobAlreadyFinished(StoreError):
     def __init__(self, job_id: int, status: JobStatus) -> None:
         super().__init__(f"job {job_id} has already finished: it is {status.value}")

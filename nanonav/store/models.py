@@ -1,7 +1,10 @@
 """The tables of the job store.
 
 ``jobs`` is the queue and the state machine; ``job_results`` holds what a finished run produced
-(metrics as JSON, arrays as ``.npz`` blobs) and ``job_plots`` the PNGs rendered when it finished.
+(metrics as JSON, arrays as ``.npz`` blobs, and a small digest a study reads) and ``job_plots``
+the PNGs drawn the first time each was asked for. ``studies`` groups jobs (a grid of scenarios
+x seeds); ``study_plots`` keeps the pictures of finished studies. ``workers`` says which worker
+processes were seen lately.
 A claim gives a job a lease: ``lease_token`` names the claim, ``lease_expires_at`` says until when
 it holds (every progress write renews it) and every later write by the worker is fenced by the
 token, so a worker that lost its lease can neither report progress nor store a result.
@@ -76,11 +79,26 @@ class JobStatus(enum.StrEnum):
         return self in {JobStatus.SUCCEEDED, JobStatus.FAILED, JobStatus.CANCELLED}
 
 
+class Study(Base):
+    __tablename__ = "studies"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
+    name: Mapped[str] = mapped_column(String(200))
+    spec: Mapped[dict[str, Any]] = mapped_column(JSON)
+    jobs: Mapped[int] = mapped_column(Integer)
+    idempotency_key: Mapped[str | None] = mapped_column(String(200), unique=True)
+    created_at: Mapped[datetime] = mapped_column(UTCDateTime())
+    cancel_requested: Mapped[bool] = mapped_column(Boolean, default=False)
+    # The report of a finished study, kept once computed: its jobs never change again.
+    report: Mapped[dict[str, Any] | None] = mapped_column(JSON)
+
+
 class Job(Base):
     __tablename__ = "jobs"
     __table_args__ = (
         Index(None, "status", "id"),
         Index(None, "status", "lease_expires_at"),
+        Index(None, "study_id", "id"),
     )
 
     id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
@@ -109,6 +127,9 @@ class Job(Base):
     lease_token: Mapped[str | None] = mapped_column(String(64))
     lease_owner: Mapped[str | None] = mapped_column(String(200))
     lease_expires_at: Mapped[datetime | None] = mapped_column(UTCDateTime())
+    study_id: Mapped[int | None] = mapped_column(ForeignKey("studies.id", ondelete="CASCADE"))
+    study_point: Mapped[int | None] = mapped_column(Integer)  # index of its grid point
+    study_seed: Mapped[int | None] = mapped_column(BigInteger)
 
 
 class JobResult(Base):
@@ -119,6 +140,7 @@ class JobResult(Base):
     metrics: Mapped[dict[str, Any]] = mapped_column(JSON)
     trajectory: Mapped[bytes | None] = mapped_column(LargeBinary)
     qtable: Mapped[bytes | None] = mapped_column(LargeBinary)
+    digest: Mapped[dict[str, Any] | None] = mapped_column(JSON)
 
 
 class JobPlot(Base):
@@ -127,3 +149,23 @@ class JobPlot(Base):
     job_id: Mapped[int] = mapped_column(ForeignKey("jobs.id", ondelete="CASCADE"), primary_key=True)
     name: Mapped[str] = mapped_column(String(32), primary_key=True)
     png: Mapped[bytes] = mapped_column(LargeBinary)
+
+
+class StudyPlot(Base):
+    __tablename__ = "study_plots"
+
+    study_id: Mapped[int] = mapped_column(
+        ForeignKey("studies.id", ondelete="CASCADE"), primary_key=True
+    )
+    name: Mapped[str] = mapped_column(String(64), primary_key=True)
+    png: Mapped[bytes] = mapped_column(LargeBinary)
+
+
+class Worker(Base):
+    """A worker process, as it last reported itself."""
+
+    __tablename__ = "workers"
+
+    name: Mapped[str] = mapped_column(String(200), primary_key=True)
+    started_at: Mapped[datetime] = mapped_column(UTCDateTime())
+    seen_at: Mapped[datetime] = mapped_column(UTCDateTime(), index=True)

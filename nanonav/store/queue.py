@@ -14,14 +14,18 @@ from datetime import UTC, datetime, timedelta
 from typing import Any
 
 from numpy.typing import NDArray
-from sqlalchemy import Engine, case, literal, select, update
+from sqlalchemy import Engine, case, delete, func, literal, select, update
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from nanonav.store.arrays import pack, unpack
 from nanonav.store.db import make_engine, make_sessionmaker, unit_of_work
 from nanonav.store.errors import JobAlreadyFinished, JobNotFound, LeaseLost, ResultsUnavailable
-from nanonav.store.models import Job, JobPlot, JobResult, JobStatus, UTCDateTime
+from nanonav.store.models import Job, JobPlot, JobResult, JobStatus, UTCDateTime, Worker
+
+# A worker says it is alive this often; it counts as present for PRESENCE_WINDOW_S after.
+PRESENCE_INTERVAL_S = 5.0
+PRESENCE_WINDOW_S = 30.0
 
 
 def utcnow() -> datetime:
@@ -46,6 +50,7 @@ class JobRecord:
     cancel_requested: bool
     error: str | None
     attempts: int
+    study_id: int | None = None
 
     @classmethod
     def of(cls, row: Job) -> JobRecord:
@@ -64,6 +69,7 @@ class JobRecord:
             cancel_requested=row.cancel_requested,
             error=row.error,
             attempts=row.attempts,
+            study_id=row.study_id,
         )
 
 
@@ -90,6 +96,17 @@ class Outcome:
     metrics: dict[str, Any]
     trajectory: Mapping[str, NDArray[Any]] | None
     qtable: Mapping[str, NDArray[Any]] | None
+    digest: dict[str, Any] | None = None  # what a study reads of the job
+
+
+@dataclass(frozen=True)
+class Census:
+    """How busy the queue is and who works it."""
+
+    queued: int
+    running: int
+    workers: int  # worker processes seen within the window asked for
+    oldest_queued_at: datetime | None
 
 
 class JobStore:
@@ -147,11 +164,20 @@ class JobStore:
         with unit_of_work(self._sessions) as session:
             return JobRecord.of(_job(session, job_id))
 
-    def page(self, *, status: JobStatus | None, limit: int, before_id: int | None) -> Page:
+    def page(
+        self,
+        *,
+        status: JobStatus | None,
+        limit: int,
+        before_id: int | None,
+        study_id: int | None = None,
+    ) -> Page:
         """Up to ``limit`` jobs, newest first, older than ``before_id`` when given."""
         query = select(Job).order_by(Job.id.desc()).limit(limit + 1)
         if status is not None:
             query = query.where(Job.status == status)
+        if study_id is not None:
+            query = query.where(Job.study_id == study_id)
         if before_id is not None:
             query = query.where(Job.id < before_id)
         with unit_of_work(self._sessions) as session:
@@ -223,7 +249,45 @@ class JobStore:
             ).one_or_none()
             return metrics
 
+    def census(self, *, seen_within_s: float, now: datetime | None = None) -> Census:
+        """Jobs waiting and running, and the workers seen in the last ``seen_within_s``."""
+        now = now or utcnow()
+        counts = (
+            select(Job.status, func.count(), func.min(Job.created_at))
+            .where(Job.status.in_([JobStatus.QUEUED, JobStatus.RUNNING]))
+            .group_by(Job.status)
+        )
+        seen = select(func.count()).where(Worker.seen_at >= now - timedelta(seconds=seen_within_s))
+        with unit_of_work(self._sessions) as session:
+            found = {
+                JobStatus(status): (n, oldest) for status, n, oldest in session.execute(counts)
+            }
+            workers = session.scalar(seen) or 0
+        queued, oldest_queued = found.get(JobStatus.QUEUED, (0, None))
+        running, _ = found.get(JobStatus.RUNNING, (0, None))
+        return Census(
+            queued=queued,
+            running=running,
+            workers=workers,
+            oldest_queued_at=None if oldest_queued is None else _aware(oldest_queued),
+        )
+
     # -- the worker's side ------------------------------------------------------------------
+
+    def worker_seen(self, name: str, *, started_at: datetime, now: datetime | None = None) -> None:
+        """Record that the worker ``name`` is alive (it calls this every few seconds)."""
+        now = now or utcnow()
+        with unit_of_work(self._sessions, write=True) as session:
+            row = session.get(Worker, name)
+            if row is None:
+                session.add(Worker(name=name, started_at=started_at, seen_at=now))
+            else:
+                row.seen_at = now
+
+    def worker_gone(self, name: str) -> None:
+        """Forget a worker that stopped cleanly."""
+        with unit_of_work(self._sessions) as session:
+            session.execute(delete(Worker).where(Worker.name == name))
 
     def claim(self, owner: str, *, lease_s: float, now: datetime | None = None) -> Claim | None:
         """The oldest queued job, now running under a new lease, or None if nothing waits."""
@@ -314,6 +378,7 @@ class JobStore:
                     metrics=outcome.metrics,
                     trajectory=None if outcome.trajectory is None else pack(outcome.trajectory),
                     qtable=None if outcome.qtable is None else pack(outcome.qtable),
+                    digest=outcome.digest,
                 )
             )
             return JobRecord.of(row)
@@ -367,6 +432,11 @@ class JobStore:
         )
         with unit_of_work(self._sessions, write=True) as session:
             return len(session.scalars(statement).all())
+
+
+def _aware(value: datetime) -> datetime:
+    """Aggregates bypass the column type: SQLite and PostgreSQL give naive UTC back."""
+    return value if value.tzinfo is not None else value.replace(tzinfo=UTC)
 
 
 def _lease_cleared() -> dict[str, Any]:

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import base64
-import binascii
 import csv
 import io
 from collections.abc import Iterator
@@ -21,9 +19,11 @@ from nanonav.engine import SimulationResult
 from nanonav.scenario import Scenario
 from nanonav.store import JobStatus, JobStore
 from nanonav.store.arrays import pack
+from service.budget import check_budget
 from service.deps import DrawerDep, JsonBody, SettingsDep, StoreDep
 from service.drawing import Drawer
-from service.problems import BudgetExceeded, InvalidInput, field_error, problems
+from service.paging import decode_cursor, encode_cursor
+from service.problems import InvalidInput, field_error, problems
 from service.schemas import Job, JobPage, Metrics, QTable, Trajectory
 
 router = APIRouter(prefix="/jobs", tags=["jobs"])
@@ -61,23 +61,7 @@ def submit_job(
     idempotency_key: Annotated[str | None, Header(max_length=200)] = None,
 ) -> Job:
     """Queue a scenario to run; answers once the job is stored."""
-    if scenario.robot_steps_budget > settings.robot_steps_budget:
-        detail = (
-            f"robots.count x learning.max_steps x (learning.episodes + 1) = "
-            f"{scenario.robot_steps_budget} robot-steps, over the budget of "
-            f"{settings.robot_steps_budget}"
-        )
-        raise BudgetExceeded(
-            detail,
-            [
-                field_error(["body", *loc], detail, "budget_exceeded")
-                for loc in (
-                    ["robots", "count"],
-                    ["learning", "max_steps"],
-                    ["learning", "episodes"],
-                )
-            ],
-        )
+    check_budget(scenario, settings)
     job = store.enqueue(
         scenario.model_dump(mode="json"),
         robot_steps=scenario.robot_steps_budget,
@@ -92,16 +76,21 @@ def submit_job(
 def list_jobs(
     store: StoreDep,
     status: Annotated[JobStatus | None, Query(description="Only jobs in this state.")] = None,
+    study: Annotated[
+        int | None, Query(ge=1, le=2**63 - 1, description="Only the jobs of this study.")
+    ] = None,
     limit: Annotated[int, Query(ge=1, le=100, description="Jobs per page.")] = 20,
     cursor: Annotated[str | None, Query(max_length=64, description="From `next_cursor`.")] = None,
 ) -> JobPage:
     """A page of jobs, newest first."""
-    before = None if cursor is None else _decode_cursor(cursor)
-    page = store.page(status=status, limit=limit, before_id=before)
-    next_cursor = None if page.next_before_id is None else _encode_cursor(page.next_before_id)
+    before = None if cursor is None else decode_cursor(cursor)
+    page = store.page(status=status, limit=limit, before_id=before, study_id=study)
+    next_cursor = None if page.next_before_id is None else encode_cursor(page.next_before_id)
     next_url = None
     if next_cursor is not None:
         query = f"limit={limit}&cursor={next_cursor}"
+        if study is not None:
+            query = f"study={study}&{query}"
         if status is not None:
             query = f"status={status.value}&{query}"
         next_url = f"/jobs?{query}"
@@ -247,23 +236,6 @@ def _draw(store: JobStore, job_id: int, name: str) -> bytes:
     png = plots.render(SimulationResult.from_stored(metrics, arrays), name)
     store.save_plot(job_id, name, png)
     return png
-
-
-def _encode_cursor(before_id: int) -> str:
-    return base64.urlsafe_b64encode(str(before_id).encode()).decode().rstrip("=")
-
-
-def _decode_cursor(cursor: str) -> int:
-    try:
-        text = base64.urlsafe_b64decode(cursor + "=" * (-len(cursor) % 4)).decode("ascii")
-        if not text.isdigit() or not 0 < int(text) < 2**63:
-            raise ValueError(text)
-        return int(text)
-    except (binascii.Error, ValueError, UnicodeDecodeError):
-        raise InvalidInput(
-            "cursor: not a cursor this API gave out",
-            [field_error(["query", "cursor"], "not a cursor this API gave out", "cursor_invalid")],
-        ) from None
 
 
 PER_ROW = ("step", "robots", "cells", "obstacles", "concentration", "distance")

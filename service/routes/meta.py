@@ -10,8 +10,9 @@ from sqlalchemy.exc import SQLAlchemyError
 import nanonav
 from nanonav.scenario import PRESETS, preset_scenario
 from nanonav.store.migrate import current_revision, head_revision
+from nanonav.store.queue import PRESENCE_WINDOW_S
 from service.deps import StoreDep
-from service.schemas import Health, Version
+from service.schemas import Health, Queue, Version, Workers
 
 router = APIRouter(tags=["meta"])
 
@@ -24,7 +25,8 @@ def list_presets() -> dict[str, dict[str, Any]]:
 
 @router.get("/healthz", response_model=Health, responses={503: {"model": Health}})
 def healthz(store: StoreDep, response: Response) -> Health:
-    """Whether the database answers and its schema is at the newest migration."""
+    """Whether the database answers and its schema is at the newest migration; how many jobs
+    wait and how many workers were seen lately."""
     head = head_revision()
     try:
         revision = current_revision(store.engine)
@@ -34,7 +36,26 @@ def healthz(store: StoreDep, response: Response) -> Health:
     if revision != head:
         response.status_code = 503
         return Health(status="unavailable", database=True, revision=revision, head=head)
-    return Health(status="ok", database=True, revision=revision, head=head)
+    census = store.census(seen_within_s=PRESENCE_WINDOW_S)
+    note = None
+    if census.queued and not census.workers:
+        note = (
+            f"{census.queued} jobs are queued but no worker has been seen in the last "
+            f"{PRESENCE_WINDOW_S:g} s: start one with `nanonav worker`"
+        )
+    return Health(
+        status="ok",
+        database=True,
+        revision=revision,
+        head=head,
+        queue=Queue(
+            queued=census.queued,
+            running=census.running,
+            oldest_queued_at=census.oldest_queued_at,
+        ),
+        workers=Workers(seen=census.workers, window_s=PRESENCE_WINDOW_S),
+        note=note,
+    )
 
 
 @router.get("/version", response_model=Version)

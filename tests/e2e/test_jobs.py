@@ -8,13 +8,9 @@ from __future__ import annotations
 
 import csv
 import io
-import os
 import re
-import signal
-import subprocess
-import sys
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -28,8 +24,8 @@ from nanonav.store import JobStore
 from nanonav.store.migrate import upgrade
 from service.app import create_app
 from tests.conftest import Api, serve
+from tests.e2e.conftest import FIRST_JOB_S, Worker
 
-FIRST_JOB_S = 120.0
 TINY: dict[str, Any] = {"robots": {"count": 2}, "learning": {"episodes": 2, "max_steps": 60}}
 # Random walkers in a big cube rarely reach the cell, so every episode uses all its steps:
 # about a fifth of a second each, for minutes in all.
@@ -41,53 +37,6 @@ LONG: dict[str, Any] = {
 PICTURES = ("heatmap_xy", "heatmap_xz", "heatmap_yz", "heatmap_all")
 
 pytestmark = pytest.mark.timeout(240)
-
-
-class Worker:
-    """A ``python -m worker`` process whose log goes to a file."""
-
-    def __init__(self, database_url: str, log: Path, *args: str, **env: str) -> None:
-        self.log = log
-        environment = {**os.environ, "NANONAV_DATABASE_URL": database_url, **env}
-        environment.setdefault("NANONAV_POLL_INTERVAL_S", "0.05")
-        self._log_file = log.open("wb")
-        self.process = subprocess.Popen(
-            [sys.executable, "-m", "worker", *args],
-            env=environment,
-            stdout=self._log_file,
-            stderr=subprocess.STDOUT,
-        )
-
-    def terminate(self, timeout: float = 20.0) -> int:
-        if self.process.poll() is None:
-            self.process.send_signal(signal.SIGTERM)
-        try:
-            code = self.process.wait(timeout=timeout)
-        except subprocess.TimeoutExpired:
-            self.process.kill()
-            self.process.wait()
-            raise
-        finally:
-            self._log_file.close()
-        return code
-
-    def text(self) -> str:
-        return self.log.read_text()
-
-
-@pytest.fixture
-def start_worker(api: Api, tmp_path: Path) -> Iterator[Callable[..., Worker]]:
-    workers: list[Worker] = []
-
-    def start(*args: str, **env: str) -> Worker:
-        worker = Worker(api.database_url, tmp_path / f"worker-{len(workers)}.log", *args, **env)
-        workers.append(worker)
-        return worker
-
-    yield start
-    for worker in workers:
-        if worker.process.poll() is None:
-            worker.terminate()
 
 
 def submit(api: Api, scenario: dict[str, Any]) -> int:
@@ -271,6 +220,8 @@ def test_two_workers_run_fifty_jobs_each_exactly_once(
     api: Api, start_worker: Callable[..., Worker]
 ) -> None:
     workers = [start_worker(), start_worker()]
+    for worker in workers:  # jobs take milliseconds: a late worker would find none left
+        worker.wait_ready()
     ids = [
         submit(api, {"seed": i, "learning": {"episodes": i % 2, "max_steps": 50}})
         for i in range(50)

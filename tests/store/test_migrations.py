@@ -17,7 +17,14 @@ def tables(url: str) -> set[str]:
 def test_migrations_and_models_agree_both_ways(database_url: str) -> None:
     upgrade(database_url)
     check(database_url)
-    assert tables(database_url) == {"jobs", "job_results", "job_plots"}
+    assert tables(database_url) == {
+        "jobs",
+        "job_results",
+        "job_plots",
+        "studies",
+        "study_plots",
+        "workers",
+    }
     downgrade(database_url, "base")
     assert tables(database_url) == set()
     upgrade(database_url)

@@ -1,0 +1,249 @@
+"""Every query about studies. Each public method of :class:`StudyStore` is one transaction.
+
+A study is created with all its jobs in one transaction, so a client never sees half a study;
+its jobs are ordinary queued jobs that carry ``study_id``, their grid point and their seed.
+Cancelling a study cancels its queued jobs at once and asks its running ones to stop.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from datetime import datetime
+from typing import Any
+
+from sqlalchemy import Engine, func, insert, select, update
+from sqlalchemy.exc import IntegrityError
+
+from nanonav.store.db import make_sessionmaker, unit_of_work
+from nanonav.store.errors import StudyNotFound
+from nanonav.store.models import Job, JobResult, JobStatus, Study, StudyPlot
+from nanonav.store.queue import utcnow
+
+
+@dataclass(frozen=True)
+class StudyJob:
+    """A job a study is made of, before it is stored."""
+
+    scenario: dict[str, Any]
+    robot_steps: int
+    episodes: int
+    point: int
+    seed: int
+
+
+@dataclass(frozen=True)
+class StudyRecord:
+    id: int
+    name: str
+    spec: dict[str, Any]
+    jobs: int
+    created_at: datetime
+    cancel_requested: bool
+    report: dict[str, Any] | None
+
+    @classmethod
+    def of(cls, row: Study) -> StudyRecord:
+        return cls(
+            id=row.id,
+            name=row.name,
+            spec=row.spec,
+            jobs=row.jobs,
+            created_at=row.created_at,
+            cancel_requested=row.cancel_requested,
+            report=row.report,
+        )
+
+
+@dataclass(frozen=True)
+class StudyJobState:
+    """Where one of a study's jobs is, and its digest once it succeeded."""
+
+    job_id: int
+    point: int
+    seed: int
+    status: JobStatus
+    fraction: float
+    finished_at: datetime | None
+    digest: dict[str, Any] | None
+
+
+@dataclass(frozen=True)
+class StudyPage:
+    studies: list[StudyRecord]
+    next_before_id: int | None
+
+
+class StudyStore:
+    """Studies and their jobs on the job store's database."""
+
+    def __init__(self, engine: Engine) -> None:
+        self._sessions = make_sessionmaker(engine)
+
+    def create(
+        self,
+        *,
+        name: str,
+        spec: dict[str, Any],
+        jobs: Sequence[StudyJob],
+        idempotency_key: str | None = None,
+    ) -> StudyRecord:
+        """The study and every one of its jobs, queued in one transaction; with a key already
+        used, the study that key made instead."""
+        now = utcnow()
+        try:
+            with unit_of_work(self._sessions) as session:
+                study = Study(
+                    name=name,
+                    spec=spec,
+                    jobs=len(jobs),
+                    idempotency_key=idempotency_key,
+                    created_at=now,
+                    cancel_requested=False,
+                )
+                session.add(study)
+                session.flush()
+                session.execute(
+                    insert(Job),
+                    [
+                        {
+                            "status": JobStatus.QUEUED,
+                            "scenario": job.scenario,
+                            "robot_steps": job.robot_steps,
+                            "created_at": now,
+                            "episode": 0,
+                            "episodes": job.episodes,
+                            "fraction": 0.0,
+                            "cancel_requested": False,
+                            "attempts": 0,
+                            "study_id": study.id,
+                            "study_point": job.point,
+                            "study_seed": job.seed,
+                        }
+                        for job in jobs
+                    ],
+                )
+                return StudyRecord.of(study)
+        except IntegrityError:
+            if idempotency_key is None:
+                raise
+            with unit_of_work(self._sessions) as session:
+                existing = session.scalars(
+                    select(Study).where(Study.idempotency_key == idempotency_key)
+                ).one()
+                return StudyRecord.of(existing)
+
+    def get(self, study_id: int) -> StudyRecord:
+        with unit_of_work(self._sessions) as session:
+            return StudyRecord.of(_study(session, study_id))
+
+    def page(self, *, limit: int, before_id: int | None) -> StudyPage:
+        """Up to ``limit`` studies, newest first, older than ``before_id`` when given."""
+        query = select(Study).order_by(Study.id.desc()).limit(limit + 1)
+        if before_id is not None:
+            query = query.where(Study.id < before_id)
+        with unit_of_work(self._sessions) as session:
+            rows = [StudyRecord.of(row) for row in session.scalars(query)]
+        more = len(rows) > limit
+        rows = rows[:limit]
+        return StudyPage(studies=rows, next_before_id=rows[-1].id if more else None)
+
+    def job_states(self, study_id: int) -> list[StudyJobState]:
+        """Every job of the study, in id order, with the digest of those that succeeded."""
+        query = (
+            select(
+                Job.id,
+                Job.study_point,
+                Job.study_seed,
+                Job.status,
+                Job.fraction,
+                Job.finished_at,
+                JobResult.digest,
+            )
+            .outerjoin(
+                JobResult, (JobResult.job_id == Job.id) & (Job.status == JobStatus.SUCCEEDED)
+            )
+            .where(Job.study_id == study_id)
+            .order_by(Job.id)
+        )
+        with unit_of_work(self._sessions) as session:
+            _study(session, study_id)
+            return [
+                StudyJobState(
+                    job_id=job_id,
+                    point=point,
+                    seed=seed,
+                    status=JobStatus(status),
+                    fraction=fraction,
+                    finished_at=finished_at,
+                    digest=digest,
+                )
+                for job_id, point, seed, status, fraction, finished_at, digest in session.execute(
+                    query
+                )
+            ]
+
+    def counts(self, study_ids: Sequence[int]) -> dict[int, dict[JobStatus, int]]:
+        """Jobs per status of each study, for lists of studies."""
+        query = (
+            select(Job.study_id, Job.status, func.count())
+            .where(Job.study_id.in_(study_ids))
+            .group_by(Job.study_id, Job.status)
+        )
+        found: dict[int, dict[JobStatus, int]] = {i: {} for i in study_ids}
+        with unit_of_work(self._sessions) as session:
+            for study_id, status, n in session.execute(query):
+                if study_id is not None:
+                    found[study_id][JobStatus(status)] = n
+        return found
+
+    def cancel(self, study_id: int) -> StudyRecord:
+        """Its queued jobs are cancelled now, its running ones asked to stop."""
+        now = utcnow()
+        with unit_of_work(self._sessions, write=True) as session:
+            study = _study(session, study_id)
+            study.cancel_requested = True
+            session.execute(
+                update(Job)
+                .where(Job.study_id == study_id, Job.status == JobStatus.QUEUED)
+                .values(status=JobStatus.CANCELLED, finished_at=now)
+                .execution_options(synchronize_session=False)
+            )
+            session.execute(
+                update(Job)
+                .where(Job.study_id == study_id, Job.status == JobStatus.RUNNING)
+                .values(cancel_requested=True)
+                .execution_options(synchronize_session=False)
+            )
+            session.flush()
+            return StudyRecord.of(study)
+
+    def keep_report(self, study_id: int, report: dict[str, Any]) -> None:
+        """Keep the report of a finished study: its jobs will not change again."""
+        with unit_of_work(self._sessions) as session:
+            session.execute(update(Study).where(Study.id == study_id).values(report=report))
+
+    def plot(self, study_id: int, name: str) -> bytes | None:
+        with unit_of_work(self._sessions) as session:
+            _study(session, study_id)
+            return session.scalars(
+                select(StudyPlot.png).where(StudyPlot.study_id == study_id, StudyPlot.name == name)
+            ).one_or_none()
+
+    def keep_plot(self, study_id: int, name: str, png: bytes) -> None:
+        """Keep a picture of a finished study; one kept first by another process stays."""
+        try:
+            with unit_of_work(self._sessions) as session:
+                session.add(StudyPlot(study_id=study_id, name=name, png=png))
+        except IntegrityError:
+            with unit_of_work(self._sessions) as session:
+                if session.get(StudyPlot, (study_id, name)) is None:
+                    raise
+
+
+def _study(session: Any, study_id: int) -> Study:
+    row = session.get(Study, study_id)
+    if row is None:
+        raise StudyNotFound(study_id)
+    assert isinstance(row, Study)
+    return row

@@ -1,0 +1,99 @@
+"""A study's pictures: one metric against the swept numeric parameter (a line per compared
+method, CI bars), or grouped bars when no swept parameter is numeric; and the mean learning
+curves of every grid point with CI bands. This module picks what goes on which axis; drawing is
+``nanonav.study_plots``'s."""
+
+from __future__ import annotations
+
+import numbers
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from nanonav import stats, study_plots
+from nanonav.studies.report import METRICS, JobOutcome
+from nanonav.studies.spec import GridValue, StudySpec
+
+LEARNING_PANELS = {
+    "steps": "steps per episode",
+    "success_rate": "success rate",
+    "mean_return": "mean return per robot",
+}
+PICTURES = (*METRICS, "learning")
+
+
+def _numeric(values: Sequence[GridValue]) -> bool:
+    return all(isinstance(v, numbers.Real) and not isinstance(v, bool) for v in values)
+
+
+def axis_key(spec: StudySpec) -> str | None:
+    """The grid key drawn along x: the first swept numeric key that is not compared."""
+    return next(
+        (k for k, values in spec.grid.items() if k != spec.compare and _numeric(values)), None
+    )
+
+
+def _label(values: dict[str, GridValue], keys: Sequence[str]) -> str:
+    return ", ".join(f"{k}={values[k]}" for k in keys)
+
+
+def metric_png(spec: StudySpec, report: dict[str, Any], metric: str) -> bytes:
+    """``metric``'s mean and CI at every grid point of ``report``."""
+    axis = axis_key(spec)
+    rows = report["points"]
+    if axis is not None:
+        grouping = [k for k in spec.grid if k != axis]
+    else:
+        grouping = [spec.compare] if spec.compare is not None else []
+    series: dict[str, dict[str, list[Any]]] = {}
+    for row in rows:
+        values = row["values"]
+        label = _label(values, grouping) or "all seeds"
+        if axis is not None:
+            x: GridValue = values[axis]
+        else:
+            x = _label(values, [k for k in spec.grid if k not in grouping]) or "base scenario"
+        found = row["metrics"][metric]
+        line = series.setdefault(label, {"x": [], "mean": [], "low": [], "high": []})
+        line["x"].append(x)
+        line["mean"].append(found["mean"])
+        line["low"].append(found["ci_low"])
+        line["high"].append(found["ci_high"])
+    drawn = [
+        study_plots.Series(label, s["x"], s["mean"], s["low"], s["high"])
+        for label, s in series.items()
+    ]
+    title = f"{spec.name or 'Study'}: {metric.replace('_', ' ')}, mean with 95% CI (Student t)"
+    return study_plots.metric_png(metric, drawn, x_label=axis, title=title)
+
+
+def learning_png(
+    spec: StudySpec, values: Sequence[dict[str, GridValue]], jobs: Sequence[JobOutcome]
+) -> bytes:
+    """The learning curve of every grid point, averaged over its succeeded seeds, with CIs."""
+    panels: dict[str, list[study_plots.Series]] = {title: [] for title in LEARNING_PANELS.values()}
+    for index, point_values in enumerate(values):
+        curves = [
+            job.digest["curve"]
+            for job in jobs
+            if job.point == index and job.status == "succeeded" and job.digest is not None
+        ]
+        if not curves:
+            continue
+        length = min(len(c["episode"]) for c in curves)
+        episodes = curves[0]["episode"][:length]
+        label = _label(point_values, list(spec.grid)) or "base scenario"
+        for key, title in LEARNING_PANELS.items():
+            matrix = np.array([c[key][:length] for c in curves], dtype=np.float64)
+            described = [stats.describe(column.tolist()) for column in matrix.T]
+            panels[title].append(
+                study_plots.Series(
+                    label,
+                    episodes,
+                    [d.mean for d in described],
+                    [d.ci_low for d in described],
+                    [d.ci_high for d in described],
+                )
+            )
+    return study_plots.learning_png(panels, title=f"{spec.name or 'Study'}: learning curves")

@@ -1,0 +1,178 @@
+"""What a study's jobs add up to: per grid point and metric, n, mean, sd and a confidence
+interval; with ``compare``, paired differences seed by seed against the first value listed.
+
+Pure functions over plain data: the store supplies each job's status and digest, the API and
+the command line show what comes out. Only succeeded jobs enter the statistics; the others are
+counted, per status, beside them.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import numpy as np
+
+from nanonav import stats
+from nanonav.studies.spec import GridValue, StudySpec
+
+# The paper's Table 1 (its duration included), then success, collisions and path efficiency.
+METRICS = (
+    "total_steps",
+    "final_distance",
+    "average_distance",
+    "average_concentration",
+    "duration_s",
+    "success_rate",
+    "collisions",
+    "path_efficiency",
+)
+# The learning curve a digest keeps, at most this many points (episodes averaged in bins).
+CURVE_POINTS = 200
+CURVE_KEYS = ("steps", "success_rate", "mean_return")
+STATUSES = ("queued", "running", "succeeded", "failed", "cancelled")
+
+
+@dataclass(frozen=True)
+class JobOutcome:
+    """One job of a study, as the store has it."""
+
+    job_id: int
+    point: int
+    seed: int
+    status: str
+    digest: dict[str, Any] | None  # None unless it succeeded
+
+
+def job_digest(metrics: dict[str, Any]) -> dict[str, Any]:
+    """What a study keeps of a succeeded job: its summary metrics and its learning curve
+    averaged in at most ``CURVE_POINTS`` bins (jobs of one grid point bin alike)."""
+    summary = metrics.get("summary") or {}
+    episodes = metrics.get("episodes") or []
+    bins = max(1, math.ceil(len(episodes) / CURVE_POINTS))
+    curve: dict[str, list[float]] = {"episode": [], **{key: [] for key in CURVE_KEYS}}
+    for start in range(0, len(episodes), bins):
+        chunk = episodes[start : start + bins]
+        curve["episode"].append(float(np.mean([e["episode"] for e in chunk])))
+        for key in CURVE_KEYS:
+            curve[key].append(float(np.mean([float(e[key]) for e in chunk])))
+    return {"summary": {key: summary.get(key) for key in METRICS}, "curve": curve}
+
+
+StudyStatus = Literal["queued", "running", "succeeded", "failed", "cancelled"]
+
+
+def status_of(counts: Mapping[str, int], cancel_requested: bool) -> StudyStatus:
+    """The study's status from its jobs': queued, then running until every job has finished;
+    then cancelled if a cancel was asked or a job was cancelled, failed if a job failed, else
+    succeeded."""
+    queued = counts.get("queued", 0)
+    if queued + counts.get("running", 0):
+        return "queued" if queued == sum(counts.values()) else "running"
+    if cancel_requested or counts.get("cancelled", 0):
+        return "cancelled"
+    return "failed" if counts.get("failed", 0) else "succeeded"
+
+
+def status_counts(jobs: Sequence[JobOutcome]) -> Counter[str]:
+    counts: Counter[str] = Counter({status: 0 for status in STATUSES})
+    counts.update(job.status for job in jobs)
+    return counts
+
+
+def _value(job: JobOutcome, metric: str) -> float | None:
+    if job.status != "succeeded" or job.digest is None:
+        return None
+    value = job.digest["summary"].get(metric)
+    return None if value is None or not math.isfinite(value) else float(value)
+
+
+def report(
+    spec: StudySpec, values: Sequence[dict[str, GridValue]], jobs: Sequence[JobOutcome]
+) -> dict[str, Any]:
+    """The statistics of a study whose grid points have ``values`` (in point order)."""
+    by_point: dict[int, list[JobOutcome]] = {i: [] for i in range(len(values))}
+    for job in jobs:
+        by_point[job.point].append(job)
+    point_rows = []
+    for index, point_values in enumerate(values):
+        members = by_point[index]
+        counts = status_counts(members)
+        described = {}
+        for metric in METRICS:
+            sample = [v for v in (_value(j, metric) for j in members) if v is not None]
+            described[metric] = stats.describe(sample).to_dict()
+        point_rows.append(
+            {"index": index, "values": point_values, "jobs": dict(counts), "metrics": described}
+        )
+    return {
+        "metrics": list(METRICS),
+        "interval": stats.CONFIDENCE_METHOD,
+        "test": stats.TEST_METHOD,
+        "points": point_rows,
+        "comparisons": comparisons(spec, values, by_point),
+    }
+
+
+def comparisons(
+    spec: StudySpec,
+    values: Sequence[dict[str, GridValue]],
+    by_point: dict[int, list[JobOutcome]],
+) -> list[dict[str, Any]]:
+    """Each value of ``spec.compare`` against its first, at every combination of the other grid
+    keys, on the seeds where both jobs succeeded."""
+    key = spec.compare
+    if key is None:
+        return []
+    baseline_value = spec.grid[key][0]
+    groups: dict[tuple[Any, ...], dict[GridValue, int]] = {}
+    for index, point_values in enumerate(values):
+        others = tuple((k, v) for k, v in point_values.items() if k != key)
+        groups.setdefault(others, {})[point_values[key]] = index
+    found = []
+    for others, members in groups.items():
+        baseline = {job.seed: job for job in by_point[members[baseline_value]]}
+        for method in spec.grid[key][1:]:
+            treated = {job.seed: job for job in by_point[members[method]]}
+            compared = {}
+            for metric in METRICS:
+                pairs = [
+                    (a, b)
+                    for seed in sorted(treated.keys() & baseline.keys())
+                    if (a := _value(treated[seed], metric)) is not None
+                    and (b := _value(baseline[seed], metric)) is not None
+                ]
+                compared[metric] = stats.paired(
+                    [a for a, _ in pairs], [b for _, b in pairs]
+                ).to_dict()
+            found.append(
+                {
+                    "values": dict(others),
+                    "method": method,
+                    "baseline": baseline_value,
+                    "metrics": compared,
+                }
+            )
+    return found
+
+
+def table(
+    values: Sequence[dict[str, GridValue]], jobs: Sequence[JobOutcome]
+) -> list[dict[str, Any]]:
+    """A row per job: its id, seed, every grid value, status and the metrics (empty unless it
+    succeeded), in job order."""
+    rows = []
+    for job in sorted(jobs, key=lambda j: j.job_id):
+        row: dict[str, Any] = {"job_id": job.job_id, "seed": job.seed}
+        row.update(values[job.point])
+        row["status"] = job.status
+        row.update({metric: _value(job, metric) for metric in METRICS})
+        rows.append(row)
+    return rows
+
+
+def table_columns(spec: StudySpec) -> list[str]:
+    return ["job_id", "seed", *spec.grid, "status", *METRICS]

@@ -1,0 +1,307 @@
+"""Studies: a grid of scenarios x seeds in one request, their statistics, table and pictures."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from functools import partial
+from typing import Annotated, Any, Literal
+
+from fastapi import APIRouter, Body, Header, Path, Query, Response
+from fastapi.concurrency import run_in_threadpool
+from pydantic import ValidationError
+
+from nanonav.store import StudyJob, StudyJobState, StudyRecord, StudyStore
+from nanonav.studies import export, pictures
+from nanonav.studies.report import (
+    JobOutcome,
+    StudyStatus,
+    report,
+    status_counts,
+    status_of,
+    table,
+    table_columns,
+)
+from nanonav.studies.spec import StudySpec, point_values, points
+from service.budget import check_budget
+from service.deps import DrawerDep, JsonBody, SettingsDep, StudiesDep
+from service.drawing import Drawer
+from service.paging import decode_cursor, encode_cursor
+from service.problems import InvalidInput, StudyFinished, field_error, invalid_body, problems
+from service.routes.jobs import IMMUTABLE, PNG
+from service.schemas import JobCounts, Study, StudyLinks, StudyPage, StudySummary
+
+router = APIRouter(prefix="/studies", tags=["studies"])
+
+StudyId = Annotated[int, Path(ge=1, le=2**63 - 1, description="The study's id.")]
+PictureName = Annotated[
+    str,
+    Path(
+        pattern="^(" + "|".join(pictures.PICTURES) + ")$",
+        description="A metric (" + ", ".join(pictures.PICTURES[:-1]) + ") or 'learning'.",
+    ),
+]
+FINISHED = frozenset({"succeeded", "failed", "cancelled"})
+
+STUDY_EXAMPLES: dict[str, Any] = {
+    "policies": {
+        "summary": "Q-learning against gradient climbing as obstacles get denser",
+        "value": {
+            "name": "policy x obstacles",
+            "base": {"preset": "paper-single", "learning": {"episodes": 20}},
+            "grid": {"robots.policy": ["q_learning", "gradient"], "obstacles.count": [0, 10, 30]},
+            "replicates": 10,
+            "compare": "robots.policy",
+        },
+    },
+}
+
+
+@router.post(
+    "",
+    status_code=202,
+    response_model=Study,
+    dependencies=[JsonBody],
+    responses=problems(400, 413, 415, 422),
+)
+def submit_study(
+    spec: Annotated[StudySpec, Body(openapi_examples=STUDY_EXAMPLES)],
+    studies: StudiesDep,
+    settings: SettingsDep,
+    response: Response,
+    idempotency_key: Annotated[str | None, Header(max_length=200)] = None,
+) -> Study:
+    """Queue every grid point x seed as a job, all in one transaction, after validating all."""
+    if spec.job_count > settings.study_max_jobs:
+        detail = (
+            f"the study makes {spec.job_count} jobs (grid points x seeds), over the "
+            f"{settings.study_max_jobs} a study may make"
+        )
+        given = "seeds" if spec.seeds is not None else "replicates"
+        raise InvalidInput(
+            detail,
+            [field_error(["body", key], detail, "too_many_jobs") for key in ("grid", given)],
+        )
+    try:
+        grid = points(spec)
+    except ValidationError as error:
+        raise invalid_body(error) from None
+    for point in grid:
+        blame = [("body", "grid", k, spec.grid[k].index(v)) for k, v in point.values.items()]
+        check_budget(point.scenario, settings, blame or None)
+    seeds = spec.seed_list
+    jobs = [
+        StudyJob(
+            scenario=point.with_seed(seed).model_dump(mode="json"),
+            robot_steps=point.scenario.robot_steps_budget,
+            episodes=point.scenario.learning.episodes + 1,
+            point=point.index,
+            seed=seed,
+        )
+        # Seed by seed: a study stopped half-way has whole seeds at every point, to pair.
+        for seed in seeds
+        for point in grid
+    ]
+    stored = spec.model_copy(update={"seeds": seeds, "replicates": None})
+    record = studies.create(
+        name=spec.name,
+        spec=stored.model_dump(mode="json"),
+        jobs=jobs,
+        idempotency_key=idempotency_key,
+    )
+    response.headers["Location"] = f"/studies/{record.id}"
+    return _study(studies, record)
+
+
+@router.get("", response_model=StudyPage, responses=problems(422))
+def list_studies(
+    studies: StudiesDep,
+    limit: Annotated[int, Query(ge=1, le=100, description="Studies per page.")] = 20,
+    cursor: Annotated[str | None, Query(max_length=64, description="From `next_cursor`.")] = None,
+) -> StudyPage:
+    """A page of studies, newest first."""
+    page = studies.page(limit=limit, before_id=None if cursor is None else decode_cursor(cursor))
+    counts = studies.counts([s.id for s in page.studies])
+    summaries = []
+    for record in page.studies:
+        found = {status.value: n for status, n in counts[record.id].items()}
+        jobs = _counts(found)
+        summaries.append(
+            StudySummary(
+                id=record.id,
+                name=record.name,
+                status=status_of(found, record.cancel_requested),
+                created_at=record.created_at,
+                cancel_requested=record.cancel_requested,
+                jobs=jobs,
+                links=_links(record.id),
+            )
+        )
+    next_cursor = None if page.next_before_id is None else encode_cursor(page.next_before_id)
+    return StudyPage(
+        studies=summaries,
+        next_cursor=next_cursor,
+        next=None if next_cursor is None else f"/studies?limit={limit}&cursor={next_cursor}",
+    )
+
+
+@router.get("/{study_id}", response_model=Study, responses=problems(404, 422))
+def get_study(study_id: StudyId, studies: StudiesDep) -> Study:
+    """A study's jobs per status and, per grid point and metric, mean and 95% CI; with
+    `compare`, paired differences seed by seed."""
+    return _study(studies, studies.get(study_id))
+
+
+@router.post("/{study_id}/cancel", response_model=Study, responses=problems(404, 409, 422))
+def cancel_study(study_id: StudyId, studies: StudiesDep) -> Study:
+    """Cancel a study's unfinished jobs: queued ones at once, running ones within a second."""
+    view = _study(studies, studies.get(study_id))
+    if view.status in FINISHED and not view.cancel_requested:
+        raise StudyFinished(f"study {study_id} has already finished: it is {view.status}")
+    return _study(studies, studies.cancel(study_id))
+
+
+@router.get(
+    "/{study_id}/results.csv",
+    response_class=Response,
+    responses={
+        200: {
+            "content": {"text/csv": {}, export.PARQUET_MEDIA_TYPE: {}},
+            "description": "A row per job: id, seed, grid values, status, metrics.",
+        },
+        **problems(404, 422),
+    },
+)
+def get_results(
+    study_id: StudyId,
+    studies: StudiesDep,
+    format: Annotated[Literal["csv", "parquet"], Query()] = "csv",
+) -> Response:
+    """The study's table, a row per job (metrics empty unless the job succeeded)."""
+    loaded = _Loaded.of(studies, studies.get(study_id))
+    rows = table(point_values(loaded.spec), loaded.outcomes)
+    columns = table_columns(loaded.spec)
+    name = f"nanonav-study-{study_id}"
+    if format == "parquet":
+        return Response(
+            export.to_parquet(columns, rows),
+            media_type=export.PARQUET_MEDIA_TYPE,
+            headers={"Content-Disposition": f'attachment; filename="{name}.parquet"'},
+        )
+    return Response(
+        export.to_csv(columns, rows),
+        media_type="text/csv; charset=utf-8",
+        headers={"Content-Disposition": f'attachment; filename="{name}.csv"'},
+    )
+
+
+@router.get(
+    "/{study_id}/plots/{name}.png",
+    response_class=Response,
+    responses={**PNG, **problems(404, 422, 503)},
+)
+async def get_study_plot(
+    study_id: StudyId, name: PictureName, studies: StudiesDep, drawer: DrawerDep
+) -> Response:
+    """A metric against the swept numeric parameter with CI bars, a line per compared method
+    (grouped bars when no swept parameter is numeric), or the mean learning curves."""
+    png = await run_in_threadpool(studies.plot, study_id, name)
+    if png is not None:
+        return Response(png, media_type="image/png", headers=IMMUTABLE)
+    return await _draw(drawer, studies, study_id, name)
+
+
+async def _draw(drawer: Drawer, studies: StudyStore, study_id: int, name: str) -> Response:
+    finished: list[bool] = []
+    png = await drawer.draw(
+        ("study", study_id, name), partial(_draw_now, studies, study_id, name, finished)
+    )
+    headers = IMMUTABLE if finished and finished[0] else {"Cache-Control": "no-cache"}
+    return Response(png, media_type="image/png", headers=headers)
+
+
+def _draw_now(studies: StudyStore, study_id: int, name: str, finished: list[bool]) -> bytes:
+    loaded = _Loaded.of(studies, studies.get(study_id))
+    if name == "learning":
+        png = pictures.learning_png(loaded.spec, point_values(loaded.spec), loaded.outcomes)
+    else:
+        png = pictures.metric_png(loaded.spec, loaded.report(studies), name)
+    if loaded.done:
+        studies.keep_plot(study_id, name, png)
+    finished.append(loaded.done)
+    return png
+
+
+@dataclass(frozen=True)
+class _Loaded:
+    """A study with its jobs' states, as read in one go."""
+
+    record: StudyRecord
+    spec: StudySpec
+    states: list[StudyJobState]
+    outcomes: list[JobOutcome]
+    status: StudyStatus
+
+    @classmethod
+    def of(cls, studies: StudyStore, record: StudyRecord) -> _Loaded:
+        states = studies.job_states(record.id)
+        outcomes = [JobOutcome(s.job_id, s.point, s.seed, s.status.value, s.digest) for s in states]
+        status = status_of(status_counts(outcomes), record.cancel_requested)
+        spec = StudySpec.model_validate(record.spec)
+        return cls(record, spec, states, outcomes, status)
+
+    @property
+    def done(self) -> bool:
+        return self.status in FINISHED
+
+    def report(self, studies: StudyStore) -> dict[str, Any]:
+        """The statistics; those of a finished study are computed once and kept."""
+        if self.done and self.record.report is not None:
+            return self.record.report
+        found = report(self.spec, point_values(self.spec), self.outcomes)
+        if self.done:
+            studies.keep_report(self.record.id, found)
+        return found
+
+
+def _study(studies: StudyStore, record: StudyRecord) -> Study:
+    loaded = _Loaded.of(studies, record)
+    states = loaded.states
+    progress = sum(1.0 if s.status.finished else s.fraction for s in states) / max(len(states), 1)
+    ends = [s.finished_at for s in states if s.finished_at is not None]
+    return Study(
+        id=record.id,
+        name=record.name,
+        status=loaded.status,
+        created_at=record.created_at,
+        finished_at=max(ends) if loaded.done and ends else None,
+        cancel_requested=record.cancel_requested,
+        jobs=_counts(status_counts(loaded.outcomes)),
+        progress=progress,
+        spec=record.spec,
+        links=_links(record.id),
+        **loaded.report(studies),
+    )
+
+
+def _counts(found: Mapping[str, int]) -> JobCounts:
+    return JobCounts(
+        total=sum(found.values()),
+        queued=found.get("queued", 0),
+        running=found.get("running", 0),
+        succeeded=found.get("succeeded", 0),
+        failed=found.get("failed", 0),
+        cancelled=found.get("cancelled", 0),
+    )
+
+
+def _links(study_id: int) -> StudyLinks:
+    base = f"/studies/{study_id}"
+    return StudyLinks(
+        self_=base,
+        cancel=f"{base}/cancel",
+        jobs=f"/jobs?study={study_id}",
+        results_csv=f"{base}/results.csv",
+        results_parquet=f"{base}/results.csv?format=parquet",
+        plots={name: f"{base}/plots/{name}.png" for name in pictures.PICTURES},
+    )

@@ -1,0 +1,177 @@
+"""The studies API without a worker: creation in one transaction, validation naming the grid
+value at fault, the job cap, idempotency, listing, cancelling, and what a job knows of its study."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import httpx
+import pytest
+
+from nanonav.settings import Settings
+from nanonav.store import JobStatus
+from nanonav.store.migrate import upgrade
+from service.app import create_app
+from tests.conftest import Api, serve
+from tests.service.test_api import assert_problem
+
+GRID: dict[str, Any] = {
+    "name": "policy x obstacles",
+    "base": {"preset": "paper-single", "learning": {"episodes": 2, "max_steps": 100}},
+    "grid": {"robots.policy": ["q_learning", "gradient"], "obstacles.count": [0, 10]},
+    "seeds": [1, 2, 3],
+    "compare": "robots.policy",
+}
+
+
+def create(api: Api, body: dict[str, Any], **headers: str) -> dict[str, Any]:
+    response = api.client.post("/studies", json=body, headers=headers)
+    assert response.status_code == 202, response.text
+    study: dict[str, Any] = response.json()
+    assert response.headers["location"] == f"/studies/{study['id']}"
+    return study
+
+
+def test_every_grid_point_and_seed_becomes_a_queued_job(api: Api) -> None:
+    study = create(api, GRID)
+    assert study["status"] == "queued"
+    assert study["jobs"] == {
+        "total": 12, "queued": 12, "running": 0, "succeeded": 0, "failed": 0, "cancelled": 0
+    }  # fmt: skip
+    assert [p["values"] for p in study["points"]] == [
+        {"robots.policy": "q_learning", "obstacles.count": 0},
+        {"robots.policy": "q_learning", "obstacles.count": 10},
+        {"robots.policy": "gradient", "obstacles.count": 0},
+        {"robots.policy": "gradient", "obstacles.count": 10},
+    ]
+    assert study["points"][0]["metrics"]["total_steps"] == {
+        "n": 0, "mean": None, "sd": None, "ci_low": None, "ci_high": None
+    }  # fmt: skip
+    assert "Student t" in study["interval"] and "Wilcoxon" in study["test"]
+    jobs = api.client.get("/jobs", params={"study": study["id"], "limit": 100}).json()["jobs"]
+    assert len(jobs) == 12
+    seen = set()
+    for job in jobs:
+        assert job["study_id"] == study["id"]
+        assert job["links"]["study"] == f"/studies/{study['id']}"
+        scenario = job["scenario"]
+        assert scenario["robots"]["count"] == 1  # the preset applied
+        assert scenario["learning"]["episodes"] == 2
+        seen.add((scenario["robots"]["policy"], scenario["obstacles"]["count"], scenario["seed"]))
+    assert len(seen) == 12
+    # seed by seed: the oldest jobs are the first seed at every point
+    oldest = sorted(jobs, key=lambda j: j["id"])[:4]
+    assert {j["scenario"]["seed"] for j in oldest} == {1}
+
+
+def test_replicates_are_seeds_counting_from_zero(api: Api) -> None:
+    body = {**GRID, "seeds": None, "replicates": 2}
+    study = create(api, {k: v for k, v in body.items() if v is not None})
+    assert study["spec"]["seeds"] == [0, 1]
+    assert study["jobs"]["total"] == 8
+
+
+@pytest.mark.parametrize(
+    ("change", "pointer", "words"),
+    [
+        ({"grid": {"robots.count": [1, 0]}}, "#/grid/robots.count/1", "greater than or equal"),
+        ({"grid": {"robots.polcy": ["gradient"]}}, "#/grid/robots.polcy", "not a scenario field"),
+        ({"grid": {"seed": [1, 2]}}, "#/grid/seed", "not a scenario field"),
+        ({"grid": {"robots.policy": ["gradient", "gradient"]}}, "#/grid/robots.policy/1",
+         "already listed"),
+        ({"grid": {"obstacles.count": [10, 1000], "obstacles.radius": [1.5, 3.0]}},
+         "#/grid/obstacles.count/1", "obstacles.count=1000, obstacles.radius=3.0"),
+        ({"base": {"robots": {"count": -1}}}, "#/base/robots/count", "greater than or equal"),
+        ({"compare": "robots.speed"}, "#/compare", "one of the grid's keys"),
+        ({"seeds": [1, 1]}, "#/seeds", "must not repeat"),
+        ({"seeds": [-1]}, "#/seeds/0", ""),
+        ({"replicates": 3}, "#/seeds", "either 'seeds' or 'replicates'"),
+        ({"grid": {"robots.policy": ["q_learning", "teleport"]}}, "#/grid/robots.policy/1",
+         "'q_learning', 'gradient'"),
+        ({"grid": {"robots.count": [[1]]}}, "#/grid/robots.count/0", ""),
+        ({"seeds": [], "compare": None}, "#/seeds", ""),
+        ({"name": "x" * 201}, "#/name", ""),
+    ],
+)  # fmt: skip
+def test_an_invalid_study_is_422_naming_the_field_and_nothing_is_stored(
+    api: Api, change: dict[str, Any], pointer: str, words: str
+) -> None:
+    body = {**GRID, **change}
+    if "compare" not in change and body["compare"] not in body["grid"]:
+        body["compare"] = None
+    problem = assert_problem(api.client.post("/studies", json=body), 422)
+    assert problem["errors"][0]["pointer"] == pointer, problem
+    assert words in problem["detail"]
+    assert api.client.get("/jobs").json()["jobs"] == []
+    assert api.client.get("/studies").json()["studies"] == []
+
+
+def test_a_grid_point_over_the_work_budget_is_422_naming_its_values(sqlite_url: str) -> None:
+    settings = Settings(database_url=sqlite_url, robot_steps_budget=1_000_000)
+    upgrade(sqlite_url)
+    body = {**GRID, "grid": {"robots.count": [1, 5000]}, "compare": None}
+    with serve(create_app(settings)) as url, httpx.Client(base_url=url) as client:
+        problem = client.post("/studies", json=body).json()
+        assert problem["status"] == 422
+        assert [e["pointer"] for e in problem["errors"]] == ["#/grid/robots.count/1"]
+        assert "robot-steps" in problem["detail"]
+
+
+def test_a_study_over_the_job_cap_is_422(sqlite_url: str) -> None:
+    settings = Settings(database_url=sqlite_url, study_max_jobs=10)
+    upgrade(sqlite_url)
+    with serve(create_app(settings)) as url, httpx.Client(base_url=url) as client:
+        problem = client.post("/studies", json=GRID).json()
+        assert problem["status"] == 422
+        assert [e["pointer"] for e in problem["errors"]] == ["#/grid", "#/seeds"]
+        assert "12 jobs" in problem["detail"] and "10" in problem["detail"]
+        huge = {**GRID, "grid": {f"robots.{k}": list(range(1, 101)) for k in ("count", "speed")}}
+        huge["compare"] = None
+        assert client.post("/studies", json=huge).json()["status"] == 422  # not expanded
+
+
+def test_an_idempotency_key_returns_the_study_it_made(api: Api) -> None:
+    first = create(api, GRID, **{"Idempotency-Key": "study-1"})
+    again = create(api, {**GRID, "seeds": [7]}, **{"Idempotency-Key": "study-1"})
+    assert again["id"] == first["id"]
+    assert again["jobs"]["total"] == 12
+    assert len(api.client.get("/jobs", params={"limit": 100}).json()["jobs"]) == 12
+
+
+def test_studies_are_listed_newest_first_and_paged(api: Api) -> None:
+    ids = [create(api, {**GRID, "name": f"s{i}"})["id"] for i in range(3)]
+    page = api.client.get("/studies", params={"limit": 2}).json()
+    assert [s["id"] for s in page["studies"]] == ids[::-1][:2]
+    assert page["studies"][0]["jobs"]["queued"] == 12
+    rest = api.client.get(page["next"]).json()
+    assert [s["id"] for s in rest["studies"]] == [ids[0]]
+    assert rest["next"] is None
+
+
+def test_cancel_cancels_the_queued_jobs_and_then_is_409(api: Api) -> None:
+    study = create(api, GRID)
+    cancelled = api.client.post(f"/studies/{study['id']}/cancel").json()
+    assert cancelled["status"] == "cancelled"
+    assert cancelled["jobs"]["cancelled"] == 12
+    for job in api.client.get("/jobs", params={"study": study["id"]}).json()["jobs"]:
+        assert api.store.get(job["id"]).status is JobStatus.CANCELLED
+    # cancelling again is harmless; a study that finished on its own cannot be cancelled
+    assert api.client.post(f"/studies/{study['id']}/cancel").status_code == 200
+
+
+def test_unknown_studies_are_404(api: Api) -> None:
+    for path in ("/studies/99", "/studies/99/results.csv", "/studies/99/plots/learning.png"):
+        body = assert_problem(api.client.get(path), 404)
+        assert body["type"].endswith("study-not-found")
+    assert_problem(api.client.post("/studies/99/cancel"), 404)
+    problem = assert_problem(api.client.get("/studies/1/plots/nonsense.png"), 422)
+    assert problem["errors"][0]["parameter"] == "name"
+
+
+def test_a_new_study_table_lists_its_jobs_with_empty_metrics(api: Api) -> None:
+    study = create(api, GRID)
+    text = api.client.get(f"/studies/{study['id']}/results.csv").text
+    lines = text.splitlines()
+    assert lines[0].startswith("job_id,seed,robots.policy,obstacles.count,status,total_steps")
+    assert len(lines) == 13
+    assert lines[1].split(",")[4] == "queued"
