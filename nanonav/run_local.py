@@ -14,6 +14,7 @@ import threading
 import time
 import urllib.error
 import urllib.request
+from pathlib import Path
 from types import FrameType
 
 from sqlalchemy.engine import make_url
@@ -83,8 +84,11 @@ def main() -> int:
     url = f"http://{settings.host}:{settings.port}"
     try:
         if _wait_until_ready(url, api, stop):
+            command = Path(sys.executable).with_name("nanonav")
             print(
-                f"nanonav: the API is at {url} (OpenAPI page: {url}/docs); Ctrl-C stops it",
+                f"nanonav: the API is at {url} (OpenAPI page: {url}/docs); Ctrl-C stops it\n"
+                f"nanonav: the command line is {command} (or `source "
+                f"{command.parent}/activate`, then `nanonav --help`)",
                 flush=True,
             )
         while not stop.is_set():

@@ -271,3 +271,16 @@ def test_two_workers_share_one_postgresql_and_run_each_job_once(
     assert codes == [0, 0]
     claims = [int(m) for w in workers for m in re.findall(r"job (\d+): claimed", w.text())]
     assert sorted(claims) == ids
+
+
+def test_healthz_counts_a_running_worker_and_forgets_it_when_it_stops(
+    api: Api, start_worker: Callable[..., Worker]
+) -> None:
+    worker = start_worker()
+    worker.wait_ready()
+    deadline = time.monotonic() + 10
+    while api.client.get("/healthz").json()["workers"]["seen"] != 1:
+        assert time.monotonic() < deadline, worker.text()
+        time.sleep(0.1)
+    assert worker.terminate() == 0
+    assert api.client.get("/healthz").json()["workers"]["seen"] == 0

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Iterator
+from datetime import UTC, datetime
 from typing import Any
 
 import httpx
@@ -258,6 +259,17 @@ def test_no_body_a_client_can_send_gives_a_500(api: Api, body: bytes) -> None:
 
 def test_healthz_is_ok_at_head(api: Api) -> None:
     assert api.client.get("/healthz").json()["status"] == "ok"
+
+
+def test_healthz_says_why_queued_jobs_wait(api: Api) -> None:
+    submit(api)
+    health = api.client.get("/healthz").json()
+    assert health["queue"]["queued"] == 1
+    assert health["workers"] == {"seen": 0, "window_s": 30.0}
+    assert "no worker has been seen" in health["note"]
+    api.store.worker_seen("host:7", started_at=datetime.now(UTC))
+    health = api.client.get("/healthz").json()
+    assert health["workers"]["seen"] == 1 and health["note"] is None
 
 
 def test_healthz_is_503_on_an_unmigrated_database(sqlite_url: str) -> None:

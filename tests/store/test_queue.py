@@ -289,3 +289,23 @@ def test_sqlite_runs_in_wal_mode_with_a_busy_timeout(sqlite_store: JobStore) -> 
         assert connection.execute(text("PRAGMA journal_mode")).scalar() == "wal"
         assert connection.execute(text("PRAGMA busy_timeout")).scalar() == 30_000
         assert connection.execute(text("PRAGMA foreign_keys")).scalar() == 1
+
+
+def test_the_census_counts_waiting_and_running_jobs_and_recent_workers(store: JobStore) -> None:
+    now = datetime.now(UTC)
+    empty = store.census(seen_within_s=30, now=now)
+    assert (empty.queued, empty.running, empty.workers, empty.oldest_queued_at) == (0, 0, 0, None)
+    first = enqueue(store)
+    enqueue(store, seed=1)
+    enqueue(store, seed=2)
+    claim(store)
+    store.worker_seen("host:1", started_at=now, now=now - timedelta(seconds=40))
+    store.worker_seen("host:2", started_at=now, now=now)
+    census = store.census(seen_within_s=30, now=now)
+    assert (census.queued, census.running, census.workers) == (2, 1, 1)
+    assert census.oldest_queued_at is not None
+    assert census.oldest_queued_at >= first.created_at
+    store.worker_seen("host:1", started_at=now, now=now)
+    assert store.census(seen_within_s=30, now=now).workers == 2
+    store.worker_gone("host:2")
+    assert store.census(seen_within_s=30, now=now).workers == 1
