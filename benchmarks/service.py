@@ -5,7 +5,8 @@ Prints, for a tiny job (1 robot, 1 training episode + the evaluation, 50 steps):
 - throughput: jobs per second through the API and both workers, all submitted at once;
 - pictures: the first request of each (drawn then), and later requests (read from the store);
 - ``GET /jobs/{id}`` and ``POST /jobs`` latency while both workers run longer jobs;
-- the database's growth per tiny job.
+- the database's growth per tiny job;
+- a study of ``paper-single`` defaults x 2 policies x 100 seeds (200 jobs): wall time, jobs/s.
 
     .venv/bin/python benchmarks/service.py [--quick] [--throughput-jobs 500]
 """
@@ -32,8 +33,8 @@ from typing import Any
 import httpx
 
 TINY: dict[str, Any] = {"robots": {"count": 1}, "learning": {"episodes": 1, "max_steps": 50}}
-# About two seconds of simulation each: keeps both workers busy while latency is measured.
-BUSY: dict[str, Any] = {"preset": "paper-swarm", "learning": {"episodes": 300}}
+# A few seconds of simulation each: keeps both workers busy while latency is measured.
+BUSY: dict[str, Any] = {"preset": "paper-swarm", "learning": {"episodes": 2000}}
 PICTURES = (
     "heatmap.png?plane=xy",
     "heatmap.png?plane=all",
@@ -237,10 +238,40 @@ def while_busy(client: httpx.Client, tiny_job: int, busy_jobs: int) -> None:
     wait_all(client, ids)
     done.set()
     reader.join()
-    print(f"\nwhile both workers run {busy_jobs} jobs of about 2 s ({BUSY}):")
+    print(f"\nwhile both workers run {busy_jobs} jobs of a few seconds ({BUSY}):")
     print(f"  GET /jobs/{{id}}  {len(gets)} requests: {spread(gets)}")
     print(f"  POST /jobs      {len(posts)} requests: {spread(posts)}")
     print(f"  mean GET {1000 * statistics.fmean(gets):.1f} ms")
+
+
+def study(client: httpx.Client, seeds: int) -> None:
+    body = {
+        "name": "benchmark",
+        "base": {"preset": "paper-single"},
+        "grid": {"robots.policy": ["q_learning", "gradient"]},
+        "replicates": seeds,
+        "compare": "robots.policy",
+    }
+    started = time.perf_counter()
+    response = client.post("/studies", json=body)
+    response.raise_for_status()
+    created = time.perf_counter() - started
+    study_id = response.json()["id"]
+    while (found := client.get(f"/studies/{study_id}").json())["status"] in {"queued", "running"}:
+        time.sleep(0.05)
+    elapsed = time.perf_counter() - started
+    jobs = found["jobs"]["total"]
+    print(f"\nstudy: paper-single defaults x 2 policies x {seeds} seeds ({jobs} jobs)")
+    print(
+        f"  {elapsed:.2f} s from POST to its report ({jobs / elapsed:.1f} jobs/s); "
+        f"the POST took {1000 * created:.0f} ms"
+    )
+    steps = found["comparisons"][0]["metrics"]["total_steps"]
+    print(
+        f"  gradient - q_learning, total steps: {steps['mean_difference']:+.1f} "
+        f"[{steps['ci_low']:+.1f}, {steps['ci_high']:+.1f}], p = {steps['p_value']:.3g}, "
+        f"n = {steps['n']}"
+    )
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -249,11 +280,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--throughput-jobs", type=int, default=500)
     parser.add_argument("--picture-repeats", type=int, default=20)
     parser.add_argument("--busy-jobs", type=int, default=4)
+    parser.add_argument("--study-seeds", type=int, default=100)
     parser.add_argument("--quick", action="store_true", help="a smoke run with few jobs")
     args = parser.parse_args(argv)
     if args.quick:
         args.latency_jobs, args.throughput_jobs = 3, 20
-        args.picture_repeats, args.busy_jobs = 2, 0
+        args.picture_repeats, args.busy_jobs, args.study_seeds = 2, 0, 3
     print(f"tiny job: {TINY}")
     print(f"cores: {os.cpu_count()}, SQLite, 1 API process, 2 worker processes\n")
     with service() as running:
@@ -262,6 +294,7 @@ def main(argv: list[str] | None = None) -> int:
         pictures(running.client, ids[-1], args.picture_repeats)
         if args.busy_jobs:
             while_busy(running.client, ids[0], args.busy_jobs)
+        study(running.client, args.study_seeds)
     return 0
 
 

@@ -26,3 +26,4 @@ def test_service_benchmark_prints_throughput_and_picture_times(
     firsts = re.findall(r"^  first  (\S+)\s+([\d.]+) ms$", out, re.M)
     assert [path for path, _ in firsts] == list(service_benchmark.PICTURES)
     assert re.search(r"^  later  10 requests: p50 [\d.]+ ms", out, re.M)
+    assert re.search(r"^study: .* \(6 jobs\)$", out, re.M)
