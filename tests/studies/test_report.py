@@ -1,0 +1,115 @@
+"""A study's report: failed jobs counted beside the statistics, never in them; pairs only on
+seeds where both jobs succeeded; digests bin long learning curves."""
+
+from __future__ import annotations
+
+import statistics
+from collections import Counter
+from typing import Any
+
+import pytest
+
+from nanonav.studies.report import (
+    METRICS,
+    JobOutcome,
+    job_digest,
+    report,
+    status_of,
+    table,
+)
+from nanonav.studies.spec import StudySpec, point_values
+
+SPEC = StudySpec.model_validate(
+    {"grid": {"robots.policy": ["q_learning", "gradient"]}, "seeds": [1, 2, 3, 4],
+     "compare": "robots.policy"}
+)  # fmt: skip
+
+
+def outcome(job_id: int, point: int, seed: int, steps: float | None, status: str = "succeeded"
+            ) -> JobOutcome:  # fmt: skip
+    if status != "succeeded":
+        return JobOutcome(job_id, point, seed, status, None)
+    summary = {metric: 1.0 for metric in METRICS} | {"total_steps": steps}
+    return JobOutcome(job_id, point, seed, status, {"summary": summary, "curve": {}})
+
+
+JOBS = [
+    outcome(1, 0, 1, 100.0),
+    outcome(2, 1, 1, 90.0),
+    outcome(3, 0, 2, 120.0),
+    outcome(4, 1, 2, None, status="failed"),
+    outcome(5, 0, 3, 80.0),
+    outcome(6, 1, 3, 60.0),
+    outcome(7, 0, 4, None, status="cancelled"),
+    outcome(8, 1, 4, 70.0),
+]
+
+
+def test_failed_and_cancelled_jobs_are_counted_not_averaged() -> None:
+    found = report(SPEC, point_values(SPEC), JOBS)
+    first, second = found["points"]
+    assert first["jobs"] == {"queued": 0, "running": 0, "succeeded": 3, "failed": 0,
+                             "cancelled": 1}  # fmt: skip
+    assert second["jobs"]["failed"] == 1 and second["jobs"]["succeeded"] == 3
+    assert first["metrics"]["total_steps"]["n"] == 3
+    assert first["metrics"]["total_steps"]["mean"] == pytest.approx(100.0)
+    assert second["metrics"]["total_steps"]["mean"] == pytest.approx(statistics.fmean([90, 60, 70]))
+
+
+def test_differences_pair_only_seeds_where_both_succeeded() -> None:
+    (comparison,) = report(SPEC, point_values(SPEC), JOBS)["comparisons"]
+    assert (comparison["method"], comparison["baseline"], comparison["values"]) == (
+        "gradient", "q_learning", {}
+    )  # fmt: skip
+    steps = comparison["metrics"]["total_steps"]
+    assert steps["n"] == 2  # seeds 1 and 3: seed 2 failed on one side, seed 4 was cancelled
+    assert steps["mean_difference"] == pytest.approx(statistics.fmean([90 - 100, 60 - 80]))
+
+
+def test_a_metric_a_job_lacks_is_left_out_of_its_sample() -> None:
+    jobs = [outcome(1, 0, 1, None), outcome(2, 0, 2, 50.0)]
+    found = report(SPEC, point_values(SPEC), jobs)
+    assert found["points"][0]["metrics"]["total_steps"]["n"] == 1
+    assert found["points"][0]["metrics"]["success_rate"]["n"] == 2
+
+
+@pytest.mark.parametrize(
+    ("counts", "cancelled", "expected"),
+    [
+        ({"queued": 4}, False, "queued"),
+        ({"queued": 3, "succeeded": 1}, False, "running"),
+        ({"running": 1, "succeeded": 3}, True, "running"),
+        ({"succeeded": 4}, False, "succeeded"),
+        ({"succeeded": 3, "failed": 1}, False, "failed"),
+        ({"succeeded": 3, "cancelled": 1}, False, "cancelled"),
+        ({"succeeded": 3, "failed": 1}, True, "cancelled"),
+    ],
+)
+def test_a_studys_status_follows_its_jobs(
+    counts: dict[str, int], cancelled: bool, expected: str
+) -> None:
+    assert status_of(Counter(counts), cancelled) == expected
+
+
+def test_a_digest_keeps_the_summary_and_bins_a_long_learning_curve() -> None:
+    episodes: list[dict[str, Any]] = [
+        {"episode": e, "steps": e, "success_rate": e % 2, "mean_return": 2.0 * e}
+        for e in range(1000)
+    ]
+    digest = job_digest({"summary": {"total_steps": 7, "robots": 1}, "episodes": episodes})
+    assert digest["summary"]["total_steps"] == 7 and "robots" not in digest["summary"]
+    curve = digest["curve"]
+    assert len(curve["episode"]) == 200
+    assert curve["episode"][0] == 2.0 and curve["steps"][0] == 2.0  # mean of episodes 0..4
+    assert curve["success_rate"][0] == pytest.approx(0.4)
+    assert curve["mean_return"][-1] == pytest.approx(2.0 * statistics.fmean(range(995, 1000)))
+    short = job_digest({"summary": {}, "episodes": episodes[:3]})
+    assert short["curve"]["steps"] == [0.0, 1.0, 2.0]
+
+
+def test_the_table_has_a_row_per_job_with_empty_metrics_unless_it_succeeded() -> None:
+    rows = table(point_values(SPEC), JOBS)
+    assert [r["job_id"] for r in rows] == list(range(1, 9))
+    assert rows[3] == {"job_id": 4, "seed": 2, "robots.policy": "gradient", "status": "failed",
+                       **{m: None for m in METRICS}}  # fmt: skip
+    assert rows[0]["total_steps"] == 100.0
