@@ -95,6 +95,11 @@ def _learner(scenario: Scenario) -> Learner:
     )
 
 
+def obstacles_move(scenario: Scenario) -> bool:
+    """Whether obstacle centres change during an episode, and so are recorded on every row."""
+    return scenario.obstacles.motion_std > 0.0
+
+
 def record_stride(robots: int, max_steps: int) -> int:
     """Steps between history rows, so that the evaluation's history stays within budget."""
     rows = max(RECORD_BUDGET // robots - 2, 1)
@@ -154,7 +159,7 @@ class _Run:
         self.recording = Recording(
             pos=np.zeros((rows, n, 3)),
             cells=np.zeros((rows, cells, 3)),
-            obstacles=np.zeros((rows, obstacles, 3)),
+            obstacles=np.zeros((rows if obstacles_move(scenario) else 1, obstacles, 3)),
             conc=np.zeros((rows, n)),
             dist=np.zeros((rows, n)),
             step=np.zeros(rows, dtype=np.int64),
