@@ -24,8 +24,10 @@ class Trajectory:
     """The recorded evaluation episode.
 
     Row ``k`` of every per-step array is the state after step ``step[k]``: row 0 is the start,
-    and rows follow every ``stride`` steps (1 unless the swarm is too large to keep every step),
-    the last row being the episode's end. A robot's path ends at the row whose step equals its
+    and rows follow every ``stride`` steps, the last row being the episode's end. The stride is
+    1 unless a row for every step would overflow the history cap (``simulate``'s
+    ``record_bytes``), which the per-step arrays (``step``, ``robots``, ``cells``, ``obstacles``,
+    ``concentration``, ``distance``) share. A robot's path ends at the row whose step equals its
     ``steps``: it stops once it reaches a cell.
 
     ``obstacles`` has one row per history row when obstacles move (``obstacles.motion_std`` >

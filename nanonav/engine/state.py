@@ -95,7 +95,7 @@ class Learner(NamedTuple):
 
 class Recording(NamedTuple):
     """History of the evaluation episode, a row every ``record_stride`` steps and one for the
-    last step (R rows)."""
+    last step: R = ceil(T / record_stride) + 1 rows, within ``simulate``'s ``record_bytes``."""
 
     pos: NDArray[np.float64]  # (R, N, 3)
     cells: NDArray[np.float64]  # (R, C, 3)
