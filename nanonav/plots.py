@@ -169,7 +169,7 @@ def _draw_slice(
     )
     radius = trajectory.obstacle_radius
     cut = False
-    for centre in trajectory.obstacles[-1]:
+    for centre in trajectory.obstacles_at(-1):
         depth = abs(float(centre[fixed]) - level)
         if depth < radius:
             cut = True
@@ -330,7 +330,7 @@ def trajectory_png(result: SimulationResult) -> bytes:
     fig = _figure(7.5, 6.8)
     # Explicit draw order (paths over spheres) reads better than matplotlib's depth sorting.
     ax: Any = fig.add_subplot(projection="3d", computed_zorder=False)
-    _draw_obstacles(ax, trajectory.obstacles[-1], trajectory.obstacle_radius)
+    _draw_obstacles(ax, trajectory.obstacles_at(-1), trajectory.obstacle_radius)
     width = 1.6 if shown == 1 else 1.0
     for i in range(shown):
         path = _thin(trajectory.robots[: _last_row(trajectory, i) + 1, i])

@@ -21,6 +21,19 @@ ActionSet = Literal["behaviors", "directions"]
 
 MAX_OBSTACLE_VOLUME_FRACTION = 0.3
 
+# What the engine's operations cost, in work units: nanoseconds of one core of the machine they
+# were fitted on (``python benchmarks/cost.py`` measures how well they track run time). Another
+# machine scales them all alike.
+# C: one robot's step besides its scans and field terms (sense noise, state, choice, move, learn)
+WORK_ROBOT_STEP = {"behaviors": 270, "directions": 160, "baseline": 95}
+WORK_STEP = 195  # one step besides its robots: the loops over the swarm
+WORK_PAIR = 1.25  # one distance test between two points (say, a robot and an obstacle)
+WORK_DRAW = 32  # one random point, direction or offset (three normal draws)
+WORK_PLACE = 2.5  # one source moved with its cell
+# one source's term of the field at one point: an exp for these two, a division for the
+# inverse-square emitters, whose sum the compiler vectorises
+WORK_SOURCE = {"gaussian": 6.5, "diffusion": 6.5, "inverse_square": 0.55}
+
 
 class ScenarioError(ValueError):
     """A scenario that passed validation but cannot be realised (say, obstacles that leave no
@@ -299,6 +312,71 @@ class Scenario(_Part):
     def robot_steps_budget(self) -> int:
         """The most robot-steps this scenario can cost: robots x max_steps x (episodes + 1)."""
         return self.robots.count * self.learning.max_steps * (self.learning.episodes + 1)
+
+    @property
+    def sources(self) -> int:
+        """Point sources of the field: the cells, or their emitters for the inverse-square model."""
+        if self.biomarker.model == "inverse_square":
+            return self.cells.count * self.biomarker.emitters_per_cell
+        return self.cells.count
+
+    @property
+    def robot_step_overhead(self) -> float:
+        """C, the work of one robot's step besides its scans and field terms: Q-learning's
+        behaviours cost most, the baselines least."""
+        if self.robots.policy == "q_learning":
+            return WORK_ROBOT_STEP[self.learning.actions]
+        return WORK_ROBOT_STEP["baseline"]
+
+    @property
+    def work(self) -> int:
+        """The most this scenario can cost, in work units (about a nanosecond of one core each,
+        see the ``WORK_*`` weights): every robot active for every step of every episode.
+
+        Unlike ``robot_steps_budget`` it weighs a robot-step by what it does: a field term per
+        source, two scans of the obstacles and of the cells; and it adds what a step, an
+        episode and the recorded evaluation cost besides (``work_for``)."""
+        episodes = self.learning.episodes + 1
+        steps = self.learning.max_steps * episodes
+        return self.work_for(self.robots.count * steps, steps, episodes, self.learning.max_steps)
+
+    def work_for(self, robot_steps: int, steps: int, episodes: int, evaluation_steps: int) -> int:
+        """The work of a run of this scenario that took ``robot_steps`` robot-steps over
+        ``steps`` steps of ``episodes`` episodes, the last (evaluation) one ``evaluation_steps``
+        steps long."""
+        n = self.robots.count
+        c = self.cells.count
+        o = self.obstacles.count
+        k = self.sources
+        source = WORK_SOURCE[self.biomarker.model]
+        # units per active robot and step: sense (k terms), nearest obstacle and the collision
+        # test (o tests each), nearest cell before and after the move (c tests each)
+        robot_step = self.robot_step_overhead + source * k + 2 * WORK_PAIR * (o + c)
+        # units per step: place the sources; a cell moves unless into one of o obstacles; an
+        # obstacle moves unless onto one of n robots or c cells
+        step = WORK_STEP + WORK_PLACE * k
+        if self.cells.motion_std > 0:
+            step += c * (WORK_DRAW + WORK_PAIR * o)
+        if self.obstacles.motion_std > 0:
+            step += o * (WORK_DRAW + WORK_PAIR * (n + c))
+        # units per episode: draw the world (robots clear of cells, obstacles clear of both, at
+        # one attempt each; emitter offsets for every model), and close it with one more step of
+        # every robot
+        emitters = c * self.biomarker.emitters_per_cell
+        episode = (
+            WORK_DRAW * (c + 2 * n + o + emitters)
+            + WORK_PAIR * (n * c + o * (n + c))
+            + n * robot_step
+        )
+        # units per evaluation step: the field and the nearest cell measured at every robot
+        evaluation_step = n * (source * k + WORK_PAIR * c)
+        total = (
+            robot_steps * robot_step
+            + steps * step
+            + episodes * episode
+            + evaluation_steps * evaluation_step
+        )
+        return math.ceil(total)
 
 
 PRESETS: dict[str, dict[str, Any]] = {

@@ -326,7 +326,8 @@ def _move_obstacles(p: KernelParams, rng: np.random.Generator, w: World, s: Swar
 def observe(p: KernelParams, w: World, s: Swarm, rec: Recording, t: int, final: bool) -> None:
     """Measure the true field and distance at every robot after step ``t``: add them to the
     per-robot sums of robots still moving at ``t``, and store a history row every
-    ``record_stride`` steps (and for the ``final`` step)."""
+    ``record_stride`` steps (and for the ``final`` step). Obstacles that do not move have one
+    row, written at the start."""
     row = t // p.record_stride
     on_row = t % p.record_stride == 0
     if final and not on_row:
@@ -346,7 +347,10 @@ def observe(p: KernelParams, w: World, s: Swarm, rec: Recording, t: int, final: 
     if keep:
         rec.pos[row] = s.pos
         rec.cells[row] = w.cells
-        rec.obstacles[row] = w.obstacles
+        if p.obstacle_std > 0.0:
+            rec.obstacles[row] = w.obstacles
+        elif t == 0:
+            rec.obstacles[0] = w.obstacles
         rec.step[row] = t
 
 

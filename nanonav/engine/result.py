@@ -24,15 +24,21 @@ class Trajectory:
     """The recorded evaluation episode.
 
     Row ``k`` of every per-step array is the state after step ``step[k]``: row 0 is the start,
-    and rows follow every ``stride`` steps (1 unless the swarm is too large to keep every step),
-    the last row being the episode's end. A robot's path ends at the row whose step equals its
+    and rows follow every ``stride`` steps, the last row being the episode's end. The stride is
+    1 unless a row for every step would overflow the history cap (``simulate``'s
+    ``record_bytes``), which the per-step arrays (``step``, ``robots``, ``cells``, ``obstacles``,
+    ``concentration``, ``distance``) share. A robot's path ends at the row whose step equals its
     ``steps``: it stops once it reaches a cell.
+
+    ``obstacles`` has one row per history row when obstacles move (``obstacles.motion_std`` >
+    0), and a single row, ``(1, obstacles, 3)``, when they stand still: their centres for the
+    whole episode. ``obstacles_at`` reads either.
     """
 
     step: NDArray[np.int64]  # (rows,) the step each row shows
     robots: NDArray[np.float64]  # (rows, robots, 3) positions
     cells: NDArray[np.float64]  # (rows, cells, 3) positions
-    obstacles: NDArray[np.float64]  # (rows, obstacles, 3) centres
+    obstacles: NDArray[np.float64]  # (rows, obstacles, 3) centres; (1, obstacles, 3) if still
     concentration: NDArray[np.float64]  # (rows, robots) true concentration at each robot
     distance: NDArray[np.float64]  # (rows, robots) true distance to the nearest cell
     steps: NDArray[np.int64]  # (robots,) steps each robot was active (to its reach, or T)
@@ -45,6 +51,17 @@ class Trajectory:
     def length(self) -> int:
         """Steps the episode lasted."""
         return int(self.step[-1])
+
+    @property
+    def obstacles_move(self) -> bool:
+        """Whether ``obstacles`` holds a row per history row (else one row for the episode)."""
+        return bool(self.obstacles.shape[0] > 1)
+
+    def obstacles_at(self, row: int) -> NDArray[np.float64]:
+        """Obstacle centres ``(obstacles, 3)`` at history row ``row`` (negative counts from the
+        end), whether obstacles move or not."""
+        centres: NDArray[np.float64] = self.obstacles[row if self.obstacles_move else 0]
+        return centres
 
 
 @dataclass(frozen=True)
@@ -130,7 +147,8 @@ class SimulationResult:
         )
 
     def arrays(self) -> dict[str, NDArray[Any]]:
-        """The trajectory and Q-table as named arrays, for ``numpy.savez`` and binary storage."""
+        """The trajectory and Q-table as named arrays, for ``numpy.savez`` and binary storage
+        (``obstacles`` keeps its shape: one row when obstacles stand still)."""
         out: dict[str, NDArray[Any]] = {}
         if self.trajectory is not None:
             t = self.trajectory

@@ -6,7 +6,6 @@ The engine takes a scenario (with its seed) and returns a result; it reads no cl
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -18,12 +17,13 @@ from nanonav.engine import fields, kernel, metrics, qlearning, state
 from nanonav.engine.result import QTable, SimulationResult, Trajectory
 from nanonav.engine.state import KernelParams, Learner, Recording, Swarm, World
 from nanonav.engine.world import DYNAMICS_STREAM, WORLD_STREAM, raise_for_layout, stream
-from nanonav.scenario import Scenario
+from nanonav.scenario import Scenario, ScenarioError
 
 # Robot-steps per compiled call between progress reports (about 0.1 s of work).
 CHUNK_ROBOT_STEPS = 100_000
-# At most this many robot-rows of history are kept for the evaluation episode.
-RECORD_BUDGET = 2_000_000
+# Bytes the evaluation's history may take (and allocate): 16 MiB.
+DEFAULT_RECORD_BYTES = 16 * 2**20
+FLOAT_BYTES = 8  # float64 and int64 alike
 
 
 @dataclass(frozen=True)
@@ -45,7 +45,7 @@ class Progress:
 ProgressCallback = Callable[[Progress], bool | None]
 
 
-def _params(scenario: Scenario) -> KernelParams:
+def _params(scenario: Scenario, record_bytes: int = DEFAULT_RECORD_BYTES) -> KernelParams:
     """The kernel's constants, flattened from the scenario."""
     b = scenario.biomarker
     base = max(scenario.robots.sensing_radius, scenario.robots.speed)
@@ -76,7 +76,7 @@ def _params(scenario: Scenario) -> KernelParams:
         level_2=float(levels[1]),
         level_3=float(levels[2]),
         max_steps=scenario.learning.max_steps,
-        record_stride=record_stride(scenario.robots.count, scenario.learning.max_steps),
+        record_stride=record_stride(scenario, record_bytes),
         emitter_scatter=b.emitter_scatter,
     )
 
@@ -95,10 +95,52 @@ def _learner(scenario: Scenario) -> Learner:
     )
 
 
-def record_stride(robots: int, max_steps: int) -> int:
-    """Steps between history rows, so that the evaluation's history stays within budget."""
-    rows = max(RECORD_BUDGET // robots - 2, 1)
-    return max(1, math.ceil(max_steps / rows))
+def obstacles_move(scenario: Scenario) -> bool:
+    """Whether obstacle centres change during an episode, and so are recorded on every row."""
+    return scenario.obstacles.motion_std > 0.0
+
+
+def history_row_bytes(scenario: Scenario) -> int:
+    """Bytes of one history row: per robot a position (3 floats), the concentration and the
+    distance (1 each); per cell a position; per obstacle a centre if obstacles move; the step."""
+    floats = 5 * scenario.robots.count + 3 * scenario.cells.count + 1
+    if obstacles_move(scenario):
+        floats += 3 * scenario.obstacles.count
+    return FLOAT_BYTES * floats
+
+
+def still_obstacle_bytes(scenario: Scenario) -> int:
+    """Bytes of the one row of obstacle centres kept when obstacles do not move."""
+    return 0 if obstacles_move(scenario) else FLOAT_BYTES * 3 * scenario.obstacles.count
+
+
+def history_rows(max_steps: int, stride: int) -> int:
+    """Most rows an episode of at most ``max_steps`` records: steps 0, stride, 2 stride, ...
+    and the last step."""
+    return -(-max_steps // stride) + 1
+
+
+def record_stride(scenario: Scenario, record_bytes: int) -> int:
+    """The smallest stride between history rows whose rows all fit in ``record_bytes``.
+
+    Strides only thin what is recorded; the dynamics are the same for every stride. When not even
+    the start and the end rows fit, the scenario is refused rather than the cap broken."""
+    row = history_row_bytes(scenario)
+    rows = (record_bytes - still_obstacle_bytes(scenario)) // row
+    if rows < 2:
+        n, c, o = scenario.robots.count, scenario.cells.count, scenario.obstacles.count
+        share = {
+            "robots.count": 5 * n,
+            "cells.count": 3 * c,
+            "obstacles.count": 3 * o * (2 if obstacles_move(scenario) else 1),
+        }
+        raise ScenarioError(
+            max(share, key=share.__getitem__),
+            f"one recorded step of {n} robots, {c} cells and {o} obstacles takes {row} bytes; "
+            f"the history cap of {record_bytes} bytes cannot hold the episode's start and end",
+        )
+    # T steps at stride s keep ceil(T / s) + 1 rows: at most `rows` once s >= ceil(T / (rows - 1))
+    return -(-scenario.learning.max_steps // (rows - 1))
 
 
 class _Run:
@@ -150,11 +192,11 @@ class _Run:
             reading=np.zeros(n),
             reading_grad=np.zeros((n, 3)),
         )
-        rows = params.max_steps // params.record_stride + 2
+        rows = history_rows(params.max_steps, params.record_stride)
         self.recording = Recording(
             pos=np.zeros((rows, n, 3)),
             cells=np.zeros((rows, cells, 3)),
-            obstacles=np.zeros((rows, obstacles, 3)),
+            obstacles=np.zeros((rows if obstacles_move(scenario) else 1, obstacles, 3)),
             conc=np.zeros((rows, n)),
             dist=np.zeros((rows, n)),
             step=np.zeros(rows, dtype=np.int64),
@@ -201,7 +243,7 @@ class _Run:
         """The evaluation episode's history (valid once it has ended)."""
         length = int(self.curve[-1, state.CURVE_STEPS])
         stride = self.params.record_stride
-        rows = length // stride + 1 + (1 if length % stride else 0)
+        rows = history_rows(length, stride)
         r = self.recording
         return Trajectory(
             step=r.step[:rows].copy(),
@@ -239,17 +281,26 @@ def _warm_up() -> None:
     _compiled = True
 
 
-def simulate(scenario: Scenario, progress: ProgressCallback | None = None) -> SimulationResult:
+def simulate(
+    scenario: Scenario,
+    progress: ProgressCallback | None = None,
+    *,
+    record_bytes: int = DEFAULT_RECORD_BYTES,
+) -> SimulationResult:
     """Train for ``learning.episodes`` episodes, then record one greedy evaluation episode.
 
     ``progress`` is called between chunks of about 0.1 s of work and at the end of training;
     returning False stops the run, and the result keeps the episodes finished so far
-    (``completed`` False).
+    (``completed`` False). The evaluation's history (``Trajectory``) takes at most
+    ``record_bytes``: rows are thinned to every ``stride`` steps to fit, which changes what is
+    recorded, never the run. A scenario whose start and end rows alone exceed it raises
+    ``ScenarioError`` before any work.
     """
+    params = _params(scenario, record_bytes)
     _warm_up()
     learning = scenario.learning
     total = learning.episodes + 1
-    run = _Run(scenario, _params(scenario))
+    run = _Run(scenario, params)
     engine_s = 0.0
     eval_s = 0.0
     while run.episode < total:

@@ -94,14 +94,15 @@ class Learner(NamedTuple):
 
 
 class Recording(NamedTuple):
-    """History of the evaluation episode, a row every ``record_stride`` steps."""
+    """History of the evaluation episode, a row every ``record_stride`` steps and one for the
+    last step: R = ceil(T / record_stride) + 1 rows, within ``simulate``'s ``record_bytes``."""
 
-    pos: NDArray[np.float64]  # (T+1, N, 3)
-    cells: NDArray[np.float64]  # (T+1, C, 3)
-    obstacles: NDArray[np.float64]  # (T+1, O, 3)
-    conc: NDArray[np.float64]  # (T+1, N)
-    dist: NDArray[np.float64]  # (T+1, N)
-    step: NDArray[np.int64]  # (T+1,) the step each row shows
+    pos: NDArray[np.float64]  # (R, N, 3)
+    cells: NDArray[np.float64]  # (R, C, 3)
+    obstacles: NDArray[np.float64]  # (R, O, 3) if obstacles move, else (1, O, 3)
+    conc: NDArray[np.float64]  # (R, N)
+    dist: NDArray[np.float64]  # (R, N)
+    step: NDArray[np.int64]  # (R,) the step each row shows
 
 
 # counters[] slots: where the run is, and what it has spent

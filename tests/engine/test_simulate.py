@@ -184,20 +184,6 @@ def test_progress_reaches_one_at_the_end() -> None:
     assert seen[-1].fraction == 1.0 and seen[-1].episode == seen[-1].episodes == 3
 
 
-def test_large_swarms_record_a_strided_history_within_budget() -> None:
-    s = scenario(
-        robots={"count": 2000, "policy": "random"},
-        learning={"episodes": 0, "max_steps": 1500},
-        obstacles={"count": 0},
-    )
-    t = simulate(s).trajectory
-    assert t is not None
-    assert t.stride > 1
-    assert t.robots.shape[0] * 2000 <= 2_000_000 + 2 * 2000
-    assert t.step[0] == 0 and t.step[-1] == 1500
-    assert (np.diff(t.step) > 0).all()
-
-
 def test_the_episode_ends_on_the_step_the_last_robot_reaches_a_cell() -> None:
     # fast-drifting cells often arrive at a robot rather than the other way round
     for seed in range(6):
