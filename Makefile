@@ -38,6 +38,7 @@ pytest: $(VENV)/.installed-test
 
 bench: $(VENV)/.installed
 	$(BIN)/python benchmarks/engine.py
+	$(BIN)/python benchmarks/cost.py
 	$(BIN)/python benchmarks/service.py
 
 clean:

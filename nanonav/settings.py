@@ -50,6 +50,14 @@ class Settings(BaseSettings):
         validation_alias=_aliases("robot_steps_budget"),
         description="Largest robots x max_steps x (episodes + 1) a submitted scenario may cost.",
     )
+    work_budget: int = Field(
+        500_000_000_000,
+        ge=1,
+        validation_alias=_aliases("work_budget"),
+        description="Largest Scenario.work a submitted scenario may cost: robot-steps weighed by "
+        "the field sources, obstacles and cells each one goes through, in units of about a "
+        "nanosecond of one core (5e11: about ten minutes at most on one core).",
+    )
     job_time_limit_s: float = Field(
         3600.0,
         gt=0,

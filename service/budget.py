@@ -8,7 +8,7 @@ from nanonav.scenario import Scenario
 from nanonav.settings import Settings
 from service.problems import BudgetExceeded, FieldError, field_error
 
-BUDGET_FIELDS = (("robots", "count"), ("learning", "max_steps"), ("learning", "episodes"))
+STEPS_FIELDS = (("robots", "count"), ("learning", "max_steps"), ("learning", "episodes"))
 
 
 def over_budget(scenario: Scenario, settings: Settings) -> str | None:
@@ -16,10 +16,26 @@ def over_budget(scenario: Scenario, settings: Settings) -> str | None:
     if scenario.robot_steps_budget > settings.robot_steps_budget:
         return (
             f"robots.count x learning.max_steps x (learning.episodes + 1) = "
-            f"{scenario.robot_steps_budget} robot-steps, over the budget of "
-            f"{settings.robot_steps_budget}"
+            f"{scenario.robot_steps_budget:,} robot-steps, over the budget of "
+            f"{settings.robot_steps_budget:,}"
+        )
+    if scenario.work > settings.work_budget:
+        return (
+            f"the run would cost {scenario.work:.3g} work units (robot-steps weighed by the "
+            f"{scenario.sources} field sources, {scenario.obstacles.count} obstacles and "
+            f"{scenario.cells.count} cells each goes through), over the budget of "
+            f"{settings.work_budget:.3g}: fewer robots, steps, episodes, cells, emitters or "
+            "obstacles fit"
         )
     return None
+
+
+def cost_fields(scenario: Scenario) -> list[tuple[str, str]]:
+    """The fields that set a scenario's cost, to name in a refusal."""
+    fields = [*STEPS_FIELDS, ("cells", "count"), ("obstacles", "count")]
+    if scenario.biomarker.model == "inverse_square":
+        fields.append(("biomarker", "emitters_per_cell"))
+    return fields
 
 
 def check_budget(
@@ -30,6 +46,9 @@ def check_budget(
     detail = over_budget(scenario, settings)
     if detail is None:
         return
-    where = blame if blame is not None else [("body", *loc) for loc in BUDGET_FIELDS]
+    if blame is None:
+        loc = STEPS_FIELDS if "robot-steps," in detail else cost_fields(scenario)
+        blame = [("body", *field) for field in loc]
+    where = blame
     errors: list[FieldError] = [field_error(loc, detail, "budget_exceeded") for loc in where]
     raise BudgetExceeded(detail, errors)

@@ -99,6 +99,23 @@ def test_a_scenario_over_the_work_budget_is_refused_with_422(api: Api) -> None:
     assert api.store.page(status=None, limit=10, before_id=None).jobs == []
 
 
+def test_a_cheap_count_of_robot_steps_over_the_work_budget_is_refused(api: Api) -> None:
+    # 25 million robot-steps (2.5 % of the robot-step budget) among 100,000 emitters would
+    # hold a worker for about an hour
+    scenario = {
+        "cells": {"count": 100},
+        "biomarker": {"model": "inverse_square", "emitters_per_cell": 1000},
+        "robots": {"count": 25},
+        "learning": {"episodes": 999, "max_steps": 1000},
+    }
+    body = assert_problem(api.client.post("/jobs", json=scenario), 422)
+    assert body["type"].endswith("budget-exceeded")
+    assert "100000 field sources" in body["detail"]
+    assert "#/biomarker/emitters_per_cell" in {e["pointer"] for e in body["errors"]}
+    scenario["learning"]["episodes"] = 99  # a tenth of it fits
+    assert api.client.post("/jobs", json=scenario).status_code == 202
+
+
 def test_the_budget_comes_from_the_settings(sqlite_url: str) -> None:
     from nanonav.store.migrate import upgrade
 

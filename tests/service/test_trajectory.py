@@ -18,7 +18,7 @@ from service.app import create_app
 from tests.conftest import serve
 from worker.job import run_job
 
-SCENARIO = {"robots": {"count": 2}, "learning": {"episodes": 0, "max_steps": 60}}
+SCENARIO = {"robots": {"count": 4}, "learning": {"episodes": 0, "max_steps": 60}}
 
 
 def test_trajectory_answers_are_bounded_and_say_how_to_get_the_rest(sqlite_url: str) -> None:
@@ -37,12 +37,14 @@ def test_trajectory_answers_are_bounded_and_say_how_to_get_the_rest(sqlite_url: 
         assert refused.status_code == 422
         problem = refused.json()
         assert problem["errors"][0]["parameter"] == "stride"
-        assert "?stride=5" in problem["detail"] and "format=npz" in problem["detail"]
+        assert "?stride=2 or more" in problem["detail"] and "format=npz" in problem["detail"]
 
-        fits = client.get(f"/jobs/{job.id}/trajectory", params={"stride": 5})
+        fits = client.get(f"/jobs/{job.id}/trajectory", params={"stride": 2})
         assert fits.status_code == 200, fits.text
         body = fits.json()
-        assert body["steps"][:3] == [0, 5, 10] and body["steps"][-1] == int(stored["step"][-1])
+        assert body["steps"][:3] == [0, 2, 4] and body["steps"][-1] == int(stored["step"][-1])
+        assert len(body["obstacles"]) == 1  # they stand still: recorded once
+        assert len(body["robots"]) == len(body["steps"])
 
         npz = client.get(f"/jobs/{job.id}/trajectory", params={"format": "npz"})
         assert npz.content == store.trajectory_npz(job.id)
@@ -51,6 +53,8 @@ def test_trajectory_answers_are_bounded_and_say_how_to_get_the_rest(sqlite_url: 
         text = client.get(f"/jobs/{job.id}/trajectory", params={"format": "csv"}).text
         table = list(csv.DictReader(io.StringIO(text)))
         robots = [r for r in table if r["kind"] == "robot"]
-        assert len(robots) == 2 * rows
-        assert float(robots[-1]["x"]) == stored["robots"][-1, 1, 0]
+        assert len(robots) == 4 * rows
+        assert float(robots[-1]["x"]) == stored["robots"][-1, 3, 0]
+        obstacles = [r for r in table if r["kind"] == "obstacle"]
+        assert len(obstacles) == 10 and {r["step"] for r in obstacles} == {"0"}
     store.close()
