@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
@@ -109,7 +110,7 @@ def _describe(values: NDArray[np.float64], confidence: float) -> Description:
         return Description(n=n, mean=mean, sd=0.0, ci_low=mean, ci_high=mean)
     mean = float(values.mean())
     sd = float(values.std(ddof=1))
-    half_width = float(stats.t.ppf(0.5 + confidence / 2, n - 1)) * sd / math.sqrt(n)
+    half_width = _t_quantile(0.5 + confidence / 2, n - 1) * sd / math.sqrt(n)
     return Description(n=n, mean=mean, sd=sd, ci_low=mean - half_width, ci_high=mean + half_width)
 
 
@@ -125,16 +126,69 @@ def describe(values: Sequence[float], confidence: float = DEFAULT_CONFIDENCE) ->
     return _describe(_finite_array(values, "values"), confidence)
 
 
+@lru_cache(maxsize=1024)
+def _t_quantile(p: float, df: int) -> float:
+    """Student t quantile; studies ask for the same few thousands of times."""
+    return float(stats.t.ppf(p, df))
+
+
+def _average_ranks(values: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Ranks from 1, ties sharing their mean rank (as ``scipy.stats.rankdata``, without its
+    per-call overhead)."""
+    order = np.argsort(values, kind="stable")
+    ordered = values[order]
+    starts_group = np.r_[True, ordered[1:] != ordered[:-1]]
+    group = np.cumsum(starts_group) - 1
+    starts = np.flatnonzero(starts_group)
+    ends = np.r_[starts[1:], len(values)]
+    ranks = np.empty(len(values))
+    ranks[order] = ((starts + ends + 1) / 2)[group]
+    return ranks
+
+
 def _wilcoxon_p_value(differences: NDArray[np.float64]) -> float:
-    """Two-sided p-value of the signed-rank test; see ``paired`` for the choices made."""
+    """Two-sided p-value of the signed-rank test; see ``paired`` for the choices made.
+
+    The test sees only the signed ranks, so the p-value is computed from them, and for up to
+    ``EXACT_MAX_PAIRS`` pairs remembered: a study with many grid points and few seeds asks for
+    the same few sign patterns thousands of times."""
     nonzero = differences[differences != 0]
     n = len(nonzero)
     if n == 0:
         return 1.0
-    ranks = stats.rankdata(np.abs(nonzero))
+    signed = np.sign(nonzero) * _average_ranks(np.abs(nonzero))
+    if n <= EXACT_MAX_PAIRS:
+        return _signed_rank_p_remembered(tuple(sorted(signed.tolist())))
+    return _signed_rank_p(signed)
+
+
+@lru_cache(maxsize=EXACT_MAX_PAIRS)
+def _signed_rank_counts(n: int) -> NDArray[np.float64]:
+    """How many of the 2**n sign patterns of the ranks 1..n give each sum of positive ranks
+    (0 .. n(n+1)/2): the exact null distribution of the statistic without ties."""
+    counts = np.zeros(n * (n + 1) // 2 + 1)
+    counts[0] = 1.0
+    for rank in range(1, n + 1):
+        counts[rank:] = counts[rank:] + counts[:-rank].copy()
+    return counts
+
+
+@lru_cache(maxsize=8192)
+def _signed_rank_p_remembered(signed: tuple[float, ...]) -> float:
+    return _signed_rank_p(np.array(signed))
+
+
+def _signed_rank_p(nonzero: NDArray[np.float64]) -> float:
+    """The p-value of non-zero signed ranks (ties share their mean rank)."""
+    n = len(nonzero)
+    ranks = np.abs(nonzero)
     tied = len(np.unique(ranks)) < n
     if not tied and n <= EXACT_MAX_PAIRS:
-        p = stats.wilcoxon(nonzero, method="exact").pvalue
+        positive = int(ranks[nonzero > 0].sum())
+        counts = _signed_rank_counts(n)
+        below = counts[: positive + 1].sum()
+        above = counts[positive:].sum()
+        p = 2 * min(below, above) / counts.sum()
     elif tied and n <= PERMUTATION_MAX_PAIRS:
         # What scipy's method="auto" does here, with a statistic that takes a whole batch of sign
         # patterns at once: about thirty times faster than scipy's own loop over them at 13 pairs.
