@@ -22,7 +22,7 @@ from nanonav.engine import Progress, SimulationResult, simulate
 from nanonav.scenario import Scenario
 from nanonav.settings import Settings
 from nanonav.store import Claim, JobRecord, JobStore, LeaseLost, Outcome
-from nanonav.studies.report import job_digest
+from nanonav.studies.report import learning_curve, study_metrics
 
 logger = logging.getLogger(__name__)
 
@@ -153,7 +153,8 @@ def outcome(result: SimulationResult) -> Outcome:
         metrics=metrics,
         trajectory=trajectory or None,
         qtable=qtable,
-        digest=job_digest(metrics) if result.completed else None,
+        study_metrics=study_metrics(metrics) if result.completed else None,
+        curve=learning_curve(metrics) if result.completed else None,
     )
 
 

@@ -1,7 +1,8 @@
 """The tables of the job store.
 
 ``jobs`` is the queue and the state machine; ``job_results`` holds what a finished run produced
-(metrics as JSON, arrays as ``.npz`` blobs, and a small digest a study reads) and ``job_plots``
+(metrics as JSON, arrays as ``.npz`` blobs, and the few metrics and the binned learning curve a
+study reads, apart so that a study never loads the rest) and ``job_plots``
 the PNGs drawn the first time each was asked for. ``studies`` groups jobs (a grid of scenarios
 x seeds); ``study_plots`` keeps the pictures of finished studies. ``workers`` says which worker
 processes were seen lately.
@@ -140,7 +141,8 @@ class JobResult(Base):
     metrics: Mapped[dict[str, Any]] = mapped_column(JSON)
     trajectory: Mapped[bytes | None] = mapped_column(LargeBinary)
     qtable: Mapped[bytes | None] = mapped_column(LargeBinary)
-    digest: Mapped[dict[str, Any] | None] = mapped_column(JSON)
+    study_metrics: Mapped[dict[str, Any] | None] = mapped_column(JSON)
+    curve: Mapped[dict[str, Any] | None] = mapped_column(JSON)
 
 
 class JobPlot(Base):

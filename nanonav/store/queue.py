@@ -96,7 +96,8 @@ class Outcome:
     metrics: dict[str, Any]
     trajectory: Mapping[str, NDArray[Any]] | None
     qtable: Mapping[str, NDArray[Any]] | None
-    digest: dict[str, Any] | None = None  # what a study reads of the job
+    study_metrics: dict[str, Any] | None = None  # what a study reads of the job
+    curve: dict[str, Any] | None = None  # its learning curve, binned, for a study's pictures
 
 
 @dataclass(frozen=True)
@@ -378,7 +379,8 @@ class JobStore:
                     metrics=outcome.metrics,
                     trajectory=None if outcome.trajectory is None else pack(outcome.trajectory),
                     qtable=None if outcome.qtable is None else pack(outcome.qtable),
-                    digest=outcome.digest,
+                    study_metrics=outcome.study_metrics,
+                    curve=outcome.curve,
                 )
             )
             return JobRecord.of(row)

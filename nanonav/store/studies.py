@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from datetime import datetime
 from typing import Any
 
-from sqlalchemy import Engine, func, insert, select, update
+from sqlalchemy import JSON, Engine, func, insert, literal, select, update
 from sqlalchemy.exc import IntegrityError
 
 from nanonav.store.db import make_sessionmaker, unit_of_work
@@ -57,7 +57,7 @@ class StudyRecord:
 
 @dataclass(frozen=True)
 class StudyJobState:
-    """Where one of a study's jobs is, and its digest once it succeeded."""
+    """Where one of a study's jobs is, and what a study reads of it once it succeeded."""
 
     job_id: int
     point: int
@@ -65,7 +65,8 @@ class StudyJobState:
     status: JobStatus
     fraction: float
     finished_at: datetime | None
-    digest: dict[str, Any] | None
+    metrics: dict[str, Any] | None
+    curve: dict[str, Any] | None
 
 
 @dataclass(frozen=True)
@@ -148,8 +149,10 @@ class StudyStore:
         rows = rows[:limit]
         return StudyPage(studies=rows, next_before_id=rows[-1].id if more else None)
 
-    def job_states(self, study_id: int) -> list[StudyJobState]:
-        """Every job of the study, in id order, with the digest of those that succeeded."""
+    def job_states(self, study_id: int, *, curves: bool = False) -> list[StudyJobState]:
+        """Every job of the study, in id order, with the metrics of those that succeeded (and
+        their learning curves if ``curves``: larger, and only pictures need them)."""
+        curve = JobResult.curve if curves else literal(None, JSON)
         query = (
             select(
                 Job.id,
@@ -158,7 +161,8 @@ class StudyStore:
                 Job.status,
                 Job.fraction,
                 Job.finished_at,
-                JobResult.digest,
+                JobResult.study_metrics,
+                curve,
             )
             .outerjoin(
                 JobResult, (JobResult.job_id == Job.id) & (Job.status == JobStatus.SUCCEEDED)
@@ -176,10 +180,11 @@ class StudyStore:
                     status=JobStatus(status),
                     fraction=fraction,
                     finished_at=finished_at,
-                    digest=digest,
+                    metrics=metrics,
+                    curve=learning,
                 )
-                for job_id, point, seed, status, fraction, finished_at, digest in session.execute(
-                    query
+                for job_id, point, seed, status, fraction, finished_at, metrics, learning in (
+                    session.execute(query)
                 )
             ]
 

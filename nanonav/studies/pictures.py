@@ -75,9 +75,9 @@ def learning_png(
     panels: dict[str, list[study_plots.Series]] = {title: [] for title in LEARNING_PANELS.values()}
     for index, point_values in enumerate(values):
         curves = [
-            job.digest["curve"]
+            job.curve
             for job in jobs
-            if job.point == index and job.status == "succeeded" and job.digest is not None
+            if job.point == index and job.status == "succeeded" and job.curve is not None
         ]
         if not curves:
             continue

@@ -1,7 +1,7 @@
 """What a study's jobs add up to: per grid point and metric, n, mean, sd and a confidence
 interval; with ``compare``, paired differences seed by seed against the first value listed.
 
-Pure functions over plain data: the store supplies each job's status and digest, the API and
+Pure functions over plain data: the store supplies each job's status and metrics, the API and
 the command line show what comes out. Only succeeded jobs enter the statistics; the others are
 counted, per status, beside them.
 """
@@ -30,7 +30,7 @@ METRICS = (
     "collisions",
     "path_efficiency",
 )
-# The learning curve a digest keeps, at most this many points (episodes averaged in bins).
+# A job's learning curve is kept at most this many points long (episodes averaged in bins).
 CURVE_POINTS = 200
 CURVE_KEYS = ("steps", "success_rate", "mean_return")
 STATUSES = ("queued", "running", "succeeded", "failed", "cancelled")
@@ -44,14 +44,20 @@ class JobOutcome:
     point: int
     seed: int
     status: str
-    digest: dict[str, Any] | None  # None unless it succeeded
+    metrics: dict[str, Any] | None  # its METRICS; None unless it succeeded
+    curve: dict[str, list[float]] | None = None  # its binned learning curve, when asked for
 
 
-def job_digest(metrics: dict[str, Any]) -> dict[str, Any]:
-    """What a study keeps of a succeeded job: its summary metrics and its learning curve
-    averaged in at most ``CURVE_POINTS`` bins (jobs of one grid point bin alike)."""
-    summary = metrics.get("summary") or {}
-    episodes = metrics.get("episodes") or []
+def study_metrics(document: dict[str, Any]) -> dict[str, Any]:
+    """The metrics a study reads of a succeeded job's metrics document."""
+    summary = document.get("summary") or {}
+    return {key: summary.get(key) for key in METRICS}
+
+
+def learning_curve(document: dict[str, Any]) -> dict[str, list[float]]:
+    """A job's learning curve averaged in at most ``CURVE_POINTS`` bins of episodes (jobs of one
+    grid point have as many episodes, so they bin alike)."""
+    episodes = document.get("episodes") or []
     bins = max(1, math.ceil(len(episodes) / CURVE_POINTS))
     curve: dict[str, list[float]] = {"episode": [], **{key: [] for key in CURVE_KEYS}}
     for start in range(0, len(episodes), bins):
@@ -59,7 +65,7 @@ def job_digest(metrics: dict[str, Any]) -> dict[str, Any]:
         curve["episode"].append(float(np.mean([e["episode"] for e in chunk])))
         for key in CURVE_KEYS:
             curve[key].append(float(np.mean([float(e[key]) for e in chunk])))
-    return {"summary": {key: summary.get(key) for key in METRICS}, "curve": curve}
+    return curve
 
 
 StudyStatus = Literal["queued", "running", "succeeded", "failed", "cancelled"]
@@ -84,9 +90,9 @@ def status_counts(jobs: Sequence[JobOutcome]) -> Counter[str]:
 
 
 def _value(job: JobOutcome, metric: str) -> float | None:
-    if job.status != "succeeded" or job.digest is None:
+    if job.status != "succeeded" or job.metrics is None:
         return None
-    value = job.digest["summary"].get(metric)
+    value = job.metrics.get(metric)
     return None if value is None or not math.isfinite(value) else float(value)
 
 

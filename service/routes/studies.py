@@ -221,7 +221,7 @@ async def _draw(drawer: Drawer, studies: StudyStore, study_id: int, name: str) -
 
 
 def _draw_now(studies: StudyStore, study_id: int, name: str, finished: list[bool]) -> bytes:
-    loaded = _Loaded.of(studies, studies.get(study_id))
+    loaded = _Loaded.of(studies, studies.get(study_id), curves=name == "learning")
     if name == "learning":
         png = pictures.learning_png(loaded.spec, point_values(loaded.spec), loaded.outcomes)
     else:
@@ -243,9 +243,12 @@ class _Loaded:
     status: StudyStatus
 
     @classmethod
-    def of(cls, studies: StudyStore, record: StudyRecord) -> _Loaded:
-        states = studies.job_states(record.id)
-        outcomes = [JobOutcome(s.job_id, s.point, s.seed, s.status.value, s.digest) for s in states]
+    def of(cls, studies: StudyStore, record: StudyRecord, *, curves: bool = False) -> _Loaded:
+        states = studies.job_states(record.id, curves=curves)
+        outcomes = [
+            JobOutcome(s.job_id, s.point, s.seed, s.status.value, s.metrics, s.curve)
+            for s in states
+        ]
         status = status_of(status_counts(outcomes), record.cancel_requested)
         spec = StudySpec.model_validate(record.spec)
         return cls(record, spec, states, outcomes, status)

@@ -1,5 +1,5 @@
 """A study's report: failed jobs counted beside the statistics, never in them; pairs only on
-seeds where both jobs succeeded; digests bin long learning curves."""
+seeds where both jobs succeeded; long learning curves are binned."""
 
 from __future__ import annotations
 
@@ -12,9 +12,10 @@ import pytest
 from nanonav.studies.report import (
     METRICS,
     JobOutcome,
-    job_digest,
+    learning_curve,
     report,
     status_of,
+    study_metrics,
     table,
 )
 from nanonav.studies.spec import StudySpec, point_values
@@ -29,8 +30,8 @@ def outcome(job_id: int, point: int, seed: int, steps: float | None, status: str
             ) -> JobOutcome:  # fmt: skip
     if status != "succeeded":
         return JobOutcome(job_id, point, seed, status, None)
-    summary = {metric: 1.0 for metric in METRICS} | {"total_steps": steps}
-    return JobOutcome(job_id, point, seed, status, {"summary": summary, "curve": {}})
+    metrics = {metric: 1.0 for metric in METRICS} | {"total_steps": steps}
+    return JobOutcome(job_id, point, seed, status, metrics)
 
 
 JOBS = [
@@ -91,20 +92,21 @@ def test_a_studys_status_follows_its_jobs(
     assert status_of(Counter(counts), cancelled) == expected
 
 
-def test_a_digest_keeps_the_summary_and_bins_a_long_learning_curve() -> None:
+def test_a_job_keeps_its_study_metrics_and_a_binned_learning_curve() -> None:
     episodes: list[dict[str, Any]] = [
         {"episode": e, "steps": e, "success_rate": e % 2, "mean_return": 2.0 * e}
         for e in range(1000)
     ]
-    digest = job_digest({"summary": {"total_steps": 7, "robots": 1}, "episodes": episodes})
-    assert digest["summary"]["total_steps"] == 7 and "robots" not in digest["summary"]
-    curve = digest["curve"]
+    document = {"summary": {"total_steps": 7, "robots": 1}, "episodes": episodes}
+    kept = study_metrics(document)
+    assert kept["total_steps"] == 7 and "robots" not in kept and set(kept) == set(METRICS)
+    curve = learning_curve(document)
     assert len(curve["episode"]) == 200
     assert curve["episode"][0] == 2.0 and curve["steps"][0] == 2.0  # mean of episodes 0..4
     assert curve["success_rate"][0] == pytest.approx(0.4)
     assert curve["mean_return"][-1] == pytest.approx(2.0 * statistics.fmean(range(995, 1000)))
-    short = job_digest({"summary": {}, "episodes": episodes[:3]})
-    assert short["curve"]["steps"] == [0.0, 1.0, 2.0]
+    short = learning_curve({"summary": {}, "episodes": episodes[:3]})
+    assert short["steps"] == [0.0, 1.0, 2.0]
 
 
 def test_the_table_has_a_row_per_job_with_empty_metrics_unless_it_succeeded() -> None:

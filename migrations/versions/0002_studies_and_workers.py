@@ -1,4 +1,4 @@
-"""Studies and their plots, job digests, and the workers seen.
+"""Studies and their plots, what a study reads of a job, and the workers seen.
 
 Revision ID: 0002
 Revises: 0001
@@ -39,7 +39,8 @@ def upgrade() -> None:
         )
         batch.create_index(op.f("ix_jobs_study_id_id"), ["study_id", "id"])
     with op.batch_alter_table("job_results") as batch:
-        batch.add_column(sa.Column("digest", sa.JSON(), nullable=True))
+        batch.add_column(sa.Column("study_metrics", sa.JSON(), nullable=True))
+        batch.add_column(sa.Column("curve", sa.JSON(), nullable=True))
     op.create_table(
         "study_plots",
         sa.Column("study_id", sa.Integer(), nullable=False),
@@ -68,7 +69,8 @@ def downgrade() -> None:
     op.drop_table("workers")
     op.drop_table("study_plots")
     with op.batch_alter_table("job_results") as batch:
-        batch.drop_column("digest")
+        batch.drop_column("curve")
+        batch.drop_column("study_metrics")
     with op.batch_alter_table("jobs") as batch:
         batch.drop_index(op.f("ix_jobs_study_id_id"))
         batch.drop_constraint(op.f("fk_jobs_study_id_studies"), type_="foreignkey")
