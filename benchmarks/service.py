@@ -2,9 +2,9 @@
 
 Prints, for a tiny job (1 robot, 1 training episode + the evaluation, 50 steps):
 - submit-to-succeeded latency, one job at a time (p50, p95);
-- throughput: jobs per second through the API and both workers, all submitted at once;
+- throughput: jobs per second through the API and the workers (two, or --workers), all at once;
 - pictures: the first request of each (drawn then), and later requests (read from the store);
-- ``GET /jobs/{id}`` and ``POST /jobs`` latency while both workers run longer jobs;
+- ``GET /jobs/{id}`` and ``POST /jobs`` latency while the workers run longer jobs;
 - the database's growth per tiny job;
 - a study of ``paper-single`` defaults x 2 policies x 100 seeds (200 jobs): wall time, jobs/s.
 
@@ -33,7 +33,7 @@ from typing import Any
 import httpx
 
 TINY: dict[str, Any] = {"robots": {"count": 1}, "learning": {"episodes": 1, "max_steps": 50}}
-# A few seconds of simulation each: keeps both workers busy while latency is measured.
+# A few seconds of simulation each: keeps the workers busy while latency is measured.
 BUSY: dict[str, Any] = {"preset": "paper-swarm", "learning": {"episodes": 2000}}
 PICTURES = (
     "heatmap.png?plane=xy",
@@ -211,7 +211,7 @@ def pictures(client: httpx.Client, job_id: int, repeats: int) -> None:
 
 
 def while_busy(client: httpx.Client, tiny_job: int, busy_jobs: int) -> None:
-    """Latency of reads and submissions while both workers run longer jobs."""
+    """Latency of reads and submissions while the workers run longer jobs."""
     ids = [submit(client, {**BUSY, "seed": seed}) for seed in range(busy_jobs)]
     gets: list[float] = []
     posts: list[float] = []
@@ -238,7 +238,7 @@ def while_busy(client: httpx.Client, tiny_job: int, busy_jobs: int) -> None:
     wait_all(client, ids)
     done.set()
     reader.join()
-    print(f"\nwhile both workers run {busy_jobs} jobs of a few seconds ({BUSY}):")
+    print(f"\nwhile the workers run {busy_jobs} jobs of a few seconds ({BUSY}):")
     print(f"  GET /jobs/{{id}}  {len(gets)} requests: {spread(gets)}")
     print(f"  POST /jobs      {len(posts)} requests: {spread(posts)}")
     print(f"  mean GET {1000 * statistics.fmean(gets):.1f} ms")
@@ -281,14 +281,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--picture-repeats", type=int, default=20)
     parser.add_argument("--busy-jobs", type=int, default=4)
     parser.add_argument("--study-seeds", type=int, default=100)
+    parser.add_argument("--workers", type=int, default=2, help="worker processes (default 2)")
     parser.add_argument("--quick", action="store_true", help="a smoke run with few jobs")
     args = parser.parse_args(argv)
     if args.quick:
         args.latency_jobs, args.throughput_jobs = 3, 20
         args.picture_repeats, args.busy_jobs, args.study_seeds = 2, 0, 3
     print(f"tiny job: {TINY}")
-    print(f"cores: {os.cpu_count()}, SQLite, 1 API process, 2 worker processes\n")
-    with service() as running:
+    print(f"cores: {os.cpu_count()}, SQLite, 1 API process, {args.workers} worker processes\n")
+    with service(args.workers) as running:
         latency(running.client, args.latency_jobs)
         ids = throughput(running, args.throughput_jobs)
         pictures(running.client, ids[-1], args.picture_repeats)
