@@ -10,7 +10,8 @@ from typing import Any, TypeAlias
 from pydantic import ValidationError
 
 EXIT_OK = 0
-EXIT_USAGE = 2  # input the user can fix
+EXIT_FAILED = 1  # the work failed, or a server could not be reached or failed
+EXIT_USAGE = 2  # input the user can fix, here or as the server judged it (a 4xx answer)
 EXIT_INTERRUPTED = 130
 
 # Quoted: argparse's class cannot be subscripted at run time.
@@ -19,6 +20,14 @@ Subcommands: TypeAlias = "argparse._SubParsersAction[argparse.ArgumentParser]"
 
 class UsageError(Exception):
     """Input the user can fix: one message per line, printed to stderr with exit code 2."""
+
+    def __init__(self, lines: list[str]) -> None:
+        super().__init__("\n".join(lines))
+        self.lines = lines
+
+
+class Failed(Exception):
+    """Work that ran and did not succeed (a failed or cancelled job): exit code 1."""
 
     def __init__(self, lines: list[str]) -> None:
         super().__init__("\n".join(lines))

@@ -1,11 +1,18 @@
-"""What the command prints as text: Table 1 of a run. Pure functions of plain data."""
+"""What the command prints as text: Table 1 of a run, a study's intervals and comparisons, and
+a list of jobs. Pure functions of plain data, so a local run and a job fetched from a server
+print alike."""
 
 from __future__ import annotations
 
+import textwrap
 from collections.abc import Mapping, Sequence
+from datetime import datetime
 from typing import Any
 
+from nanonav.client import Job, Study
+
 MAX_ROBOT_ROWS = 20
+WIDTH = 100  # where notes under a table wrap
 
 
 def text_table(
@@ -48,7 +55,7 @@ def _percent(value: Any) -> str:
     return "n/a" if value is None else f"{100 * float(value):.1f}%"
 
 
-def _plural(count: int, word: str) -> str:
+def plural(count: int, word: str) -> str:
     return f"{count} {word}{'s' if count != 1 else ''}"
 
 
@@ -72,7 +79,7 @@ def format_table(document: Mapping[str, Any]) -> str:
     robots = int(scenario["robots"]["count"])
     header = (
         f"Table 1: {scenario.get('preset') or 'custom scenario'}, seed {scenario['seed']}, "
-        f"{_plural(robots, 'robot')}, {_plural(int(scenario['cells']['count']), 'cell')}, "
+        f"{plural(robots, 'robot')}, {plural(int(scenario['cells']['count']), 'cell')}, "
         f"{scenario['robots']['policy']}, "
         f"{scenario['learning']['episodes']} training episodes + evaluation"
     )
@@ -101,3 +108,124 @@ def format_table(document: Mapping[str, Any]) -> str:
                 f"... and {len(robots_rows) - len(shown)} more robots (see --json or metrics.json)"
             )
     return "\n".join(lines)
+
+
+# ---------------------------------------------------------------- studies
+
+
+def _figure(value: float | None) -> str:
+    """Four significant digits, thousands grouped, ``n/a`` for a missing value."""
+    if value is None:
+        return "n/a"
+    if value != 0 and 1e4 <= abs(value) < 1e12:
+        return f"{value:,.0f}"
+    return f"{value:.4g}"
+
+
+def _interval(low: float | None, high: float | None) -> str:
+    return "n/a" if low is None or high is None else f"[{_figure(low)}, {_figure(high)}]"
+
+
+def _p(value: float | None) -> str:
+    if value is None:
+        return "n/a"
+    return "<0.001" if value < 0.001 else f"{value:.3f}"
+
+
+def study_counts(study: Study) -> str:
+    """``4 jobs: 3 succeeded, 1 failed, 0 cancelled`` (and those still queued or running)."""
+    jobs = study.jobs
+    parts = [f"{jobs.succeeded} succeeded", f"{jobs.failed} failed", f"{jobs.cancelled} cancelled"]
+    if jobs.running:
+        parts.append(f"{jobs.running} running")
+    if jobs.queued:
+        parts.append(f"{jobs.queued} queued")
+    return f"{plural(jobs.total, 'job')}: {', '.join(parts)}"
+
+
+def format_study(study: Study) -> str:
+    """A study's statistics: per grid point and metric n, mean and 95% CI; with ``compare``,
+    the paired differences against the baseline, their CI and p-value; and what became of its
+    jobs (failed jobs are counted, never averaged in)."""
+    name = f' "{study.name}"' if study.name else ""
+    lines = [f"Study {study.id}{name}: {study.status}, {study_counts(study)}"]
+    keys = list(study.spec.get("grid") or {})
+    rows = []
+    for point in study.points:
+        for i, metric in enumerate(study.metrics):
+            found = point.metrics[metric]
+            where = [str(point.values[k]) if i == 0 else "" for k in keys]
+            rows.append(
+                (
+                    *where,
+                    metric,
+                    str(found.n),
+                    _figure(found.mean),
+                    _interval(found.ci_low, found.ci_high),
+                )
+            )
+    columns = (*keys, "metric", "n", "mean", "95% CI")
+    right = (*(False for _ in keys), False, True, True, True)
+    lines += ["", *text_table(columns, rows, align_right=right)]
+    if study.interval:
+        lines += textwrap.wrap(f"Intervals: {study.interval}", WIDTH)
+    if study.comparisons:
+        compared = study.spec.get("compare")
+        others = [k for k in keys if k != compared]
+        rows = []
+        for comparison in study.comparisons:
+            for i, metric in enumerate(study.metrics):
+                diff = comparison.metrics[metric]
+                where = [str(comparison.values[k]) if i == 0 else "" for k in others]
+                pair = f"{comparison.method} - {comparison.baseline}" if i == 0 else ""
+                rows.append(
+                    (
+                        *where,
+                        pair,
+                        metric,
+                        str(diff.n),
+                        _figure(diff.mean_difference),
+                        _interval(diff.ci_low, diff.ci_high),
+                        _p(diff.p_value),
+                    )
+                )
+        columns = (*others, str(compared), "metric", "n", "mean diff", "95% CI", "p")
+        right = (*(False for _ in others), False, False, True, True, True, True)
+        lines += ["", f"Paired differences, seed by seed ({compared}):"]
+        lines += text_table(columns, rows, align_right=right)
+        if study.test:
+            lines += textwrap.wrap(f"p-values: {study.test}", WIDTH)
+    if study.jobs.failed:
+        lines += ["", f"{plural(study.jobs.failed, 'failed job')} left out of the means"]
+    return "\n".join(lines)
+
+
+# ---------------------------------------------------------------- jobs
+
+
+def _when(moment: datetime) -> str:
+    local = moment.astimezone() if moment.tzinfo is not None else moment
+    return local.strftime("%Y-%m-%d %H:%M:%S")
+
+
+def format_jobs(jobs: Sequence[Job]) -> str:
+    """A line per job: id, status, progress, policy, robots, seed, study and when it came
+    (local time)."""
+    rows = []
+    for job in jobs:
+        robots = job.scenario.get("robots") or {}
+        rows.append(
+            (
+                str(job.id),
+                job.status,
+                f"{100 * job.progress:.0f}%",
+                str(robots.get("policy", "")),
+                str(robots.get("count", "")),
+                str(job.scenario.get("seed", "")),
+                "-" if job.study_id is None else str(job.study_id),
+                _when(job.created_at),
+            )
+        )
+    columns = ("id", "status", "progress", "policy", "robots", "seed", "study", "created")
+    right = (True, False, True, False, True, True, True, False)
+    return "\n".join(text_table(columns, rows, align_right=right))
