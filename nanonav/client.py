@@ -22,7 +22,7 @@ import csv
 import io
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from datetime import datetime
 from pathlib import Path
 from types import TracebackType
@@ -298,7 +298,7 @@ class Study(StudySummary):
                     index=int(p["index"]),
                     values=p["values"],
                     jobs=p["jobs"],
-                    metrics={k: Interval(**v) for k, v in p["metrics"].items()},
+                    metrics={k: _known(Interval, v) for k, v in p["metrics"].items()},
                 )
                 for p in data["points"]
             ],
@@ -307,13 +307,21 @@ class Study(StudySummary):
                     values=c["values"],
                     method=c["method"],
                     baseline=c["baseline"],
-                    metrics={k: Difference(**v) for k, v in c["metrics"].items()},
+                    metrics={k: _known(Difference, v) for k, v in c["metrics"].items()},
                 )
                 for c in data["comparisons"]
             ],
             interval=str(data.get("interval", "")),
             test=str(data.get("test", "")),
         )
+
+
+_D = TypeVar("_D", JobCounts, Interval, Difference)
+
+
+def _known(kind: type[_D], data: Mapping[str, Any]) -> _D:
+    """``kind`` from the keys it knows, so that a newer server's extra keys break nothing."""
+    return kind(**{f.name: data[f.name] for f in fields(kind)})
 
 
 def _summary_fields(data: dict[str, Any]) -> dict[str, Any]:
@@ -323,7 +331,7 @@ def _summary_fields(data: dict[str, Any]) -> dict[str, Any]:
         "status": cast(Status, data["status"]),
         "created_at": datetime.fromisoformat(data["created_at"]),
         "cancel_requested": bool(data["cancel_requested"]),
-        "jobs": JobCounts(**data["jobs"]),
+        "jobs": _known(JobCounts, data["jobs"]),
         "links": data.get("links") or {},
         "raw": data,
     }

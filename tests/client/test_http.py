@@ -143,3 +143,22 @@ def test_field_errors_without_a_pointer_name_the_parameter() -> None:
 def test_study_table_cells_parse_to_their_values(text: str, value: Any) -> None:
     parsed = parse_cell(text)
     assert parsed == value and type(parsed) is type(value)
+
+
+def test_keys_a_newer_server_adds_break_nothing() -> None:
+    interval = {"n": 2, "mean": 1.5, "sd": 0.5, "ci_low": -3.0, "ci_high": 6.0, "median": 1.5}
+    counts = {"total": 2, "queued": 0, "running": 0, "succeeded": 2, "failed": 0, "cancelled": 0}
+    study = {
+        "id": 3, "name": "", "status": "succeeded", "created_at": "2026-11-22T04:00:00+00:00",
+        "cancel_requested": False, "jobs": {**counts, "paused": 0}, "links": {},
+        "finished_at": None, "progress": 1.0, "spec": {"grid": {}, "seeds": [0, 1]},
+        "interval": "t", "test": "w", "metrics": ["total_steps"], "comparisons": [],
+        "points": [{"index": 0, "values": {}, "jobs": counts,
+                    "metrics": {"total_steps": interval}}],
+        "owner": "someone",
+    }  # fmt: skip
+    with client_for(lambda request: httpx.Response(200, json=study)) as (client, _):
+        found = client.study(3)
+    assert found.finished and found.jobs.finished == 2
+    assert found.points[0].metrics["total_steps"].ci_high == 6.0
+    assert found.raw["owner"] == "someone"
