@@ -15,6 +15,7 @@ from sqlalchemy.engine import make_url
 from sqlalchemy.exc import ArgumentError
 
 DEFAULT_DATABASE_URL = "sqlite:///var/nanonav.db"
+DEFAULT_API_URL = "http://127.0.0.1:8000"
 
 
 def _aliases(name: str, *unprefixed: str) -> AliasChoices:
@@ -141,6 +142,27 @@ class Settings(BaseSettings):
         if url.get_backend_name() not in {"sqlite", "postgresql"}:
             raise ValueError("only sqlite:// and postgresql:// databases are supported")
         return url.render_as_string(hide_password=False)
+
+
+class ClientSettings(BaseSettings):
+    """Configuration of the HTTP client and the commands that talk to a running API; apart
+    from ``Settings`` so that a client never needs (or validates) the server's database."""
+
+    model_config = SettingsConfigDict(env_prefix="NANONAV_", extra="ignore", frozen=True)
+
+    url: str = Field(
+        DEFAULT_API_URL,
+        validation_alias=_aliases("url"),
+        description="Base URL of the NanoNav API that `nanonav submit`, `study`, `fetch`, "
+        "`jobs` and `nanonav.client.Client` talk to.",
+    )
+
+    @field_validator("url")
+    @classmethod
+    def _http_url(cls, value: str) -> str:
+        if not value.startswith(("http://", "https://")):
+            raise ValueError(f"not an http:// or https:// URL: {value!r}")
+        return value.rstrip("/")
 
 
 @lru_cache(maxsize=1)

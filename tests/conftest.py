@@ -29,6 +29,7 @@ from nanonav.settings import Settings
 from nanonav.store import JobStore
 from nanonav.store.migrate import upgrade
 from service.app import create_app
+from tests.processes import ApiServer, Worker
 
 POSTGRES_URL = os.environ.get(
     "NANONAV_TEST_POSTGRES_URL", "postgresql+psycopg://postgres@127.0.0.1:5432/test"
@@ -143,3 +144,29 @@ def api(api_settings: Settings) -> Iterator[Api]:
     ):
         yield Api(url=url, client=client, database_url=api_settings.database_url, store=store)
     store.close()
+
+
+@dataclass
+class LiveApi:
+    """An API process and a worker process over one SQLite file, as a user runs them."""
+
+    url: str
+    database_url: str
+
+
+@pytest.fixture(scope="session")
+def live_api(tmp_path_factory: pytest.TempPathFactory) -> Iterator[LiveApi]:
+    """Started once per test session, with the worker's engine loaded, so the client and
+    command tests that share it run their jobs in milliseconds."""
+    directory = tmp_path_factory.mktemp("live")
+    url = sqlite_url_in(directory)
+    upgrade(url)
+    api = ApiServer(url, directory / "api.log")
+    worker = Worker(url, directory / "worker.log")
+    try:
+        api.wait_ready()
+        worker.wait_ready()
+        yield LiveApi(url=api.url, database_url=url)
+    finally:
+        api.terminate()
+        worker.terminate()

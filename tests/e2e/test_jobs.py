@@ -24,7 +24,7 @@ from nanonav.store import JobStore
 from nanonav.store.migrate import upgrade
 from service.app import create_app
 from tests.conftest import Api, serve
-from tests.e2e.conftest import FIRST_JOB_S, Worker
+from tests.processes import FIRST_JOB_S, Worker
 
 TINY: dict[str, Any] = {"robots": {"count": 2}, "learning": {"episodes": 2, "max_steps": 60}}
 # Random walkers in a big cube rarely reach the cell, so every episode uses all its steps:

@@ -2,10 +2,8 @@
 
 from __future__ import annotations
 
-import os
 import re
 import signal
-import socket
 import subprocess
 import sys
 import time
@@ -19,25 +17,10 @@ import pytest
 
 from nanonav.store import JobStatus, JobStore
 from nanonav.store.migrate import upgrade
+from tests.processes import clean_environment, free_port
 
 pytestmark = pytest.mark.timeout(240)
 TINY: dict[str, Any] = {"robots": {"count": 2}, "learning": {"episodes": 1, "max_steps": 40}}
-
-
-def free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        port: int = sock.getsockname()[1]
-        return port
-
-
-def clean_environment(**extra: str) -> dict[str, str]:
-    env = {
-        k: v
-        for k, v in os.environ.items()
-        if not k.startswith("NANONAV_") and k not in {"DATABASE_URL", "HOST", "PORT"}
-    }
-    return {**env, **extra}
 
 
 @contextmanager

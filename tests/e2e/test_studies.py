@@ -16,8 +16,8 @@ import pyarrow.parquet as pq
 import pytest
 
 from tests.conftest import Api
-from tests.e2e.conftest import FIRST_JOB_S, Worker
 from tests.e2e.test_jobs import LONG, decode_png
+from tests.processes import FIRST_JOB_S, Worker
 
 pytestmark = pytest.mark.timeout(300)
 

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from matplotlib.image import imread
 
+import nanonav.engine
 from nanonav import cli, plots
 from nanonav.engine import Progress, SimulationResult, simulate
 
@@ -198,7 +199,7 @@ def test_ctrl_c_stops_the_run_cleanly_with_exit_130(
         finished.append(result.completed)
         return result
 
-    monkeypatch.setattr(cli, "simulate", simulate_then_press_ctrl_c)
+    monkeypatch.setattr(nanonav.engine, "simulate", simulate_then_press_ctrl_c)
     path = write_scenario(tmp_path, {"learning": {"episodes": 50, "max_steps": 100}})
     before = signal.getsignal(signal.SIGINT)
     assert cli.main(["run", "--scenario", path, "--json", "--out", str(tmp_path / "o")]) == 130

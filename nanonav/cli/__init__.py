@@ -1,0 +1,81 @@
+"""The ``nanonav`` command.
+
+Each subcommand is one ``add_<name>`` function that declares its arguments and sets ``handler``
+to the function that runs it: ``run`` in ``run.py`` runs a scenario here; ``api``, ``worker`` and
+``migrate`` in ``service.py`` run the job service; ``submit``, ``study``, ``fetch`` and ``jobs``
+in ``remote.py`` talk to a running API. ``main`` parses, dispatches and turns the errors a user
+can cause into a message on stderr and an exit code. Adding a subcommand means adding one such
+function and one line in ``build_parser``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Callable
+
+from nanonav.cli import remote, run, service
+from nanonav.cli.common import (
+    EXIT_FAILED,
+    EXIT_INTERRUPTED,
+    EXIT_USAGE,
+    Failed,
+    UsageError,
+)
+from nanonav.client import ApiError
+
+__all__ = ["Failed", "UsageError", "build_parser", "main"]
+
+Handler = Callable[[argparse.Namespace], int]
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The whole command line: one subparser per subcommand."""
+    parser = argparse.ArgumentParser(
+        prog="nanonav",
+        description="Simulations of learning nanorobots that hunt cancer cells in 3-D tissue.",
+        epilog="Exit codes: 0 done; 1 the work failed, or the server failed or could not be "
+        "reached; 2 input to fix (here, or as the server judged it); 130 interrupted.",
+    )
+    subcommands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    run.add_run(subcommands)
+    service.add_api(subcommands)
+    service.add_worker(subcommands)
+    service.add_migrate(subcommands)
+    remote.add_submit(subcommands)
+    remote.add_study(subcommands)
+    remote.add_fetch(subcommands)
+    remote.add_jobs(subcommands)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the command; returns the exit code instead of exiting, so tests can call it.
+
+    Exit codes: 0 done; 1 the work failed, or the server failed or could not be reached; 2 input
+    to fix (here, or a 4xx answer of the server); 130 interrupted."""
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as stop:
+        return stop.code if isinstance(stop.code, int) else EXIT_USAGE
+    handler: Handler = args.handler
+
+    def say(lines: list[str]) -> None:
+        for line in lines:
+            print(f"nanonav {args.command}: {line}", file=sys.stderr)
+
+    try:
+        return handler(args)
+    except UsageError as error:
+        say(error.lines)
+        return EXIT_USAGE
+    except Failed as error:
+        say(error.lines)
+        return EXIT_FAILED
+    except ApiError as error:
+        say(str(error).splitlines())
+        return EXIT_USAGE if 400 <= error.status < 500 else EXIT_FAILED
+    except KeyboardInterrupt as stop:
+        say([str(stop) or "interrupted"])
+        return EXIT_INTERRUPTED

@@ -1,0 +1,339 @@
+"""``nanonav submit``, ``study``, ``fetch`` and ``jobs``: the commands that talk to a running API
+through ``nanonav.client``.
+
+Waiting polls the server and draws a progress bar on stderr when it is a terminal. Ctrl-C stops
+the waiting, not the work: the job or study goes on on the server."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any, get_args
+
+from pydantic import ValidationError
+
+from nanonav.cli.common import (
+    EXIT_OK,
+    Failed,
+    Subcommands,
+    UsageError,
+    read_json_object,
+    validation_messages,
+)
+from nanonav.cli.tables import format_jobs, format_study, format_table, plural, study_counts
+from nanonav.client import JOB_PICTURES, Client, Job, Status, Study
+from nanonav.scenario import PRESETS
+
+JOB_POLL_S = 0.25
+STUDY_POLL_S = 0.5
+URL_HELP = "the API's base URL (default: $NANONAV_URL, else http://127.0.0.1:8000)"
+WAIT_HELP = (
+    "show progress until it has finished; Ctrl-C stops waiting (exit 130) and leaves it running "
+    "on the server"
+)
+
+
+def _url(text: str) -> str:
+    if not text.startswith(("http://", "https://")):
+        raise argparse.ArgumentTypeError(f"not an http:// or https:// URL: {text!r}")
+    return text
+
+
+def _positive(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, not {value}")
+    return value
+
+
+def _add_url(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--url", type=_url, help=URL_HELP)
+
+
+@contextmanager
+def _connect(args: argparse.Namespace) -> Iterator[Client]:
+    try:
+        client = Client(args.url)
+    except ValidationError as error:
+        raise UsageError(validation_messages(error)) from error
+    with client:
+        yield client
+
+
+@contextmanager
+def _bar(total: float, unit: str) -> Iterator[Callable[[float, str], None]]:
+    """``show(done, words)`` moves a bar on stderr if it is a terminal, else does nothing."""
+    if not sys.stderr.isatty():
+        yield lambda done, words: None
+        return
+    from tqdm import tqdm
+
+    if unit == "fraction":
+        layout = "{percentage:3.0f}%|{bar}| {desc} [{elapsed}]"
+    else:
+        layout = "{n:.0f}/{total:.0f} " + unit + " |{bar}| {desc} [{elapsed}]"
+    bar = tqdm(total=total, file=sys.stderr, bar_format=layout, leave=False)
+
+    def show(done: float, words: str) -> None:
+        bar.n = done
+        bar.set_description_str(words, refresh=True)
+
+    try:
+        yield show
+    finally:
+        bar.close()
+
+
+def _left_running(kind: str, ident: int, url: str) -> KeyboardInterrupt:
+    return KeyboardInterrupt(
+        f"stopped waiting; {kind} {ident} goes on on the server ({url}/{kind}s/{ident})"
+    )
+
+
+# ---------------------------------------------------------------- submit
+
+
+def add_submit(subcommands: Subcommands) -> None:
+    submit = subcommands.add_parser(
+        "submit",
+        help="queue a scenario on a server (and wait for its Table 1)",
+        description="Queue a scenario on a running API and print the job's id. The scenario "
+        "is read from FILE, then --preset and --seed override it; the server validates it. "
+        "With --wait, print the job's Table 1 once it has succeeded; exit 1 if it failed or "
+        "was cancelled.",
+    )
+    submit.add_argument(
+        "file", nargs="?", type=Path, metavar="FILE", help="scenario as a JSON object"
+    )
+    submit.add_argument(
+        "--preset",
+        choices=sorted(PRESETS),
+        help="base values (explicit fields of FILE override them)",
+    )
+    submit.add_argument("--seed", type=int, metavar="N", help="seed of every random draw")
+    submit.add_argument("--wait", action="store_true", help=WAIT_HELP)
+    _add_url(submit)
+    submit.set_defaults(handler=_submit)
+
+
+def _submit(args: argparse.Namespace) -> int:
+    if args.file is None and args.preset is None:
+        raise UsageError(["give a scenario FILE or --preset NAME"])
+    scenario = {} if args.file is None else read_json_object(args.file, "scenario")
+    if args.preset is not None:
+        scenario["preset"] = args.preset
+    if args.seed is not None:
+        scenario["seed"] = args.seed
+    with _connect(args) as api:
+        job = api.submit(scenario)
+        print(f"job {job.id} {job.status} (seed {job.scenario.get('seed')})", flush=True)
+        if not args.wait:
+            return EXIT_OK
+        job = wait_job(api, job.id)
+        if job.status != "succeeded":
+            raise Failed([f"job {job.id} {job.status}" + (f": {job.error}" if job.error else "")])
+        print()
+        print(format_table(api.metrics(job.id)))
+    return EXIT_OK
+
+
+def _job_words(job: Job) -> str:
+    if job.cancel_requested and not job.finished:
+        return "cancelling"
+    if job.status == "running":
+        return f"episode {min(job.episode + 1, job.episodes)}/{job.episodes}"
+    return job.status
+
+
+def wait_job(api: Client, job_id: int) -> Job:
+    """The job once it has finished, with a bar meanwhile."""
+    with _bar(1.0, "fraction") as show:
+        try:
+            return api.wait(
+                job_id, poll_s=JOB_POLL_S, on_progress=lambda j: show(j.progress, _job_words(j))
+            )
+        except KeyboardInterrupt:
+            raise _left_running("job", job_id, api.url) from None
+
+
+# ---------------------------------------------------------------- study
+
+
+def add_study(subcommands: Subcommands) -> None:
+    study = subcommands.add_parser(
+        "study",
+        help="queue a grid of scenarios x seeds, or show a study",
+        description="Queue a study on a running API: FILE is a JSON object with 'name', "
+        "'base' (a scenario), 'grid' (scenario fields by dotted name, each with the values to "
+        "try), 'seeds' or 'replicates', and optionally 'compare' (a grid key whose values are "
+        "compared seed by seed with the first). With --id, show an existing study instead. "
+        "The table gives, per grid point and metric, n, the mean and its 95% CI, and with "
+        "'compare' the paired differences with their CI and p-value. With --wait, exit 1 "
+        "unless every job succeeded.",
+    )
+    study.add_argument("file", nargs="?", type=Path, metavar="FILE", help="the study as JSON")
+    study.add_argument("--id", type=_positive, metavar="ID", help="an existing study's id")
+    study.add_argument("--wait", action="store_true", help=WAIT_HELP)
+    _add_url(study)
+    study.set_defaults(handler=_study)
+
+
+def _study(args: argparse.Namespace) -> int:
+    if (args.file is None) == (args.id is None):
+        raise UsageError(["give a study FILE to submit, or --id ID to show one (not both)"])
+    with _connect(args) as api:
+        if args.file is not None:
+            created = api.submit_study(read_json_object(args.file, "study"))
+            seeds = len(created.spec.get("seeds") or [])
+            print(
+                f"study {created.id} {created.status}: {plural(created.jobs.total, 'job')} "
+                f"({plural(len(created.points), 'grid point')} x {plural(seeds, 'seed')})",
+                flush=True,
+            )
+            if not args.wait:
+                return EXIT_OK
+            study = wait_study(api, created.id)
+            print()
+        else:
+            study = wait_study(api, args.id) if args.wait else api.study(args.id)
+        print(format_study(study))
+    if args.wait and study.status != "succeeded":
+        raise Failed([f"study {study.id} {study.status}: {study_counts(study)}"])
+    return EXIT_OK
+
+
+def wait_study(api: Client, study_id: int) -> Study:
+    """The study once every job of it has finished, with a bar of jobs finished meanwhile."""
+    first = api.study(study_id)
+    with _bar(first.jobs.total, "jobs") as show:
+
+        def progress(study: Study) -> None:
+            jobs = study.jobs
+            show(jobs.finished, f"{jobs.running} running, {jobs.failed} failed")
+
+        try:
+            return api.wait_study(study_id, poll_s=STUDY_POLL_S, on_progress=progress)
+        except KeyboardInterrupt:
+            raise _left_running("study", study_id, api.url) from None
+
+
+# ---------------------------------------------------------------- fetch
+
+
+def add_fetch(subcommands: Subcommands) -> None:
+    fetch = subcommands.add_parser(
+        "fetch",
+        help="download a job's or a study's results into a directory",
+        description="Write a succeeded job's metrics.json, trajectory.npz, qtable.json and "
+        "every picture (<name>.png) into DIR; or, with --study, a study's results.csv, "
+        "results.parquet, study.json and its pictures. DIR is created if missing.",
+    )
+    fetch.add_argument("id", nargs="?", type=_positive, metavar="ID", help="a job's id")
+    fetch.add_argument("--study", type=_positive, metavar="ID", help="a study's id instead")
+    fetch.add_argument("--out", type=Path, metavar="DIR", required=True, help="where to write")
+    _add_url(fetch)
+    fetch.set_defaults(handler=_fetch)
+
+
+def _fetch(args: argparse.Namespace) -> int:
+    if (args.id is None) == (args.study is None):
+        raise UsageError(["give a job ID, or --study ID (not both)"])
+    with _connect(args) as api:
+        found = _job_files(api, args.id) if args.study is None else _study_files(api, args.study)
+        written = _write(args.out, found)
+    print(f"Wrote {len(written)} files to {args.out}:")
+    for path in written:
+        print(f"  {path.name:<28} {_size(path.stat().st_size):>9}")
+    return EXIT_OK
+
+
+def _document(data: Any) -> bytes:
+    return (json.dumps(data, indent=2) + "\n").encode()
+
+
+def _job_files(api: Client, job_id: int) -> Iterator[tuple[str, bytes]]:
+    job = api.job(job_id)
+    if job.status != "succeeded":
+        if not job.finished:
+            raise UsageError([f"job {job_id} has no results yet: it is {job.status}"])
+        ended = "it failed" if job.status == "failed" else "it was cancelled"
+        why = f" ({job.error})" if job.error else ""
+        raise UsageError([f"job {job_id} has no results: {ended}{why}"])
+    yield "metrics.json", _document(api.metrics(job_id))
+    yield "trajectory.npz", api.trajectory_npz(job_id)
+    yield "qtable.json", _document(api.qtable(job_id))
+    for name in JOB_PICTURES:
+        yield f"{name}.png", api.picture(job_id, name)
+
+
+def _study_files(api: Client, study_id: int) -> Iterator[tuple[str, bytes]]:
+    study = api.study(study_id)
+    if not study.finished:
+        print(
+            f"nanonav fetch: study {study_id} is {study.status}: the files show it as it is now",
+            file=sys.stderr,
+        )
+    yield "results.csv", api.study_csv(study_id)
+    yield "results.parquet", api.study_parquet(study_id)
+    yield "study.json", _document(study.raw)
+    for name in study.links.get("plots") or {}:
+        yield f"{name}.png", api.study_picture(study_id, name)
+
+
+def _write(out: Path, files: Iterator[tuple[str, bytes]]) -> list[Path]:
+    """Each file as it comes, the directory made once the first one has downloaded (so a job
+    without results leaves no empty directory behind)."""
+    written: list[Path] = []
+    for name, content in files:
+        if not written:
+            try:
+                out.mkdir(parents=True, exist_ok=True)
+            except OSError as error:
+                raise UsageError([f"cannot create {out}: {error}"]) from error
+        path = out / name
+        try:
+            path.write_bytes(content)
+        except OSError as error:
+            raise UsageError([f"cannot write {path}: {error}"]) from error
+        written.append(path)
+    return written
+
+
+def _size(count: int) -> str:
+    return f"{count} B" if count < 1000 else f"{count / 1000:,.1f} kB"
+
+
+# ---------------------------------------------------------------- jobs
+
+
+def add_jobs(subcommands: Subcommands) -> None:
+    jobs = subcommands.add_parser(
+        "jobs",
+        help="list a server's jobs, newest first",
+        description="List jobs newest first: id, status, progress, policy, robots, seed, study "
+        "and when each came (local time).",
+    )
+    jobs.add_argument("--status", choices=get_args(Status), help="only jobs in this state")
+    jobs.add_argument("--study", type=_positive, metavar="ID", help="only this study's jobs")
+    jobs.add_argument(
+        "--limit", type=_positive, default=20, metavar="N", help="at most N jobs (default 20)"
+    )
+    _add_url(jobs)
+    jobs.set_defaults(handler=_jobs)
+
+
+def _jobs(args: argparse.Namespace) -> int:
+    with _connect(args) as api:
+        found = list(api.jobs(status=args.status, study=args.study, limit=args.limit))
+    if not found:
+        print("no jobs")
+    else:
+        print(format_jobs(found))
+    return EXIT_OK

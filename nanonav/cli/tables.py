@@ -1,0 +1,231 @@
+"""What the command prints as text: Table 1 of a run, a study's intervals and comparisons, and
+a list of jobs. Pure functions of plain data, so a local run and a job fetched from a server
+print alike."""
+
+from __future__ import annotations
+
+import textwrap
+from collections.abc import Mapping, Sequence
+from datetime import datetime
+from typing import Any
+
+from nanonav.client import Job, Study
+
+MAX_ROBOT_ROWS = 20
+WIDTH = 100  # where notes under a table wrap
+
+
+def text_table(
+    columns: Sequence[str], rows: Sequence[Sequence[str]], *, align_right: Sequence[bool]
+) -> list[str]:
+    """Columns padded to their widest cell, under a rule of dashes."""
+    widths = [max(len(c), *(len(r[i]) for r in rows)) for i, c in enumerate(columns)]
+
+    def line(cells: Sequence[str]) -> str:
+        return "  ".join(
+            cell.rjust(w) if right else cell.ljust(w)
+            for cell, w, right in zip(cells, widths, align_right, strict=True)
+        ).rstrip()
+
+    rule = "  ".join("-" * w for w in widths)
+    return [line(columns), rule, *(line(r) for r in rows)]
+
+
+# ---------------------------------------------------------------- Table 1
+
+
+def _number(value: Any, digits: int = 2, suffix: str = "") -> str:
+    if value is None:
+        return "n/a"
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, int):
+        return f"{value}{suffix}"
+    return f"{float(value):.{digits}f}{suffix}"
+
+
+def _seconds(value: Any) -> str:
+    if value is None:
+        return "n/a"
+    seconds = float(value)
+    return f"{seconds:.2f} seconds" if seconds >= 1 else f"{seconds:.3g} seconds"
+
+
+def _percent(value: Any) -> str:
+    return "n/a" if value is None else f"{100 * float(value):.1f}%"
+
+
+def plural(count: int, word: str) -> str:
+    return f"{count} {word}{'s' if count != 1 else ''}"
+
+
+def format_table(document: Mapping[str, Any]) -> str:
+    """Table 1 of the paper as text, from a run's metrics document (``SimulationResult.to_dict``
+    or ``GET /jobs/{id}/metrics``), with success rate, collisions and path efficiency, and for a
+    swarm a per-robot table (the first ``MAX_ROBOT_ROWS`` robots)."""
+    scenario = document["scenario"]
+    summary = document.get("summary") or {}
+    robots_rows = document.get("robots") or []
+    rows = [
+        ("Total Steps", _number(summary.get("total_steps"))),
+        ("Final Distance", _number(summary.get("final_distance"))),
+        ("Average Distance", _number(summary.get("average_distance"))),
+        ("Average Biomarker Concentration", _number(summary.get("average_concentration"))),
+        ("Simulation Duration", _seconds(summary.get("duration_s"))),
+        ("Success Rate", _percent(summary.get("success_rate"))),
+        ("Collisions", _number(summary.get("collisions"))),
+        ("Path Efficiency", _number(summary.get("path_efficiency"))),
+    ]
+    robots = int(scenario["robots"]["count"])
+    header = (
+        f"Table 1: {scenario.get('preset') or 'custom scenario'}, seed {scenario['seed']}, "
+        f"{plural(robots, 'robot')}, {plural(int(scenario['cells']['count']), 'cell')}, "
+        f"{scenario['robots']['policy']}, "
+        f"{scenario['learning']['episodes']} training episodes + evaluation"
+    )
+    lines = [header, *text_table(("Parameter", "Result"), rows, align_right=(False, True))]
+    if robots > 1 and robots_rows:
+        lines += ["", "Per robot (evaluation episode):"]
+        shown = robots_rows[:MAX_ROBOT_ROWS]
+        robot_rows = [
+            (
+                str(row.get("robot")),
+                _number(row.get("reached")),
+                _number(row.get("total_steps")),
+                _number(row.get("final_distance")),
+                _number(row.get("average_distance")),
+                _number(row.get("average_concentration")),
+                _number(row.get("collisions")),
+                _number(row.get("path_efficiency")),
+            )
+            for row in shown
+        ]
+        columns = ("robot", "reached", "steps", "final dist", "avg dist", "avg conc",
+                   "collisions", "path eff")  # fmt: skip
+        lines += text_table(columns, robot_rows, align_right=(True,) * len(columns))
+        if len(robots_rows) > len(shown):
+            lines.append(
+                f"... and {len(robots_rows) - len(shown)} more robots (see --json or metrics.json)"
+            )
+    return "\n".join(lines)
+
+
+# ---------------------------------------------------------------- studies
+
+
+def _figure(value: float | None) -> str:
+    """Four significant digits, thousands grouped, ``n/a`` for a missing value."""
+    if value is None:
+        return "n/a"
+    if value != 0 and 1e4 <= abs(value) < 1e12:
+        return f"{value:,.0f}"
+    return f"{value:.4g}"
+
+
+def _interval(low: float | None, high: float | None) -> str:
+    return "n/a" if low is None or high is None else f"[{_figure(low)}, {_figure(high)}]"
+
+
+def _p(value: float | None) -> str:
+    if value is None:
+        return "n/a"
+    return "<0.001" if value < 0.001 else f"{value:.3f}"
+
+
+def study_counts(study: Study) -> str:
+    """``4 jobs: 3 succeeded, 1 failed, 0 cancelled`` (and those still queued or running)."""
+    jobs = study.jobs
+    parts = [f"{jobs.succeeded} succeeded", f"{jobs.failed} failed", f"{jobs.cancelled} cancelled"]
+    if jobs.running:
+        parts.append(f"{jobs.running} running")
+    if jobs.queued:
+        parts.append(f"{jobs.queued} queued")
+    return f"{plural(jobs.total, 'job')}: {', '.join(parts)}"
+
+
+def format_study(study: Study) -> str:
+    """A study's statistics: per grid point and metric n, mean and 95% CI; with ``compare``,
+    the paired differences against the baseline, their CI and p-value; and what became of its
+    jobs (failed jobs are counted, never averaged in)."""
+    name = f' "{study.name}"' if study.name else ""
+    lines = [f"Study {study.id}{name}: {study.status}, {study_counts(study)}"]
+    keys = list(study.spec.get("grid") or {})
+    rows = []
+    for point in study.points:
+        for i, metric in enumerate(study.metrics):
+            found = point.metrics[metric]
+            where = [str(point.values[k]) if i == 0 else "" for k in keys]
+            rows.append(
+                (
+                    *where,
+                    metric,
+                    str(found.n),
+                    _figure(found.mean),
+                    _interval(found.ci_low, found.ci_high),
+                )
+            )
+    columns = (*keys, "metric", "n", "mean", "95% CI")
+    right = (*(False for _ in keys), False, True, True, True)
+    lines += ["", *text_table(columns, rows, align_right=right)]
+    if study.interval:
+        lines += textwrap.wrap(f"Intervals: {study.interval}", WIDTH)
+    if study.comparisons:
+        compared = study.spec.get("compare")
+        others = [k for k in keys if k != compared]
+        rows = []
+        for comparison in study.comparisons:
+            for i, metric in enumerate(study.metrics):
+                diff = comparison.metrics[metric]
+                where = [str(comparison.values[k]) if i == 0 else "" for k in others]
+                pair = f"{comparison.method} - {comparison.baseline}" if i == 0 else ""
+                rows.append(
+                    (
+                        *where,
+                        pair,
+                        metric,
+                        str(diff.n),
+                        _figure(diff.mean_difference),
+                        _interval(diff.ci_low, diff.ci_high),
+                        _p(diff.p_value),
+                    )
+                )
+        columns = (*others, str(compared), "metric", "n", "mean diff", "95% CI", "p")
+        right = (*(False for _ in others), False, False, True, True, True, True)
+        lines += ["", f"Paired differences, seed by seed ({compared}):"]
+        lines += text_table(columns, rows, align_right=right)
+        if study.test:
+            lines += textwrap.wrap(f"p-values: {study.test}", WIDTH)
+    if study.jobs.failed:
+        lines += ["", f"{plural(study.jobs.failed, 'failed job')} left out of the means"]
+    return "\n".join(lines)
+
+
+# ---------------------------------------------------------------- jobs
+
+
+def _when(moment: datetime) -> str:
+    local = moment.astimezone() if moment.tzinfo is not None else moment
+    return local.strftime("%Y-%m-%d %H:%M:%S")
+
+
+def format_jobs(jobs: Sequence[Job]) -> str:
+    """A line per job: id, status, progress, policy, robots, seed, study and when it came
+    (local time)."""
+    rows = []
+    for job in jobs:
+        robots = job.scenario.get("robots") or {}
+        rows.append(
+            (
+                str(job.id),
+                job.status,
+                f"{100 * job.progress:.0f}%",
+                str(robots.get("policy", "")),
+                str(robots.get("count", "")),
+                str(job.scenario.get("seed", "")),
+                "-" if job.study_id is None else str(job.study_id),
+                _when(job.created_at),
+            )
+        )
+    columns = ("id", "status", "progress", "policy", "robots", "seed", "study", "created")
+    right = (True, False, True, False, True, True, True, False)
+    return "\n".join(text_table(columns, rows, align_right=right))

@@ -1,0 +1,617 @@
+"""A synchronous client for the NanoNav job service, for scripts and the ``nanonav`` command.
+
+```python
+from nanonav.client import Client
+
+with Client("http://127.0.0.1:8000") as api:  # default: $NANONAV_URL, else that URL
+    job = api.wait(api.submit({"preset": "paper-single", "seed": 7}).id)
+    print(job.status, api.metrics(job.id)["summary"]["total_steps"])
+```
+
+Answers come back as small frozen dataclasses (``Job``, ``Study``, ...) with the fields a script
+needs and the whole JSON answer in ``raw``. Every answer that is not 2xx raises ``ApiError``, with
+the fields of the server's problem document; a server that cannot be reached raises
+``ServerUnreachable``, a subclass of ``ApiError`` with ``status`` 0, so one ``except ApiError``
+catches every failure of a call. This module speaks HTTP only: it imports neither the service nor
+the worker, nor the engine.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import time
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from dataclasses import dataclass, field, fields
+from datetime import datetime
+from pathlib import Path
+from types import TracebackType
+from typing import Any, Literal, TypeVar, cast
+
+import httpx
+import numpy as np
+from numpy.typing import NDArray
+
+import nanonav
+
+Status = Literal["queued", "running", "succeeded", "failed", "cancelled"]
+GridValue = bool | int | float | str
+FINISHED: frozenset[str] = frozenset({"succeeded", "failed", "cancelled"})
+# A job's pictures by name: the path under /jobs/{id}/ and its query.
+JOB_PICTURES: dict[str, tuple[str, dict[str, str]]] = {
+    **{f"heatmap_{p}": ("heatmap.png", {"plane": p}) for p in ("xy", "xz", "yz", "all")},
+    **{name: (f"plots/{name}.png", {}) for name in ("trajectory", "concentration", "learning")},
+}
+PAGE_SIZE = 100  # the most the API lists per page
+
+_T = TypeVar("_T")
+
+
+# ---------------------------------------------------------------- errors
+
+
+class ApiError(Exception):
+    """A call that failed: the server's problem document (RFC 9457), field by field.
+
+    ``errors`` lists the offending inputs as the server names them: each a dict with
+    ``pointer`` (into the JSON body, ``#/robots/count``) or ``parameter`` (a query or path
+    parameter), and ``detail``."""
+
+    def __init__(
+        self,
+        status: int,
+        title: str,
+        detail: str | None = None,
+        *,
+        type: str = "about:blank",
+        errors: Sequence[Mapping[str, Any]] = (),
+        instance: str | None = None,
+    ) -> None:
+        self.status = status
+        self.title = title
+        self.detail = detail
+        self.type = type
+        self.errors = [dict(e) for e in errors]
+        self.instance = instance
+        super().__init__(self._message())
+
+    @classmethod
+    def of(cls, response: httpx.Response) -> ApiError:
+        """The error a non-2xx answer stands for, problem document or not."""
+        try:
+            body = response.json()
+        except ValueError:
+            body = None
+        if not isinstance(body, dict) or "title" not in body:
+            text = response.text.strip()[:200]
+            return cls(
+                response.status_code,
+                response.reason_phrase or "Error",
+                text or None,
+                instance=response.request.url.path,
+            )
+        errors = body.get("errors")
+        return cls(
+            int(body.get("status", response.status_code)),
+            str(body["title"]),
+            body.get("detail"),
+            type=str(body.get("type", "about:blank")),
+            errors=[e for e in errors if isinstance(e, dict)] if isinstance(errors, list) else (),
+            instance=body.get("instance"),
+        )
+
+    @property
+    def field_messages(self) -> list[str]:
+        """One ``where: what`` line per offending input."""
+        lines = []
+        for error in self.errors:
+            loc = error.get("loc")
+            where = (
+                error.get("pointer")
+                or error.get("parameter")
+                or ("/".join(map(str, loc)) if isinstance(loc, list) else "")
+            )
+            lines.append(
+                f"{where}: {error.get('detail', '')}" if where else error.get("detail", "")
+            )
+        return lines
+
+    def _message(self) -> str:
+        head = f"{self.status} {self.title}" + (f": {self.detail}" if self.detail else "")
+        fields = self.field_messages
+        if fields == [self.detail]:  # the detail already is the only field's message
+            return head
+        return "\n".join([head, *(f"  {line}" for line in fields)])
+
+
+class ServerUnreachable(ApiError):
+    """No answer came: nothing listens at the URL, it timed out, or the connection broke."""
+
+    def __init__(self, url: str, reason: str) -> None:
+        self.url = url
+        super().__init__(
+            0,
+            "Server unreachable",
+            f"cannot reach the NanoNav API at {url}: {reason}",
+            type="urn:nanonav:client:unreachable",
+        )
+
+    def _message(self) -> str:
+        return self.detail or self.title
+
+
+# ---------------------------------------------------------------- answers
+
+
+def _time(value: Any) -> datetime | None:
+    return None if value is None else datetime.fromisoformat(str(value))
+
+
+@dataclass(frozen=True, kw_only=True)
+class Job:
+    """A job as ``GET /jobs/{id}`` answers it."""
+
+    id: int
+    status: Status
+    progress: float  # share of the run's work done, 0 to 1
+    episode: int  # episodes finished (the evaluation episode counts as the last)
+    episodes: int
+    error: str | None  # why it failed, in words
+    study_id: int | None
+    scenario: dict[str, Any]  # fully resolved: preset applied, defaults filled, seed included
+    created_at: datetime
+    started_at: datetime | None
+    finished_at: datetime | None
+    attempts: int
+    cancel_requested: bool
+    links: dict[str, Any]
+    raw: dict[str, Any] = field(repr=False, compare=False)
+
+    @classmethod
+    def of(cls, data: dict[str, Any]) -> Job:
+        progress = data["progress"]
+        return cls(
+            id=int(data["id"]),
+            status=cast(Status, data["status"]),
+            progress=float(progress["fraction"]),
+            episode=int(progress["episode"]),
+            episodes=int(progress["episodes"]),
+            error=data.get("error"),
+            study_id=data.get("study_id"),
+            scenario=data["scenario"],
+            created_at=datetime.fromisoformat(data["created_at"]),
+            started_at=_time(data.get("started_at")),
+            finished_at=_time(data.get("finished_at")),
+            attempts=int(data.get("attempts", 0)),
+            cancel_requested=bool(data.get("cancel_requested")),
+            links=data.get("links") or {},
+            raw=data,
+        )
+
+    @property
+    def finished(self) -> bool:
+        """Succeeded, failed or cancelled: its status will not change again."""
+        return self.status in FINISHED
+
+
+@dataclass(frozen=True, kw_only=True)
+class JobCounts:
+    """A study's jobs per status."""
+
+    total: int
+    queued: int
+    running: int
+    succeeded: int
+    failed: int
+    cancelled: int
+
+    @property
+    def finished(self) -> int:
+        return self.succeeded + self.failed + self.cancelled
+
+
+@dataclass(frozen=True, kw_only=True)
+class Interval:
+    """A metric over a grid point's succeeded seeds: mean and 95% Student t interval."""
+
+    n: int
+    mean: float | None
+    sd: float | None
+    ci_low: float | None
+    ci_high: float | None
+
+
+@dataclass(frozen=True, kw_only=True)
+class Difference:
+    """One compared value minus the baseline, paired seed by seed."""
+
+    n: int
+    mean_difference: float | None
+    sd: float | None
+    ci_low: float | None
+    ci_high: float | None
+    p_value: float | None  # Wilcoxon signed-rank, two-sided
+
+
+@dataclass(frozen=True, kw_only=True)
+class StudyPoint:
+    index: int
+    values: dict[str, GridValue]  # this point's value of every grid key
+    jobs: dict[str, int]  # its jobs per status
+    metrics: dict[str, Interval]
+
+
+@dataclass(frozen=True, kw_only=True)
+class Comparison:
+    values: dict[str, GridValue]  # the other grid keys' values
+    method: GridValue
+    baseline: GridValue
+    metrics: dict[str, Difference]
+
+
+@dataclass(frozen=True, kw_only=True)
+class StudySummary:
+    """A study as ``GET /studies`` lists it."""
+
+    id: int
+    name: str
+    status: Status
+    created_at: datetime
+    cancel_requested: bool
+    jobs: JobCounts
+    links: dict[str, Any]
+    raw: dict[str, Any] = field(repr=False, compare=False)
+
+    @classmethod
+    def of(cls, data: dict[str, Any]) -> StudySummary:
+        return cls(**_summary_fields(data))
+
+    @property
+    def finished(self) -> bool:
+        """Every job has finished: the statistics will not change again."""
+        return self.status in FINISHED
+
+
+@dataclass(frozen=True, kw_only=True)
+class Study(StudySummary):
+    """A study as ``GET /studies/{id}`` answers it, with its statistics so far."""
+
+    finished_at: datetime | None
+    progress: float  # share of its jobs' work done, 0 to 1
+    spec: dict[str, Any]  # as submitted, seeds resolved
+    metrics: list[str]
+    points: list[StudyPoint]
+    comparisons: list[Comparison]
+    interval: str  # how the confidence intervals are computed
+    test: str  # how the paired p-values are computed
+
+    @classmethod
+    def of(cls, data: dict[str, Any]) -> Study:
+        return cls(
+            **_summary_fields(data),
+            finished_at=_time(data.get("finished_at")),
+            progress=float(data["progress"]),
+            spec=data["spec"],
+            metrics=list(data["metrics"]),
+            points=[
+                StudyPoint(
+                    index=int(p["index"]),
+                    values=p["values"],
+                    jobs=p["jobs"],
+                    metrics={k: _known(Interval, v) for k, v in p["metrics"].items()},
+                )
+                for p in data["points"]
+            ],
+            comparisons=[
+                Comparison(
+                    values=c["values"],
+                    method=c["method"],
+                    baseline=c["baseline"],
+                    metrics={k: _known(Difference, v) for k, v in c["metrics"].items()},
+                )
+                for c in data["comparisons"]
+            ],
+            interval=str(data.get("interval", "")),
+            test=str(data.get("test", "")),
+        )
+
+
+_D = TypeVar("_D", JobCounts, Interval, Difference)
+
+
+def _known(kind: type[_D], data: Mapping[str, Any]) -> _D:
+    """``kind`` from the keys it knows, so that a newer server's extra keys break nothing."""
+    return kind(**{f.name: data[f.name] for f in fields(kind)})
+
+
+def _summary_fields(data: dict[str, Any]) -> dict[str, Any]:
+    return {
+        "id": int(data["id"]),
+        "name": str(data["name"]),
+        "status": cast(Status, data["status"]),
+        "created_at": datetime.fromisoformat(data["created_at"]),
+        "cancel_requested": bool(data["cancel_requested"]),
+        "jobs": _known(JobCounts, data["jobs"]),
+        "links": data.get("links") or {},
+        "raw": data,
+    }
+
+
+def parse_cell(text: str) -> GridValue | None:
+    """A CSV cell of a study table as the value it was: empty is missing (None), ``True`` and
+    ``False`` are booleans (as Python's csv writes them), integers and decimals are numbers, the
+    rest stays text."""
+    if text == "":
+        return None
+    if text in ("True", "False"):
+        return text == "True"
+    try:
+        return int(text)
+    except ValueError:
+        pass
+    try:
+        return float(text)
+    except ValueError:
+        return text
+
+
+# ---------------------------------------------------------------- the client
+
+
+class Client:
+    """One connection pool to one API. Use it in a ``with`` block, or ``close()`` it."""
+
+    def __init__(
+        self,
+        url: str | None = None,
+        *,
+        timeout: float = 30.0,
+        transport: httpx.BaseTransport | None = None,
+    ) -> None:
+        if url is None:
+            from nanonav.settings import ClientSettings
+
+            url = ClientSettings().url
+        self.url = url.rstrip("/")
+        self._http = httpx.Client(
+            base_url=self.url,
+            timeout=timeout,
+            transport=transport,
+            headers={"User-Agent": f"nanonav-client/{nanonav.__version__}"},
+        )
+
+    def __enter__(self) -> Client:
+        return self
+
+    def __exit__(
+        self,
+        kind: type[BaseException] | None,
+        error: BaseException | None,
+        traceback: TracebackType | None,
+    ) -> None:
+        self.close()
+
+    def close(self) -> None:
+        self._http.close()
+
+    # ------------------------------------------------------------ jobs
+
+    def submit(
+        self, scenario: Mapping[str, Any] | None = None, *, idempotency_key: str | None = None
+    ) -> Job:
+        """Queue a scenario (``None`` or ``{}``: all defaults). The same ``idempotency_key``
+        again answers with the job it made the first time, so a retry never runs twice."""
+        data = self._json("POST", "/jobs", json=dict(scenario or {}), key=idempotency_key)
+        return Job.of(data)
+
+    def job(self, job_id: int) -> Job:
+        return Job.of(self._json("GET", f"/jobs/{job_id}"))
+
+    def jobs(
+        self,
+        *,
+        status: Status | None = None,
+        study: int | None = None,
+        limit: int | None = None,
+    ) -> Iterator[Job]:
+        """Jobs newest first, page after page until ``limit`` jobs (or all of them)."""
+        params: dict[str, Any] = {"limit": PAGE_SIZE if limit is None else min(limit, PAGE_SIZE)}
+        if status is not None:
+            params["status"] = status
+        if study is not None:
+            params["study"] = study
+        pages = self._pages("/jobs", params, "jobs")
+        yield from _capped((Job.of(item) for item in pages), limit)
+
+    def wait(
+        self,
+        job_id: int,
+        *,
+        poll_s: float = 0.5,
+        timeout_s: float | None = None,
+        on_progress: Callable[[Job], None] | None = None,
+    ) -> Job:
+        """Poll the job until it has finished (succeeded, failed or cancelled) and return it;
+        ``on_progress`` sees every state polled. Raises ``TimeoutError`` after ``timeout_s``."""
+        return _poll(lambda: self.job(job_id), f"job {job_id}", poll_s, timeout_s, on_progress)
+
+    def cancel(self, job_id: int) -> Job:
+        """Cancel a job: a queued one at once, a running one within about a second (409 if it
+        has already finished)."""
+        return Job.of(self._json("POST", f"/jobs/{job_id}/cancel"))
+
+    def metrics(self, job_id: int) -> dict[str, Any]:
+        """Table 1 (``summary``), one row per robot, the learning curve, the scenario."""
+        return self._json("GET", f"/jobs/{job_id}/metrics")
+
+    def trajectory_npz(self, job_id: int, *, stride: int = 1) -> bytes:
+        """The evaluation episode as an ``.npz`` file, every ``stride``-th step."""
+        params = {"format": "npz", "stride": stride}
+        return self._request("GET", f"/jobs/{job_id}/trajectory", params=params).content
+
+    def arrays(self, job_id: int, *, stride: int = 1) -> dict[str, NDArray[Any]]:
+        """The evaluation episode's arrays (``robots`` is ``(steps, robots, 3)``, ...)."""
+        blob = self.trajectory_npz(job_id, stride=stride)
+        with np.load(io.BytesIO(blob), allow_pickle=False) as loaded:
+            return {name: loaded[name] for name in loaded.files}
+
+    def qtable(self, job_id: int) -> dict[str, Any]:
+        """The learned Q-table: ``states``, ``actions``, ``values`` and ``visits``."""
+        return self._json("GET", f"/jobs/{job_id}/qtable")
+
+    def picture(self, job_id: int, name: str) -> bytes:
+        """A PNG of a succeeded job; ``name`` is one of ``JOB_PICTURES``."""
+        if name not in JOB_PICTURES:
+            raise ValueError(f"no picture {name!r}; there are {', '.join(JOB_PICTURES)}")
+        path, params = JOB_PICTURES[name]
+        return self._request("GET", f"/jobs/{job_id}/{path}", params=params).content
+
+    # ------------------------------------------------------------ studies
+
+    def submit_study(self, spec: Mapping[str, Any], *, idempotency_key: str | None = None) -> Study:
+        """Queue every grid point x seed of ``spec`` (``name``, ``base``, ``grid``, ``seeds``
+        or ``replicates``, ``compare``) as jobs, all or none."""
+        return Study.of(self._json("POST", "/studies", json=dict(spec), key=idempotency_key))
+
+    def study(self, study_id: int) -> Study:
+        return Study.of(self._json("GET", f"/studies/{study_id}"))
+
+    def studies(self, *, limit: int | None = None) -> Iterator[StudySummary]:
+        """Studies newest first, without their statistics (``study(id)`` has them)."""
+        params = {"limit": PAGE_SIZE if limit is None else min(limit, PAGE_SIZE)}
+        pages = self._pages("/studies", params, "studies")
+        yield from _capped((StudySummary.of(item) for item in pages), limit)
+
+    def wait_study(
+        self,
+        study_id: int,
+        *,
+        poll_s: float = 1.0,
+        timeout_s: float | None = None,
+        on_progress: Callable[[Study], None] | None = None,
+    ) -> Study:
+        """Poll the study until every job of it has finished and return it with its final
+        statistics. Raises ``TimeoutError`` after ``timeout_s``."""
+        return _poll(
+            lambda: self.study(study_id), f"study {study_id}", poll_s, timeout_s, on_progress
+        )
+
+    def cancel_study(self, study_id: int) -> Study:
+        """Cancel a study's unfinished jobs (409 if it has already finished)."""
+        return Study.of(self._json("POST", f"/studies/{study_id}/cancel"))
+
+    def study_csv(self, study_id: int) -> bytes:
+        """The study's table as the server writes it: a row per job, metrics empty unless the
+        job succeeded."""
+        return self._request("GET", f"/studies/{study_id}/results.csv").content
+
+    def study_table(self, study_id: int) -> list[dict[str, Any]]:
+        """The study's table, a dict per job, cells parsed as ``parse_cell`` says."""
+        text = self.study_csv(study_id).decode("utf-8")
+        return [
+            {key: parse_cell(value) for key, value in row.items()}
+            for row in csv.DictReader(io.StringIO(text))
+        ]
+
+    def write_study_csv(self, study_id: int, path: str | Path) -> Path:
+        """Save the study's table to ``path``, byte for byte as served; returns the path."""
+        target = Path(path)
+        target.write_bytes(self.study_csv(study_id))
+        return target
+
+    def study_parquet(self, study_id: int) -> bytes:
+        """The study's table as a Parquet file (ids and seeds int64, metrics float64)."""
+        params = {"format": "parquet"}
+        return self._request("GET", f"/studies/{study_id}/results.csv", params=params).content
+
+    def study_picture(self, study_id: int, name: str) -> bytes:
+        """A PNG: a metric's means and CIs across the grid (``name`` is a metric, as in
+        ``Study.metrics``), or ``learning`` for the mean learning curves."""
+        return self._request("GET", f"/studies/{study_id}/plots/{name}.png").content
+
+    # ------------------------------------------------------------ HTTP
+
+    def _request(
+        self,
+        method: str,
+        path: str,
+        *,
+        params: Mapping[str, Any] | None = None,
+        json: Any = None,
+        key: str | None = None,
+    ) -> httpx.Response:
+        headers = {} if key is None else {"Idempotency-Key": key}
+        try:
+            response = self._http.request(method, path, params=params, json=json, headers=headers)
+        except httpx.TransportError as error:
+            raise ServerUnreachable(self.url, _reason(error)) from error
+        if not response.is_success:
+            raise ApiError.of(response)
+        return response
+
+    def _json(self, method: str, path: str, **kwargs: Any) -> dict[str, Any]:
+        response = self._request(method, path, **kwargs)
+        try:
+            data = response.json()
+        except ValueError:
+            data = None
+        if not isinstance(data, dict):
+            raise ApiError(
+                response.status_code,
+                "Not a NanoNav answer",
+                f"{method} {response.request.url} did not answer with a JSON object; is "
+                f"{self.url} a NanoNav API?",
+                instance=path,
+            )
+        return data
+
+    def _pages(self, path: str, params: Mapping[str, Any], key: str) -> Iterator[dict[str, Any]]:
+        """Every item of a listing, following its ``next`` links."""
+        page = self._json("GET", path, params=params)
+        while True:
+            yield from page[key]
+            if not page.get("next"):
+                return
+            page = self._json("GET", page["next"])
+
+
+def _capped(items: Iterator[_T], limit: int | None) -> Iterator[_T]:
+    """The first ``limit`` items, without asking for a page past them."""
+    if limit is not None and limit < 1:
+        raise ValueError(f"limit must be at least 1, not {limit}")
+    for count, item in enumerate(items, 1):
+        yield item
+        if count == limit:
+            return
+
+
+_A = TypeVar("_A", Job, Study)
+
+
+def _poll(
+    fetch: Callable[[], _A],
+    name: str,
+    poll_s: float,
+    timeout_s: float | None,
+    on_progress: Callable[[_A], None] | None,
+) -> _A:
+    deadline = None if timeout_s is None else time.monotonic() + timeout_s
+    while True:
+        current = fetch()
+        if on_progress is not None:
+            on_progress(current)
+        if current.finished:
+            return current
+        if deadline is not None:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                raise TimeoutError(f"{name} is still {current.status} after {timeout_s:g} s")
+            time.sleep(min(poll_s, left))
+        else:
+            time.sleep(poll_s)
+
+
+def _reason(error: httpx.TransportError) -> str:
+    if isinstance(error, httpx.TimeoutException):
+        return f"no answer in time ({type(error).__name__})"
+    return str(error) or type(error).__name__

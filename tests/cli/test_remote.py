@@ -1,0 +1,397 @@
+"""``nanonav submit``, ``study``, ``fetch`` and ``jobs`` against a real API process and a real
+worker process: in-process through ``main``, and as real processes for the exit codes, the
+streams and Ctrl-C."""
+
+from __future__ import annotations
+
+import io
+import json
+import re
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+from matplotlib.image import imread
+
+from nanonav.cli import main
+from nanonav.client import JOB_PICTURES, Client, Job, Study
+from tests.client.test_client import CROWDED, LONG, STUDY, TINY
+from tests.conftest import LiveApi
+from tests.processes import clean_environment, free_port
+
+pytestmark = pytest.mark.timeout(180)
+WAIT_S = 60.0
+TABLE_1 = (
+    "Total Steps", "Final Distance", "Average Distance", "Average Biomarker Concentration",
+    "Simulation Duration", "Success Rate", "Collisions", "Path Efficiency",
+)  # fmt: skip
+
+
+@pytest.fixture
+def api(live_api: LiveApi) -> Iterator[Client]:
+    with Client(live_api.url, timeout=10) as client:
+        yield client
+
+
+@pytest.fixture(scope="module")
+def finished(live_api: LiveApi) -> Iterator[tuple[Job, Study]]:
+    """A succeeded job and a succeeded study, for the commands that read them."""
+    with Client(live_api.url, timeout=10) as client:
+        job = client.wait(client.submit({**TINY, "seed": 21}).id, poll_s=0.05, timeout_s=WAIT_S)
+        study = client.wait_study(client.submit_study(STUDY).id, poll_s=0.1, timeout_s=WAIT_S)
+        assert job.status == study.status == "succeeded"
+        yield job, study
+
+
+def write(tmp_path: Path, data: Any, name: str = "input.json") -> str:
+    path = tmp_path / name
+    path.write_text(json.dumps(data), encoding="utf-8")
+    return str(path)
+
+
+def submitted_id(out: str) -> int:
+    found = re.match(r"job (\d+) queued \(seed \d+\)\n", out)
+    assert found, out
+    return int(found.group(1))
+
+
+# ---------------------------------------------------------------- submit
+
+
+def test_submit_wait_prints_the_id_then_table_1(
+    live_api: LiveApi, tmp_path: Path, capsys: pytest.CaptureFixture[str], api: Client
+) -> None:
+    path = write(tmp_path, TINY)
+    code = main(["submit", path, "--seed", "11", "--wait", "--url", live_api.url])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    assert err == ""  # no bar: stderr is not a terminal
+    job = api.job(submitted_id(out))
+    assert job.status == "succeeded" and job.scenario["seed"] == 11
+    lines = out.splitlines()
+    assert lines[0] == f"job {job.id} queued (seed 11)"
+    assert lines[2].startswith("Table 1: custom scenario, seed 11, 2 robots, 1 cell, q_learning")
+    summary = api.metrics(job.id)["summary"]
+    (steps,) = [line for line in lines if line.startswith("Total Steps")]
+    assert steps.split()[-1] == str(summary["total_steps"])
+    for row in TABLE_1:
+        assert any(line.startswith(row) for line in lines), row
+    assert "Per robot (evaluation episode):" in lines
+
+
+def test_submit_a_preset_without_waiting_prints_the_id(
+    live_api: LiveApi, capsys: pytest.CaptureFixture[str], api: Client
+) -> None:
+    code = main(["submit", "--preset", "paper-single", "--seed", "4", "--url", live_api.url])
+    out, err = capsys.readouterr()
+    assert (code, err) == (0, "")
+    job = api.job(submitted_id(out))
+    assert out == f"job {job.id} queued (seed 4)\n"
+    assert job.scenario["preset"] == "paper-single" and job.scenario["obstacles"]["count"] == 10
+
+
+def test_submit_of_a_job_that_fails_exits_1_with_its_error(
+    live_api: LiveApi, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    code = main(["submit", write(tmp_path, CROWDED), "--wait", "--url", live_api.url])
+    out, err = capsys.readouterr()
+    assert code == 1
+    job_id = submitted_id(out)
+    assert err.startswith(f"nanonav submit: job {job_id} failed: ")
+    assert "could not place obstacle" in err
+    assert "Table 1" not in out
+
+
+def test_an_invalid_scenario_exits_2_naming_each_field(
+    live_api: LiveApi, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = write(tmp_path, {"robots": {"count": 0}, "learning": {"alpha": 0}})
+    assert main(["submit", path, "--url", live_api.url]) == 2
+    out, err = capsys.readouterr()
+    assert out == ""
+    assert err.splitlines() == [
+        "nanonav submit: 422 Invalid input: #/robots/count: Input should be greater than or "
+        "equal to 1",
+        "nanonav submit:   #/robots/count: Input should be greater than or equal to 1",
+        "nanonav submit:   #/learning/alpha: Input should be greater than 0",
+    ]
+
+
+def test_submit_needs_a_file_or_a_preset(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["submit", "--url", "http://127.0.0.1:1"]) == 2
+    assert capsys.readouterr().err == "nanonav submit: give a scenario FILE or --preset NAME\n"
+    assert main(["submit", "--preset", "x", "--url", "http://127.0.0.1:1"]) == 2
+    assert "invalid choice: 'x'" in capsys.readouterr().err
+    assert main(["submit", "--preset", "paper-single", "--url", "127.0.0.1:8000"]) == 2
+    assert "not an http:// or https:// URL" in capsys.readouterr().err
+
+
+# ---------------------------------------------------------------- study
+
+
+def test_study_wait_prints_intervals_paired_differences_and_failures(
+    live_api: LiveApi, tmp_path: Path, capsys: pytest.CaptureFixture[str], api: Client
+) -> None:
+    spec = {**STUDY, "seeds": [7, 8]}
+    code = main(["study", write(tmp_path, spec), "--wait", "--url", live_api.url])
+    out, err = capsys.readouterr()
+    assert (code, err) == (0, "")
+    found = re.match(r"study (\d+) queued: 4 jobs \(2 grid points x 2 seeds\)\n", out)
+    assert found, out
+    study = api.study(int(found.group(1)))
+    assert study.status == "succeeded"
+    lines = out.splitlines()
+    assert lines[2] == (
+        f'Study {study.id} "two policies": succeeded, 4 jobs: 4 succeeded, 0 failed, 0 cancelled'
+    )
+    header = lines[4].split()
+    assert header == ["robots.policy", "metric", "n", "mean", "95%", "CI"]
+    rows = [line.split() for line in lines if line.split()[:2] in (
+        ["q_learning", "total_steps"], ["gradient", "total_steps"]
+    )]  # fmt: skip
+    assert [row[0] for row in rows] == ["q_learning", "gradient"]
+    for row, point in zip(rows, study.points, strict=True):
+        interval = point.metrics["total_steps"]
+        assert row[2] == "2"
+        assert interval.mean is not None and float(row[3]) == pytest.approx(interval.mean, 1e-3)
+        low, high = (float(x.strip("[],")) for x in row[4:6])
+        assert (low, high) == (
+            pytest.approx(interval.ci_low, 1e-3),
+            pytest.approx(interval.ci_high, 1e-3),
+        )
+    assert "Paired differences, seed by seed (robots.policy):" in lines
+    (pair,) = [line.split() for line in lines if line.startswith("gradient - q_learning")]
+    difference = study.comparisons[0].metrics[pair[3]]
+    assert pair[:4] == ["gradient", "-", "q_learning", study.metrics[0]]
+    assert pair[4] == "2"
+    assert difference.mean_difference is not None
+    assert float(pair[5]) == pytest.approx(difference.mean_difference, 1e-3, abs=1e-9)
+    assert difference.p_value is not None and float(pair[-1]) == round(difference.p_value, 3)
+
+    assert main(["study", "--id", str(study.id), "--url", live_api.url]) == 0
+    shown = capsys.readouterr().out
+    assert shown == "\n".join(lines[2:]) + "\n"
+
+
+def test_a_study_with_a_failed_job_says_so_and_exits_1(
+    live_api: LiveApi, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    grid = {"obstacles.count": [0, 300]}  # no room for 300
+    spec = {"base": {**CROWDED, "obstacles": {"radius": 3.0}}, "grid": grid, "seeds": [1]}
+    code = main(["study", write(tmp_path, spec), "--wait", "--url", live_api.url])
+    out, err = capsys.readouterr()
+    assert code == 1
+    assert "2 jobs: 1 succeeded, 1 failed, 0 cancelled" in out
+    assert "1 failed job left out of the means" in out
+    assert re.fullmatch(
+        r"nanonav study: study \d+ failed: 2 jobs: 1 succeeded, 1 failed, 0 cancelled\n", err
+    )
+
+
+def test_study_needs_a_file_or_an_id(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    assert main(["study", "--url", "http://127.0.0.1:1"]) == 2
+    assert "give a study FILE to submit, or --id ID" in capsys.readouterr().err
+    assert main(["study", write(tmp_path, {}), "--id", "3"]) == 2
+    assert main(["study", "--id", "0"]) == 2
+    assert "must be at least 1, not 0" in capsys.readouterr().err
+
+
+# ---------------------------------------------------------------- fetch
+
+
+def test_fetch_writes_a_jobs_results(
+    live_api: LiveApi,
+    finished: tuple[Job, Study],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    api: Client,
+) -> None:
+    job, _ = finished
+    out_dir = tmp_path / "made" / "here"
+    assert main(["fetch", str(job.id), "--out", str(out_dir), "--url", live_api.url]) == 0
+    out = capsys.readouterr().out
+    names = ["metrics.json", "trajectory.npz", "qtable.json", *(f"{n}.png" for n in JOB_PICTURES)]
+    assert sorted(p.name for p in out_dir.iterdir()) == sorted(names)
+    lines = out.splitlines()
+    assert lines[0] == f"Wrote {len(names)} files to {out_dir}:"
+    assert [line.split()[0] for line in lines[1:]] == names
+    assert json.loads((out_dir / "metrics.json").read_text()) == api.metrics(job.id)
+    assert json.loads((out_dir / "qtable.json").read_text()) == api.qtable(job.id)
+    with np.load(out_dir / "trajectory.npz", allow_pickle=False) as arrays:
+        assert arrays["robots"].shape[1:] == (2, 3)
+        assert arrays["steps"].tolist() == [r["total_steps"] for r in api.metrics(job.id)["robots"]]
+    for name in JOB_PICTURES:
+        assert imread(out_dir / f"{name}.png", format="png").ndim == 3
+
+
+def test_fetch_writes_a_studys_table_and_pictures(
+    live_api: LiveApi,
+    finished: tuple[Job, Study],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    api: Client,
+) -> None:
+    _, study = finished
+    code = main(["fetch", "--study", str(study.id), "--out", str(tmp_path), "--url", live_api.url])
+    out, err = capsys.readouterr()
+    assert (code, err) == (0, "")
+    pictures = [f"{name}.png" for name in study.links["plots"]]
+    assert "learning.png" in pictures and "total_steps.png" in pictures
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
+        ["results.csv", "results.parquet", "study.json", *pictures]
+    )
+    assert out.startswith(f"Wrote {3 + len(pictures)} files to {tmp_path}:\n")
+    assert (tmp_path / "results.csv").read_bytes() == api.study_csv(study.id)
+    table = pq.read_table(tmp_path / "results.parquet").to_pylist()
+    assert [row["job_id"] for row in table] == [row["job_id"] for row in api.study_table(study.id)]
+    assert json.loads((tmp_path / "study.json").read_text())["points"] == study.raw["points"]
+    image = imread(io.BytesIO((tmp_path / "learning.png").read_bytes()), format="png")
+    assert image[..., :3].std() > 0.05
+
+
+def test_fetch_of_a_job_without_results_or_an_unknown_one_exits_2(
+    live_api: LiveApi, tmp_path: Path, capsys: pytest.CaptureFixture[str], api: Client
+) -> None:
+    failed = api.wait(api.submit(CROWDED).id, poll_s=0.05, timeout_s=WAIT_S)
+    out_dir = tmp_path / "none"
+    assert main(["fetch", str(failed.id), "--out", str(out_dir), "--url", live_api.url]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"nanonav fetch: job {failed.id} has no results: it failed (")
+    assert not out_dir.exists()
+    assert main(["fetch", "999999999", "--out", str(out_dir), "--url", live_api.url]) == 2
+    assert capsys.readouterr().err == (
+        "nanonav fetch: 404 Job not found: there is no job 999999999\n"
+    )
+    assert (
+        main(["fetch", "--study", "999999999", "--out", str(out_dir), "--url", live_api.url]) == 2
+    )
+    assert "404 Study not found" in capsys.readouterr().err
+    assert not out_dir.exists()
+
+
+# ---------------------------------------------------------------- jobs
+
+
+def table_rows(out: str) -> list[list[str]]:
+    lines = out.splitlines()
+    assert lines[0].split() == [
+        "id", "status", "progress", "policy", "robots", "seed", "study", "created"
+    ]  # fmt: skip
+    return [line.split() for line in lines[2:]]
+
+
+def test_jobs_lists_newest_first_and_filters(
+    live_api: LiveApi,
+    finished: tuple[Job, Study],
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    job, study = finished
+    assert main(["jobs", "--study", str(study.id), "--url", live_api.url]) == 0
+    rows = table_rows(capsys.readouterr().out)
+    assert len(rows) == 4
+    assert [int(r[0]) for r in rows] == sorted((int(r[0]) for r in rows), reverse=True)
+    assert {(r[1], r[2], r[6]) for r in rows} == {("succeeded", "100%", str(study.id))}
+    assert sorted((r[3], r[5]) for r in rows) == sorted(
+        (p, str(s)) for p in ("q_learning", "gradient") for s in (4, 5)
+    )
+
+    monkeypatch.setenv("NANONAV_URL", live_api.url)  # the default --url
+    assert main(["jobs", "--limit", "2"]) == 0
+    rows = table_rows(capsys.readouterr().out)
+    assert len(rows) == 2 and int(rows[0][0]) > int(rows[1][0]) >= job.id
+
+    assert main(["jobs", "--status", "succeeded", "--limit", "100"]) == 0
+    rows = table_rows(capsys.readouterr().out)
+    assert {r[1] for r in rows} == {"succeeded"}
+    (row,) = [r for r in rows if r[0] == str(job.id)]
+    assert row[3:7] == ["q_learning", "2", "21", "-"]
+
+    assert main(["jobs", "--status", "finished"]) == 2
+    assert "invalid choice: 'finished'" in capsys.readouterr().err
+
+
+def test_an_unreachable_server_exits_1_naming_it(capsys: pytest.CaptureFixture[str]) -> None:
+    url = f"http://127.0.0.1:{free_port()}"
+    assert main(["jobs", "--url", url]) == 1
+    out, err = capsys.readouterr()
+    assert out == ""
+    assert err.startswith(f"nanonav jobs: cannot reach the NanoNav API at {url}: ")
+    assert err.count("\n") == 1
+
+
+# ---------------------------------------------------------------- real processes
+
+
+def nanonav(*args: str, env: dict[str, str] | None = None) -> subprocess.Popen[str]:
+    return subprocess.Popen(
+        [sys.executable, "-m", "nanonav.cli", *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env or clean_environment(),
+    )
+
+
+def test_submit_and_jobs_run_as_processes(live_api: LiveApi, tmp_path: Path) -> None:
+    env = clean_environment(NANONAV_URL=live_api.url)
+    submit = nanonav("submit", write(tmp_path, TINY), "--seed", "31", "--wait", env=env)
+    out, err = submit.communicate(timeout=WAIT_S)
+    assert (submit.returncode, err) == (0, "")
+    job_id = submitted_id(out)
+    assert "Table 1: custom scenario, seed 31, 2 robots" in out
+
+    listing = nanonav("jobs", "--limit", "1", env=env)
+    out, err = listing.communicate(timeout=WAIT_S)
+    assert (listing.returncode, err) == (0, "")
+    assert table_rows(out)[0][:2] == [str(job_id), "succeeded"]
+
+    url = f"http://127.0.0.1:{free_port()}"
+    unreachable = nanonav("jobs", "--url", url, env=env)
+    out, err = unreachable.communicate(timeout=WAIT_S)
+    assert (unreachable.returncode, out) == (1, "")
+    assert err.startswith(f"nanonav jobs: cannot reach the NanoNav API at {url}")
+
+
+def test_ctrl_c_while_waiting_exits_130_and_leaves_the_job_running(
+    live_api: LiveApi, tmp_path: Path, api: Client
+) -> None:
+    process = nanonav("submit", write(tmp_path, LONG), "--wait", "--url", live_api.url)
+    try:
+        assert process.stdout is not None
+        job_id = submitted_id(process.stdout.readline())
+        while api.job(job_id).status == "queued":
+            time.sleep(0.05)
+        process.send_signal(signal.SIGINT)
+        out, err = process.communicate(timeout=WAIT_S)
+        assert (process.returncode, out) == (130, "")
+        assert err == (
+            f"nanonav submit: stopped waiting; job {job_id} goes on on the server "
+            f"({live_api.url}/jobs/{job_id})\n"
+        )
+        job = api.job(job_id)
+        assert job.status == "running" and not job.cancel_requested
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+    api.cancel(job_id)
+    assert api.wait(job_id, poll_s=0.05, timeout_s=WAIT_S).status == "cancelled"
+
+
+def test_the_client_and_the_command_load_neither_service_worker_nor_engine() -> None:
+    probe = (
+        "import sys, nanonav.client, nanonav.cli; "
+        "print(sorted({m.split('.')[0] for m in sys.modules} & {'service', 'worker', 'numba'}))"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", probe], capture_output=True, text=True, timeout=60, check=True
+    )
+    assert done.stdout == "[]\n"
