@@ -10,15 +10,12 @@ Each PNG is exactly ``figsize x DPI`` pixels (no tight bounding box), which clie
 
 from __future__ import annotations
 
-import io
 from typing import Any, Literal
 
 import numpy as np
 from matplotlib.artist import Artist
 from matplotlib.axes import Axes
-from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.colors import LogNorm, Normalize
-from matplotlib.figure import Figure
 from matplotlib.image import AxesImage
 from matplotlib.lines import Line2D
 from matplotlib.patches import Circle, Patch
@@ -26,6 +23,7 @@ from matplotlib.ticker import MaxNLocator
 from numpy.typing import NDArray
 
 from nanonav.engine import SimulationResult, Trajectory, field_and_gradient
+from nanonav.figures import new_figure, png
 
 Plane = Literal["xy", "xz", "yz", "all"]
 ColourScale = Literal["auto", "linear", "log"]
@@ -41,7 +39,6 @@ PICTURE_NAMES: tuple[str, ...] = (
 )
 """The keys of ``render_all``: also the file names (``<name>.png``) the command line writes."""
 
-DPI = 100
 HEATMAP_RESOLUTION = 120
 # A log colour scale shows this many decades below the maximum, at most: the inverse-square and
 # diffusion fields diverge (softened) at their sources and would otherwise squash everything else.
@@ -59,18 +56,6 @@ _LENGTH = "length units"
 _ROBOT_BLUE = "tab:blue"
 _CELL_RED = "tab:red"
 _HEATMAP_CMAP = "viridis"
-
-
-def _figure(width: float, height: float) -> Figure:
-    fig = Figure(figsize=(width, height), dpi=DPI, layout="constrained")
-    FigureCanvasAgg(fig)
-    return fig
-
-
-def _png(fig: Figure) -> bytes:
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=DPI)
-    return buffer.getvalue()
 
 
 def _trajectory(result: SimulationResult) -> Trajectory:
@@ -249,7 +234,7 @@ def _heatmap_figure(
 ) -> bytes:
     trajectory = _trajectory(result)
     single = len(planes) == 1
-    fig = _figure(6.4, 6.2) if single else _figure(4.6 * len(planes) + 1.4, 5.4)
+    fig = new_figure(6.4, 6.2) if single else new_figure(4.6 * len(planes) + 1.4, 5.4)
     axes = fig.subplots(1, len(planes), squeeze=False)[0]
     norm = _norm([slices[p] for p in planes], scale)
     drawn = [
@@ -274,7 +259,7 @@ def _heatmap_figure(
         ncols=min(len(handles), 2 if single else 3),
         frameon=False,
     )
-    return _png(fig)
+    return png(fig)
 
 
 def heatmap_png(
@@ -327,7 +312,7 @@ def trajectory_png(result: SimulationResult) -> bytes:
     half = result.scenario.space.size / 2
     robots_total = trajectory.robots.shape[1]
     shown = min(robots_total, MAX_ROBOT_PATHS)
-    fig = _figure(7.5, 6.8)
+    fig = new_figure(7.5, 6.8)
     # Explicit draw order (paths over spheres) reads better than matplotlib's depth sorting.
     ax: Any = fig.add_subplot(projection="3d", computed_zorder=False)
     _draw_obstacles(ax, trajectory.obstacles_at(-1), trajectory.obstacle_radius)
@@ -378,7 +363,7 @@ def trajectory_png(result: SimulationResult) -> bytes:
         loc="upper left",
         fontsize="small",
     )  # fmt: skip
-    return _png(fig)
+    return png(fig)
 
 
 # ---------------------------------------------------------------- concentration (Figure 4)
@@ -395,7 +380,7 @@ def concentration_png(result: SimulationResult) -> bytes:
     trajectory = _trajectory(result)
     n = trajectory.robots.shape[1]
     log_scale = _resolve_scale(result, "auto") == "log"
-    fig = _figure(8.0, 4.8)
+    fig = new_figure(8.0, 4.8)
     left = fig.add_subplot()
     right = left.twinx()
     if n == 1:
@@ -437,7 +422,7 @@ def concentration_png(result: SimulationResult) -> bytes:
         loc="center right",
         fontsize="small",
     )
-    return _png(fig)
+    return png(fig)
 
 
 # ---------------------------------------------------------------- learning curve
@@ -468,7 +453,7 @@ def learning_png(result: SimulationResult) -> bytes:
     index = np.array([int(e["episode"]) for e in episodes])
     planned = result.scenario.learning.episodes
     window = len(episodes) // 20 if len(episodes) > SMOOTH_AFTER else 1
-    fig = _figure(9.0, 6.0)
+    fig = new_figure(9.0, 6.0)
     axes = fig.subplots(2, 2, sharex=True)
     marker = "o" if len(episodes) <= SMOOTH_AFTER else None
     for ax, (key, summary_key, title, ylabel, factor) in zip(
@@ -506,7 +491,7 @@ def learning_png(result: SimulationResult) -> bytes:
     policy = _POLICY_NAMES[result.scenario.robots.policy]
     status = "" if result.completed else ", stopped early"
     fig.suptitle(f"Learning curve: {policy}, {len(episodes)} training episodes{status}")
-    return _png(fig)
+    return png(fig)
 
 
 # ---------------------------------------------------------------- all of them

@@ -12,7 +12,6 @@ labels first appear in a call, so callers pass the scenarios in the same (the st
 
 from __future__ import annotations
 
-import io
 import math
 import numbers
 from collections.abc import Hashable, Mapping, Sequence
@@ -21,7 +20,6 @@ from dataclasses import dataclass
 import numpy as np
 from matplotlib.artist import Artist
 from matplotlib.axes import Axes
-from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
@@ -29,7 +27,8 @@ from matplotlib.ticker import NullLocator
 from matplotlib.typing import LineStyleType
 from numpy.typing import NDArray
 
-DPI = 100
+from nanonav.figures import new_figure, png
+
 METRIC_FIGSIZE = (8.0, 5.0)
 LEARNING_WIDTH = 8.0
 LEARNING_PANEL_HEIGHT = 3.0
@@ -115,18 +114,6 @@ def _styles(series: Sequence[Series]) -> dict[str, _Style]:
                 _HATCHES[cycle],
             )
     return styles
-
-
-def _figure(width: float, height: float) -> Figure:
-    fig = Figure(figsize=(width, height), dpi=DPI, layout="constrained")
-    FigureCanvasAgg(fig)
-    return fig
-
-
-def _png(fig: Figure) -> bytes:
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=DPI)
-    return buffer.getvalue()
 
 
 def _floats(values: Sequence[float | None]) -> NDArray[np.float64]:
@@ -314,7 +301,7 @@ def metric_png(
     grouped bar chart, one group per x in first-seen order. Without any mean to draw, the axes
     say so, and the PNG is still valid and of the same size.
     """
-    fig = _figure(*METRIC_FIGSIZE)
+    fig = new_figure(*METRIC_FIGSIZE)
     ax = fig.add_subplot()
     handles: list[Artist] = []
     if not any(_has_data(one) for one in series):
@@ -330,7 +317,7 @@ def metric_png(
     if title:
         ax.set_title(title, fontsize=_TITLE_SIZE)
     _legend(fig, handles)
-    return _png(fig)
+    return png(fig)
 
 
 def _bin_average(columns: NDArray[np.float64], limit: int) -> NDArray[np.float64]:
@@ -391,7 +378,7 @@ def learning_png(panels: Mapping[str, Sequence[Series]], *, title: str | None = 
     at all, one empty panel does.
     """
     count = max(len(panels), 1)
-    fig = _figure(LEARNING_WIDTH, LEARNING_PANEL_HEIGHT * count)
+    fig = new_figure(LEARNING_WIDTH, LEARNING_PANEL_HEIGHT * count)
     axes = fig.subplots(count, 1, sharex=True, squeeze=False)[:, 0]
     styles = _styles([one for group in panels.values() for one in group])
     drawn = False
@@ -419,4 +406,4 @@ def learning_png(panels: Mapping[str, Sequence[Series]], *, title: str | None = 
         )
     else:
         axes[-1].set_xticks([])
-    return _png(fig)
+    return png(fig)

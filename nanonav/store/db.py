@@ -14,8 +14,9 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from sqlalchemy import Engine, create_engine, event
+from sqlalchemy import Engine, create_engine, event, inspect
 from sqlalchemy.engine import Connection, make_url
+from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session, sessionmaker
 from sqlalchemy.pool import ConnectionPoolEntry
 
@@ -62,6 +63,19 @@ def _sqlite_on_begin(connection: Connection) -> None:
 def make_sessionmaker(engine: Engine) -> sessionmaker[Session]:
     """Sessions that keep loaded rows readable after commit (rows map to frozen records)."""
     return sessionmaker(engine, expire_on_commit=False)
+
+
+def add_once(sessions: sessionmaker[Session], row: Any) -> None:
+    """Insert ``row`` unless a row with its primary key exists (another process may have kept
+    the same thing first, e.g. a picture drawn twice from one result: the first one stays)."""
+    try:
+        with unit_of_work(sessions) as session:
+            session.add(row)
+    except IntegrityError:
+        key = tuple(getattr(row, column.key) for column in inspect(type(row)).primary_key)
+        with unit_of_work(sessions) as session:
+            if session.get(type(row), key) is None:
+                raise
 
 
 @contextmanager

@@ -19,7 +19,7 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from nanonav.store.arrays import pack, unpack
-from nanonav.store.db import make_engine, make_sessionmaker, unit_of_work
+from nanonav.store.db import add_once, make_engine, make_sessionmaker, unit_of_work
 from nanonav.store.errors import JobAlreadyFinished, JobNotFound, LeaseLost, ResultsUnavailable
 from nanonav.store.models import Job, JobPlot, JobResult, JobStatus, UTCDateTime, Worker
 
@@ -231,15 +231,8 @@ class JobStore:
             ).one_or_none()
 
     def save_plot(self, job_id: int, name: str, png: bytes) -> None:
-        """Keep a picture drawn for a succeeded job; if another process kept one first, that
-        one stays (both were drawn from the same stored result)."""
-        try:
-            with unit_of_work(self._sessions) as session:
-                session.add(JobPlot(job_id=job_id, name=name, png=png))
-        except IntegrityError:
-            with unit_of_work(self._sessions) as session:
-                if session.get(JobPlot, (job_id, name)) is None:
-                    raise
+        """Keep a picture drawn for a succeeded job; one kept first by another process stays."""
+        add_once(self._sessions, JobPlot(job_id=job_id, name=name, png=png))
 
     def partial_result(self, job_id: int) -> dict[str, Any] | None:
         """The metrics a job stored whatever its status (a cancelled job keeps its episodes)."""

@@ -15,7 +15,7 @@ from typing import Any
 from sqlalchemy import JSON, Engine, func, insert, literal, select, update
 from sqlalchemy.exc import IntegrityError
 
-from nanonav.store.db import make_sessionmaker, unit_of_work
+from nanonav.store.db import add_once, make_sessionmaker, unit_of_work
 from nanonav.store.errors import StudyNotFound
 from nanonav.store.models import Job, JobResult, JobStatus, Study, StudyPlot
 from nanonav.store.queue import utcnow
@@ -237,13 +237,7 @@ class StudyStore:
 
     def keep_plot(self, study_id: int, name: str, png: bytes) -> None:
         """Keep a picture of a finished study; one kept first by another process stays."""
-        try:
-            with unit_of_work(self._sessions) as session:
-                session.add(StudyPlot(study_id=study_id, name=name, png=png))
-        except IntegrityError:
-            with unit_of_work(self._sessions) as session:
-                if session.get(StudyPlot, (study_id, name)) is None:
-                    raise
+        add_once(self._sessions, StudyPlot(study_id=study_id, name=name, png=png))
 
 
 def _study(session: Any, study_id: int) -> Study:

@@ -14,7 +14,7 @@ from nanonav.scenario import Scenario
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
-# Size in pixels (width, height) of each picture: figure size in inches x plots.DPI.
+# Size in pixels (width, height) of each picture: figure size in inches x figures.DPI.
 EXPECTED_SIZE = {
     "heatmap_xy": (640, 620),
     "heatmap_xz": (640, 620),
