@@ -275,6 +275,14 @@ class Scenario(_Part):
         description="A robot within this distance of a cell, length units, has reached it and "
         "stops.",
     )
+    policy_from: int | None = Field(
+        None,
+        ge=1,
+        le=2**63 - 1,
+        description="The id of a succeeded Q-learning job whose learned table this run starts "
+        "from, to evaluate it in this scenario's worlds without training (learning.episodes "
+        "must be 0; the action set and table sharing must match the job's).",
+    )
 
     @model_validator(mode="before")
     @classmethod
@@ -284,6 +292,22 @@ class Scenario(_Part):
             if base is not None:
                 return _deep_merge(base, data)
         return data
+
+    @model_validator(mode="after")
+    def _learned_policy(self) -> Scenario:
+        if self.policy_from is None:
+            return self
+        if self.robots.policy != "q_learning":
+            raise _field_error(
+                "Scenario", ("robots", "policy"), self.robots.policy,
+                "policy_from needs q_learning: only a Q-table can be evaluated",
+            )  # fmt: skip
+        if self.learning.episodes != 0:
+            raise _field_error(
+                "Scenario", ("learning", "episodes"), self.learning.episodes,
+                "must be 0 with policy_from: a learned table is evaluated, not trained further",
+            )  # fmt: skip
+        return self
 
     @model_validator(mode="after")
     def _fits_in_space(self) -> Scenario:

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from nanonav.engine import fields, kernel, metrics, qlearning, state
 from nanonav.engine.result import QTable, SimulationResult, Trajectory
@@ -81,18 +82,41 @@ def _params(scenario: Scenario, record_bytes: int = DEFAULT_RECORD_BYTES) -> Ker
     )
 
 
-def _learner(scenario: Scenario) -> Learner:
+def _learner(scenario: Scenario, policy: NDArray[np.float64] | None = None) -> Learner:
     if scenario.robots.policy != "q_learning":
         shape: tuple[int, int, int] = (1, 1, 1)
     else:
         states, actions = qlearning.labels(scenario.learning.actions)
         tables = 1 if scenario.learning.shared_table else scenario.robots.count
         shape = (tables, len(states), len(actions))
+    q = np.zeros(shape)
+    if policy is not None:
+        q[:] = _starting_table(scenario, policy, shape)
     return Learner(
-        q=np.zeros(shape),
+        q=q,
         visits=np.zeros(shape, dtype=np.int64),
         directions=np.ascontiguousarray(qlearning.DIRECTIONS),
     )
+
+
+def _starting_table(
+    scenario: Scenario, policy: NDArray[np.float64], shape: tuple[int, int, int]
+) -> NDArray[np.float64]:
+    """``policy`` as the learner's starting table: one shared table (states x actions), copied
+    to every robot that learns its own, or one table per robot."""
+    if scenario.robots.policy != "q_learning":
+        raise ScenarioError("robots.policy", "only q_learning starts from a learned table")
+    table = np.asarray(policy, dtype=np.float64)
+    if table.ndim == 2:
+        table = table[np.newaxis]
+    fits = table.ndim == 3 and table.shape[1:] == shape[1:] and table.shape[0] in (1, shape[0])
+    if not fits or not np.isfinite(table).all():
+        raise ScenarioError(
+            "policy_from",
+            f"the table's shape {tuple(policy.shape)} does not fit {scenario.learning.actions} "
+            f"Q-learning with {shape[0]} table(s) of {shape[1]} states x {shape[2]} actions",
+        )
+    return table
 
 
 def obstacles_move(scenario: Scenario) -> bool:
@@ -147,10 +171,15 @@ class _Run:
     """The arrays of one run, allocated once and reused by every episode, and the two
     generators: one draws the worlds (so every policy faces the same ones), one the dynamics."""
 
-    def __init__(self, scenario: Scenario, params: KernelParams) -> None:
+    def __init__(
+        self,
+        scenario: Scenario,
+        params: KernelParams,
+        policy: NDArray[np.float64] | None = None,
+    ) -> None:
         self.scenario = scenario
         self.params = params
-        self.learner = _learner(scenario)
+        self.learner = _learner(scenario, policy)
         learning = scenario.learning
         self.epsilons = np.array(
             [qlearning.epsilon(learning, e) for e in range(learning.episodes)]
@@ -286,8 +315,13 @@ def simulate(
     progress: ProgressCallback | None = None,
     *,
     record_bytes: int = DEFAULT_RECORD_BYTES,
+    policy: NDArray[np.float64] | None = None,
 ) -> SimulationResult:
     """Train for ``learning.episodes`` episodes, then record one greedy evaluation episode.
+
+    ``policy`` is a Q-table to start from instead of zeros (a learned one, to evaluate it in
+    another world): ``(states, actions)``, or ``(robots, states, actions)`` when every robot
+    learns its own; a table that does not fit the scenario raises ``ScenarioError``.
 
     ``progress`` is called between chunks of about 0.1 s of work and at the end of training;
     returning False stops the run, and the result keeps the episodes finished so far
@@ -300,7 +334,7 @@ def simulate(
     _warm_up()
     learning = scenario.learning
     total = learning.episodes + 1
-    run = _Run(scenario, params)
+    run = _Run(scenario, params, policy)
     engine_s = 0.0
     eval_s = 0.0
     while run.episode < total:

@@ -4,10 +4,11 @@ from typing import Any
 
 import numpy as np
 import pytest
+from pydantic import ValidationError
 
 from nanonav.engine import Progress, SimulationResult, simulate, without_timings
 from nanonav.engine.qlearning import behavior_states, direction_states
-from nanonav.scenario import Scenario
+from nanonav.scenario import Scenario, ScenarioError
 
 
 def scenario(**fields: Any) -> Scenario:
@@ -226,3 +227,33 @@ def test_methods_and_fields_compared_on_one_seed_face_the_same_worlds() -> None:
         assert np.array_equal(robots, starts[0][0])
         assert np.array_equal(cells, starts[0][1])
         assert np.array_equal(obstacles, starts[0][2])
+
+
+def test_a_learned_table_is_evaluated_as_it_was_learned() -> None:
+    trained = simulate(
+        Scenario.model_validate(
+            {"seed": 1, "learning": {"episodes": 20, "max_steps": 200, "actions": "directions"}}
+        )
+    )
+    assert trained.qtable is not None
+    fresh = Scenario.model_validate(
+        {"seed": 2, "learning": {"episodes": 0, "max_steps": 200, "actions": "directions"}}
+    )
+    evaluated = simulate(fresh, policy=trained.qtable.values)
+    assert evaluated.qtable is not None
+    assert np.array_equal(evaluated.qtable.values, trained.qtable.values)  # greedy: no learning
+    untrained = simulate(fresh)
+    assert evaluated.summary != untrained.summary
+    with pytest.raises(ScenarioError, match="does not fit directions"):
+        simulate(fresh, policy=np.zeros((3, 3)))
+
+
+def test_policy_from_needs_q_learning_and_no_training() -> None:
+    with pytest.raises(ValidationError) as raised:
+        Scenario.model_validate({"policy_from": 3})
+    assert raised.value.errors()[0]["loc"] == ("learning", "episodes")
+    with pytest.raises(ValidationError) as raised:
+        Scenario.model_validate(
+            {"policy_from": 3, "robots": {"policy": "gradient"}, "learning": {"episodes": 0}}
+        )
+    assert raised.value.errors()[0]["loc"] == ("robots", "policy")
