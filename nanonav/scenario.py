@@ -16,7 +16,8 @@ from pydantic_core import InitErrorDetails, PydanticCustomError
 
 PresetName = Literal["paper-single", "paper-swarm"]
 FieldModel = Literal["gaussian", "inverse_square", "diffusion"]
-Policy = Literal["q_learning", "gradient", "run_and_tumble", "random"]
+Policy = Literal["q_learning", "gradient", "run_and_tumble", "rule", "random"]
+AlphaSchedule = Literal["constant", "visits"]
 ActionSet = Literal["behaviors", "directions"]
 
 MAX_OBSTACLE_VOLUME_FRACTION = 0.3
@@ -141,6 +142,23 @@ class Biomarker(_Part):
         description="Relative Gaussian noise on every reading a robot takes: a sensed value v "
         "becomes v*(1 + N(0, sensor_noise)), for the concentration and each gradient component.",
     )
+    noise_floor: float = Field(
+        0.0,
+        ge=0.0,
+        le=1e6,
+        description="Additive Gaussian noise on every concentration reading, in concentration "
+        "units: what a real sensor reads when there is nothing to read. The gradient is sensed "
+        "as the difference of readings robots.sensor_baseline apart, so each of its components "
+        "carries noise_floor / (sqrt(2) * sensor_baseline). Far from a cell the signal sinks "
+        "below this floor and the gradient's direction is lost.",
+    )
+    detection_threshold: float = Field(
+        0.0,
+        ge=0.0,
+        le=1e6,
+        description="A (noisy) concentration reading below this counts as nothing: the robot "
+        "senses no concentration and no gradient.",
+    )
 
 
 class Obstacles(_Part):
@@ -170,13 +188,31 @@ class Robots(_Part):
         8.0,
         ge=0.0,
         le=10_000.0,
-        description="Range, length units, within which a robot detects obstacles and cells.",
+        description="Range, length units, within which a robot detects obstacles (their surfaces).",
+    )
+    cell_sensing_radius: float = Field(
+        8.0,
+        ge=0.0,
+        le=10_000.0,
+        description="Range, length units, within which a robot senses where a cell is (the "
+        "paper's state holds the distance to cells). 0: a robot learns of a cell only by "
+        "touching it, and must find it from the biomarker alone.",
+    )
+    sensor_baseline: float = Field(
+        0.5,
+        gt=0.0,
+        le=100.0,
+        description="Spacing, length units, of the concentration readings whose differences "
+        "give the sensed gradient (the robot's size): see biomarker.noise_floor.",
     )
     policy: Policy = Field(
         "q_learning",
         description="'q_learning': tabular Q-learning (paper 2.5, 2.7). Baselines: 'gradient' "
-        "climbs the sensed gradient; 'run_and_tumble' keeps its heading while the reading rises "
-        "and turns to a random heading otherwise (bacterial chemotaxis); 'random' walks at random.",
+        "climbs the sensed gradient, sliding along an obstacle's surface rather than into it, "
+        "and keeps its heading where it senses no gradient; 'run_and_tumble' keeps its heading "
+        "while the reading rises and turns to a random heading otherwise (bacterial "
+        "chemotaxis); 'rule' is the fixed behaviour rule a learner must beat: advance on a "
+        "sensed cell, else climb the gradient as 'gradient' does; 'random' walks at random.",
     )
 
 
@@ -188,22 +224,44 @@ class Learning(_Part):
         50,
         ge=0,
         le=100_000,
-        description="Training episodes, each in a fresh world drawn from the seed. One greedy "
-        "evaluation episode follows them. Baseline policies run the same episodes as trials.",
+        description="Training episodes, each in a fresh world drawn from the seed. The greedy "
+        "evaluation (evaluation.worlds episodes) follows them. Baseline policies run the same "
+        "episodes as trials.",
     )
     max_steps: int = Field(1000, ge=1, le=1_000_000, description="Step limit of every episode.")
-    alpha: float = Field(0.5, gt=0.0, le=1.0, description="Learning rate alpha of eq. 2.7.")
+    alpha: float = Field(
+        0.5,
+        gt=0.0,
+        le=1.0,
+        description="Learning rate alpha of eq. 2.7: constant, or its first value (see "
+        "alpha_schedule).",
+    )
+    alpha_schedule: AlphaSchedule = Field(
+        "visits",
+        description="'constant': every update uses alpha. 'visits': the update of Q(s, a) uses "
+        "alpha / N(s, a)**alpha_exponent, N counting the times a was chosen in s, so that the "
+        "table settles (a constant rate keeps chasing the last few noisy rewards).",
+    )
+    alpha_exponent: float = Field(
+        0.7,
+        gt=0.5,
+        le=1.0,
+        description="omega of the 'visits' schedule: 1 averages every reward alike; between 0.5 "
+        "and 1 later rewards weigh more, which suits a target that drifts.",
+    )
     gamma: float = Field(0.9, ge=0.0, le=1.0, description="Discount factor gamma of eq. 2.7.")
     epsilon_start: float = Field(
         1.0, ge=0.0, le=1.0, description="Exploration rate of the first episode."
     )
     epsilon_end: float = Field(0.05, ge=0.0, le=1.0, description="Floor of the exploration rate.")
-    epsilon_decay: float = Field(
-        0.95,
+    epsilon_decay: float | None = Field(
+        None,
         gt=0.0,
         le=1.0,
         description="Per-episode factor: epsilon of episode e is "
-        "max(epsilon_end, epsilon_start * epsilon_decay**e).",
+        "max(epsilon_end, epsilon_start * epsilon_decay**e). null (the default) picks the "
+        "factor that brings epsilon to its floor after 80% of the training episodes; a factor "
+        "given here may not reach the floor within them.",
     )
     actions: ActionSet = Field(
         "behaviors",
@@ -243,6 +301,26 @@ class Rewards(_Part):
         description="Reward per length unit closed toward the nearest cell, the biomarker "
         "source (paper: +1 per unit); moving away costs the same.",
     )
+    step: float = Field(
+        -0.1,
+        ge=-1e6,
+        le=1e6,
+        description="Reward for every step a robot takes (not in the paper): a small cost, so "
+        "that a return measures how quickly a cell was reached, not only that it was.",
+    )
+
+
+class Evaluation(_Part):
+    """How the learned (or fixed) policy is judged after training: greedily, in fresh worlds."""
+
+    worlds: int = Field(
+        20,
+        ge=1,
+        le=1000,
+        description="Evaluation episodes, each in a fresh world drawn from a stream of its own, "
+        "so that every policy run with the same seed is judged in the same worlds. The summary "
+        "is the mean over them; the first is recorded for the trajectory and the pictures.",
+    )
 
 
 class Scenario(_Part):
@@ -268,6 +346,7 @@ class Scenario(_Part):
     robots: Robots = Robots()
     learning: Learning = Learning()
     rewards: Rewards = Rewards()
+    evaluation: Evaluation = Evaluation()
     reach_distance: float = Field(
         0.5,
         gt=0.0,
@@ -334,8 +413,14 @@ class Scenario(_Part):
 
     @property
     def robot_steps_budget(self) -> int:
-        """The most robot-steps this scenario can cost: robots x max_steps x (episodes + 1)."""
-        return self.robots.count * self.learning.max_steps * (self.learning.episodes + 1)
+        """The most robot-steps this scenario can cost: robots x max_steps x (training episodes
+        + evaluation worlds)."""
+        return self.robots.count * self.learning.max_steps * self.episodes
+
+    @property
+    def episodes(self) -> int:
+        """Episodes a run has in all: training, then evaluation."""
+        return self.learning.episodes + self.evaluation.worlds
 
     @property
     def sources(self) -> int:
@@ -360,14 +445,15 @@ class Scenario(_Part):
         Unlike ``robot_steps_budget`` it weighs a robot-step by what it does: a field term per
         source, two scans of the obstacles and of the cells; and it adds what a step, an
         episode and the recorded evaluation cost besides (``work_for``)."""
-        episodes = self.learning.episodes + 1
+        episodes = self.episodes
         steps = self.learning.max_steps * episodes
-        return self.work_for(self.robots.count * steps, steps, episodes, self.learning.max_steps)
+        evaluation_steps = self.learning.max_steps * self.evaluation.worlds
+        return self.work_for(self.robots.count * steps, steps, episodes, evaluation_steps)
 
     def work_for(self, robot_steps: int, steps: int, episodes: int, evaluation_steps: int) -> int:
         """The work of a run of this scenario that took ``robot_steps`` robot-steps over
-        ``steps`` steps of ``episodes`` episodes, the last (evaluation) one ``evaluation_steps``
-        steps long."""
+        ``steps`` steps of ``episodes`` episodes, ``evaluation_steps`` of them in the evaluation
+        (where the field is also measured at every robot for the metrics)."""
         n = self.robots.count
         c = self.cells.count
         o = self.obstacles.count

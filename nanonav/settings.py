@@ -49,7 +49,8 @@ class Settings(BaseSettings):
         1_000_000_000,
         ge=1,
         validation_alias=_aliases("robot_steps_budget"),
-        description="Largest robots x max_steps x (episodes + 1) a submitted scenario may cost.",
+        description="Largest robots x max_steps x (training episodes + evaluation worlds) a "
+        "submitted scenario may cost.",
     )
     work_budget: int = Field(
         500_000_000_000,

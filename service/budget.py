@@ -8,14 +8,19 @@ from nanonav.scenario import Scenario
 from nanonav.settings import Settings
 from service.problems import BudgetExceeded, FieldError, field_error
 
-STEPS_FIELDS = (("robots", "count"), ("learning", "max_steps"), ("learning", "episodes"))
+STEPS_FIELDS = (
+    ("robots", "count"),
+    ("learning", "max_steps"),
+    ("learning", "episodes"),
+    ("evaluation", "worlds"),
+)
 
 
 def over_budget(scenario: Scenario, settings: Settings) -> str | None:
     """Why ``scenario`` costs more than the settings allow, or None if it fits."""
     if scenario.robot_steps_budget > settings.robot_steps_budget:
         return (
-            f"robots.count x learning.max_steps x (learning.episodes + 1) = "
+            f"robots.count x learning.max_steps x (learning.episodes + evaluation.worlds) = "
             f"{scenario.robot_steps_budget:,} robot-steps, over the budget of "
             f"{settings.robot_steps_budget:,}"
         )

@@ -119,6 +119,26 @@ class JobPage(BaseModel):
     next: str | None = Field(description="The next page's URL, or null.")
 
 
+METRICS_SUMMARY_EXAMPLE: dict[str, Any] = {
+    "total_steps": 46.0,
+    "mean_steps_to_reach": 48.1,
+    "episode_steps": 84.3,
+    "success_rate": 1.0,
+    "final_distance": 0.30,
+    "final_distance_reached": 0.30,
+    "final_distance_unreached": None,
+    "average_distance": 11.7,
+    "average_concentration": 0.65,
+    "collisions": 0.1,
+    "path_efficiency": 0.97,
+    "mean_return": 28.3,
+    "duration_s": 0.0004,
+    "robots": 15,
+    "reached": 300,
+    "worlds": 20,
+}
+
+
 class Metrics(BaseModel):
     """The metrics document of a finished run (the engine's ``SimulationResult.to_dict()``)."""
 
@@ -129,33 +149,26 @@ class Metrics(BaseModel):
                 {
                     "scenario": {"seed": 0, "...": "..."},
                     "completed": True,
-                    "summary": {
-                        "total_steps": 312,
-                        "final_distance": 0.4,
-                        "average_distance": 9.8,
-                        "average_concentration": 0.41,
-                        "duration_s": 0.05,
-                        "success_rate": 1.0,
-                        "collisions": 2,
-                        "path_efficiency": 0.91,
-                        "mean_steps_to_reach": 312.0,
-                        "mean_return": 42.0,
-                        "robots": 1,
-                        "reached": 1,
+                    "summary": METRICS_SUMMARY_EXAMPLE,
+                    "uncertainty": {
+                        "success_rate": {"n": 20, "sd": 0.0, "ci_low": 1.0, "ci_high": 1.0},
+                        "total_steps": {"n": 20, "sd": 12.3, "ci_low": 40.2, "ci_high": 51.7},
                     },
+                    "worlds": [METRICS_SUMMARY_EXAMPLE | {"worlds": None}],
                     "robots": [
                         {
                             "robot": 0,
                             "reached": True,
-                            "total_steps": 312,
+                            "total_steps": 44,
+                            "steps_to_reach": 44,
                             "final_distance": 0.4,
                             "average_distance": 9.8,
                             "average_concentration": 0.41,
-                            "duration_s": 0.05,
-                            "collisions": 2,
-                            "path_length": 156.0,
-                            "path_efficiency": 0.91,
-                            "return": 42.0,
+                            "duration_s": 0.0001,
+                            "collisions": 0,
+                            "path_length": 22.0,
+                            "path_efficiency": 0.97,
+                            "return": 27.1,
                         }
                     ],
                     "episodes": [
@@ -176,9 +189,26 @@ class Metrics(BaseModel):
 
     scenario: dict[str, Any]
     completed: bool
-    summary: dict[str, Any]
-    robots: list[dict[str, Any]]
-    episodes: list[dict[str, Any]]
+    summary: dict[str, Any] = Field(
+        description="Table 1 for the swarm, each number the mean over the evaluation worlds: "
+        "total_steps (median over robots of the steps to reach, a failure counting max_steps), "
+        "mean_steps_to_reach (robots that reached), episode_steps, success_rate, "
+        "final_distance (all robots) and final_distance_reached / _unreached, "
+        "average_distance, average_concentration, collisions, path_efficiency, mean_return, "
+        "duration_s; robots, reached (over all worlds), worlds."
+    )
+    uncertainty: dict[str, Any] = Field(
+        default_factory=dict,
+        description="Per summary number: n (worlds where it exists), sd and the 95% Student t "
+        "interval of its mean over the evaluation worlds.",
+    )
+    worlds: list[dict[str, Any]] = Field(
+        default_factory=list, description="Every evaluation world's own summary."
+    )
+    robots: list[dict[str, Any]] = Field(
+        description="Per robot, in the first (recorded) evaluation world."
+    )
+    episodes: list[dict[str, Any]] = Field(description="The learning curve, per training episode.")
     work: dict[str, Any]
 
 

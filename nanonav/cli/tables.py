@@ -66,26 +66,36 @@ def format_table(document: Mapping[str, Any]) -> str:
     scenario = document["scenario"]
     summary = document.get("summary") or {}
     robots_rows = document.get("robots") or []
-    rows = [
-        ("Total Steps", _number(summary.get("total_steps"))),
-        ("Final Distance", _number(summary.get("final_distance"))),
-        ("Average Distance", _number(summary.get("average_distance"))),
-        ("Average Biomarker Concentration", _number(summary.get("average_concentration"))),
-        ("Simulation Duration", _seconds(summary.get("duration_s"))),
-        ("Success Rate", _percent(summary.get("success_rate"))),
-        ("Collisions", _number(summary.get("collisions"))),
-        ("Path Efficiency", _number(summary.get("path_efficiency"))),
+    uncertainty = document.get("uncertainty") or {}
+    metrics = [
+        ("Total Steps", "total_steps", _number),
+        ("Final Distance", "final_distance", _number),
+        ("Average Distance", "average_distance", _number),
+        ("Average Biomarker Concentration", "average_concentration", _number),
+        ("Simulation Duration", "duration_s", _seconds),
+        ("Success Rate", "success_rate", _percent),
+        ("Collisions", "collisions", _number),
+        ("Path Efficiency", "path_efficiency", _number),
     ]
+    rows = []
+    for label, key, show in metrics:
+        spread = uncertainty.get(key) or {}
+        low, high = spread.get("ci_low"), spread.get("ci_high")
+        interval = "" if low is None or high is None else f"[{show(low)}, {show(high)}]"
+        rows.append((label, show(summary.get(key)), interval))
     robots = int(scenario["robots"]["count"])
+    worlds = summary.get("worlds")
     header = (
         f"Table 1: {scenario.get('preset') or 'custom scenario'}, seed {scenario['seed']}, "
         f"{plural(robots, 'robot')}, {plural(int(scenario['cells']['count']), 'cell')}, "
         f"{scenario['robots']['policy']}, "
-        f"{scenario['learning']['episodes']} training episodes + evaluation"
+        f"{scenario['learning']['episodes']} training episodes, then "
+        + (f"the mean over {plural(int(worlds), 'evaluation world')}" if worlds else "evaluation")
     )
-    lines = [header, *text_table(("Parameter", "Result"), rows, align_right=(False, True))]
+    columns = ("Parameter", "Result", "95% CI over worlds" if worlds else "")
+    lines = [header, *text_table(columns, rows, align_right=(False, True, True))]
     if robots > 1 and robots_rows:
-        lines += ["", "Per robot (evaluation episode):"]
+        lines += ["", "Per robot (the first evaluation world):"]
         shown = robots_rows[:MAX_ROBOT_ROWS]
         robot_rows = [
             (
@@ -100,9 +110,9 @@ def format_table(document: Mapping[str, Any]) -> str:
             )
             for row in shown
         ]
-        columns = ("robot", "reached", "steps", "final dist", "avg dist", "avg conc",
-                   "collisions", "path eff")  # fmt: skip
-        lines += text_table(columns, robot_rows, align_right=(True,) * len(columns))
+        robot_columns = ("robot", "reached", "steps", "final dist", "avg dist", "avg conc",
+                         "collisions", "path eff")  # fmt: skip
+        lines += text_table(robot_columns, robot_rows, align_right=(True,) * len(robot_columns))
         if len(robots_rows) > len(shown):
             lines.append(
                 f"... and {len(robots_rows) - len(shown)} more robots (see --json or metrics.json)"

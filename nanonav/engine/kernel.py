@@ -22,6 +22,7 @@ from nanonav.engine.qlearning import (
     SIGN_THRESHOLD,
 )
 from nanonav.engine.state import (
+    ALPHA_VISITS,
     BEHAVIORS,
     CURVE_COLLISIONS,
     CURVE_REACHED,
@@ -30,10 +31,20 @@ from nanonav.engine.state import (
     CURVE_STEPS,
     EPISODE,
     EPISODE_START,
+    EV_COLLISIONS,
+    EV_FINAL_DISTANCE,
+    EV_PATH_LENGTH,
+    EV_REACHED,
+    EV_RETURN,
+    EV_STEPS,
+    EV_STRAIGHT,
+    EV_SUM_CONCENTRATION,
+    EV_SUM_DISTANCE,
     GRADIENT,
     LAYOUT_STATUS,
     Q_LEARNING,
     ROBOT_STEPS,
+    RULE,
     RUN_AND_TUMBLE,
     STEP,
     KernelParams,
@@ -110,6 +121,79 @@ def _inside_obstacle(
 
 
 @njit(cache=True, error_model="numpy", inline="always")
+def _segment_hit(
+    obstacles: NDArray[np.float64], radius: float,
+    px: float, py: float, pz: float, nx: float, ny: float, nz: float,
+) -> int:  # fmt: skip
+    """The first obstacle (by index) that the move from p to n passes through, or -1: the whole
+    segment is checked, so a fast robot cannot tunnel through a small obstacle."""
+    ux = nx - px
+    uy = ny - py
+    uz = nz - pz
+    length2 = ux * ux + uy * uy + uz * uz
+    r2 = radius * radius
+    for j in range(obstacles.shape[0]):
+        cx = obstacles[j, 0] - px
+        cy = obstacles[j, 1] - py
+        cz = obstacles[j, 2] - pz
+        # the segment's point nearest the centre: p + f u, f clamped to [0, 1]
+        f = 0.0
+        if length2 > 0.0:
+            f = min(max((cx * ux + cy * uy + cz * uz) / length2, 0.0), 1.0)
+        dx = cx - f * ux
+        dy = cy - f * uy
+        dz = cz - f * uz
+        if dx * dx + dy * dy + dz * dz < r2:
+            return j
+    return -1
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _slide(
+    p: KernelParams, rng: np.random.Generator, w: World,
+    px: float, py: float, pz: float, dx: float, dy: float, dz: float, step: float,
+) -> tuple[float, float, float]:  # fmt: skip
+    """The direction (dx, dy, dz), or, if a step along it would run into an obstacle, its part
+    along that obstacle's surface: a robot that meets an obstacle goes round it rather than
+    pushing against it."""
+    j = _segment_hit(
+        w.obstacles, p.obstacle_radius, px, py, pz, px + step * dx, py + step * dy, pz + step * dz
+    )
+    if j < 0:
+        return dx, dy, dz
+    nx, ny, nz = _unit_or_random(
+        rng, px - w.obstacles[j, 0], py - w.obstacles[j, 1], pz - w.obstacles[j, 2]
+    )
+    inward = dx * nx + dy * ny + dz * nz
+    if inward >= 0.0:
+        return dx, dy, dz
+    tx = dx - inward * nx
+    ty = dy - inward * ny
+    tz = dz - inward * nz
+    if tx * tx + ty * ty + tz * tz < 1e-18:
+        # head-on: any tangent will do
+        tx, ty, tz = ny, -nx, 0.0
+        if tx * tx + ty * ty < 1e-18:
+            tx, ty, tz = 0.0, nz, -ny
+    return _unit_or_random(rng, tx, ty, tz)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _climb(
+    p: KernelParams, rng: np.random.Generator, w: World, s: Swarm, i: int,
+    px: float, py: float, pz: float, gx: float, gy: float, gz: float,
+) -> tuple[float, float, float]:  # fmt: skip
+    """Up the sensed gradient, sliding round obstacles; straight on where nothing is sensed."""
+    if gx * gx + gy * gy + gz * gz > 0.0:
+        dx, dy, dz = _unit_or_random(rng, gx, gy, gz)
+    else:
+        dx = s.heading[i, 0]
+        dy = s.heading[i, 1]
+        dz = s.heading[i, 2]
+    return _slide(p, rng, w, px, py, pz, dx, dy, dz, p.speed)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def _sense_all(p: KernelParams, w: World, s: Swarm, wanted: NDArray[np.bool_]) -> None:
     """The true field and gradient at every ``wanted`` robot, in one pass over the swarm (the
     sources' loop vectorises there, unlike inside the robot loop)."""
@@ -131,6 +215,13 @@ def _sense(p: KernelParams, rng: np.random.Generator, s: Swarm, i: int) -> tuple
         gx *= 1.0 + p.noise * rng.standard_normal()
         gy *= 1.0 + p.noise * rng.standard_normal()
         gz *= 1.0 + p.noise * rng.standard_normal()
+    if p.noise_floor > 0.0:
+        c += p.noise_floor * rng.standard_normal()
+        gx += p.gradient_noise * rng.standard_normal()
+        gy += p.gradient_noise * rng.standard_normal()
+        gz += p.gradient_noise * rng.standard_normal()
+    if p.detection_threshold > 0.0 and c < p.detection_threshold:
+        return 0.0, 0.0, 0.0, 0.0  # below the threshold a robot senses nothing
     return c, gx, gy, gz
 
 
@@ -155,7 +246,7 @@ def _state(
         if obstacle_gap <= p.sensing_radius:
             obstacle = 2 if near_obstacle else 1
         cell = 0
-        if cell_d <= p.sensing_radius:
+        if cell_d <= p.cell_sensing_radius:
             cell = 2 if cell_d <= CELL_NEAR_STEPS * p.speed else 1
         return ((level * 2 + trend) * 3 + obstacle) * 3 + cell
     g = math.sqrt(gx * gx + gy * gy + gz * gz)
@@ -221,8 +312,6 @@ def _behavior_direction(
     gx: float,
     gy: float,
     gz: float,
-    obstacle: int,
-    obstacle_gap: float,
     cell: int,
     cell_d: float,
 ) -> tuple[float, float, float, float]:
@@ -232,7 +321,7 @@ def _behavior_direction(
         dx, dy, dz = _random_unit(rng)
         return dx, dy, dz, p.speed
     if action == APPROACH_CELL:
-        if cell_d <= p.sensing_radius and cell_d > 0.0:
+        if cell_d <= p.cell_sensing_radius and cell_d > 0.0:
             return (
                 (w.cells[cell, 0] - px) / cell_d,
                 (w.cells[cell, 1] - py) / cell_d,
@@ -240,34 +329,32 @@ def _behavior_direction(
                 min(p.speed, cell_d),
             )
         return s.heading[robot, 0], s.heading[robot, 1], s.heading[robot, 2], p.speed
-    dx, dy, dz = _unit_or_random(rng, gx, gy, gz)
-    if action == AVOID_OBSTACLE and obstacle >= 0 and obstacle_gap <= p.sensing_radius:
-        nx, ny, nz = _unit_or_random(
-            rng,
-            px - w.obstacles[obstacle, 0],
-            py - w.obstacles[obstacle, 1],
-            pz - w.obstacles[obstacle, 2],
-        )
-        inward = dx * nx + dy * ny + dz * nz
-        if inward < 0.0:
-            # slide along the tangent plane: a tangential step never enters the sphere
-            tx = dx - inward * nx
-            ty = dy - inward * ny
-            tz = dz - inward * nz
-            if tx * tx + ty * ty + tz * tz < 1e-18:
-                tx, ty, tz = ny, -nx, 0.0
-                if tx * tx + ty * ty < 1e-18:
-                    tx, ty, tz = 0.0, nz, -ny
-            dx, dy, dz = _unit_or_random(rng, tx, ty, tz)
-    return dx, dy, dz, p.speed
+    if action == AVOID_OBSTACLE:
+        # up the gradient, and round an obstacle only if the step would run into it
+        dx, dy, dz = _climb(p, rng, w, s, robot, px, py, pz, gx, gy, gz)
+        return dx, dy, dz, p.speed
+    if gx * gx + gy * gy + gz * gz > 0.0:
+        dx, dy, dz = _unit_or_random(rng, gx, gy, gz)
+        return dx, dy, dz, p.speed
+    return s.heading[robot, 0], s.heading[robot, 1], s.heading[robot, 2], p.speed
 
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _learn(
-    p: KernelParams, q: NDArray[np.float64], table: int, s: int, a: int, target: float
+    p: KernelParams,
+    q: NDArray[np.float64],
+    visits: NDArray[np.int64],
+    table: int,
+    s: int,
+    a: int,
+    target: float,
 ) -> None:
-    # eq. 2.7: Q(s,a) <- Q(s,a) + alpha [r + gamma max_a' Q(s',a') - Q(s,a)]
-    q[table, s, a] += p.alpha * (target - q[table, s, a])
+    # eq. 2.7: Q(s,a) <- Q(s,a) + alpha [r + gamma max_a' Q(s',a') - Q(s,a)], alpha constant or
+    # alpha / N(s,a)^omega over the visits N of (s, a)
+    alpha = p.alpha
+    if p.alpha_schedule == ALPHA_VISITS and visits[table, s, a] > 1:
+        alpha = p.alpha / visits[table, s, a] ** p.alpha_exponent
+    q[table, s, a] += alpha * (target - q[table, s, a])
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -323,16 +410,18 @@ def _move_obstacles(p: KernelParams, rng: np.random.Generator, w: World, s: Swar
 
 
 @njit(cache=True, error_model="numpy")
-def observe(p: KernelParams, w: World, s: Swarm, rec: Recording, t: int, final: bool) -> None:
-    """Measure the true field and distance at every robot after step ``t``: add them to the
-    per-robot sums of robots still moving at ``t``, and store a history row every
+def observe(
+    p: KernelParams, w: World, s: Swarm, rec: Recording, t: int, final: bool, record: bool
+) -> None:
+    """Measure the true field and distance at every robot after step ``t`` and add them to the
+    per-robot sums of robots still moving at ``t``; if ``record``, store a history row every
     ``record_stride`` steps (and for the ``final`` step). Obstacles that do not move have one
     row, written at the start."""
     row = t // p.record_stride
     on_row = t % p.record_stride == 0
     if final and not on_row:
         row += 1
-    keep = on_row or final
+    keep = record and (on_row or final)
     _sense_all(p, w, s, np.ones(s.pos.shape[0], dtype=np.bool_))
     for i in range(s.pos.shape[0]):
         c = s.reading[i]
@@ -357,7 +446,7 @@ def observe(p: KernelParams, w: World, s: Swarm, rec: Recording, t: int, final: 
 @njit(cache=True, error_model="numpy")
 def _begin_episode(
     p: KernelParams, world_rng: np.random.Generator, w: World, s: Swarm, rec: Recording,
-    record: bool,
+    evaluating: bool, record: bool,
 ) -> int:  # fmt: skip
     """Reset the swarm and draw a fresh world; returns ``draw_world``'s status."""
     s.active[:] = True
@@ -374,7 +463,9 @@ def _begin_episode(
     if status == 0:
         place_sources(p.model, w.cells, w.offsets, w.sx, w.sy, w.sz)
         if record:
-            observe(p, w, s, rec, 0, False)
+            rec.offsets[:] = w.offsets
+        if evaluating:
+            observe(p, w, s, rec, 0, False, record)
     return status
 
 
@@ -384,10 +475,29 @@ def _over(p: KernelParams, s: Swarm, t: int) -> bool:
 
 
 @njit(cache=True, error_model="numpy")
+def _evaluated(s: Swarm, out: NDArray[np.float64]) -> None:
+    """Every robot's tallies of an evaluation episode that has ended, into ``out[robot]``."""
+    for i in range(s.pos.shape[0]):
+        out[i, EV_STEPS] = s.steps[i]
+        out[i, EV_REACHED] = 0.0 if s.active[i] else 1.0
+        out[i, EV_FINAL_DISTANCE] = s.last_dist[i]
+        out[i, EV_SUM_DISTANCE] = s.sum_dist[i]
+        out[i, EV_SUM_CONCENTRATION] = s.sum_conc[i]
+        out[i, EV_COLLISIONS] = s.collisions[i]
+        out[i, EV_PATH_LENGTH] = s.path_length[i]
+        dx = s.pos[i, 0] - s.start[i, 0]
+        dy = s.pos[i, 1] - s.start[i, 1]
+        dz = s.pos[i, 2] - s.start[i, 2]
+        out[i, EV_STRAIGHT] = math.sqrt(dx * dx + dy * dy + dz * dz)
+        out[i, EV_RETURN] = s.returns[i]
+
+
+@njit(cache=True, error_model="numpy")
 def run(
     p: KernelParams,
     epsilons: NDArray[np.float64],
     world_rng: np.random.Generator,
+    evaluation_rng: np.random.Generator,
     rng: np.random.Generator,
     w: World,
     s: Swarm,
@@ -395,30 +505,39 @@ def run(
     rec: Recording,
     counters: NDArray[np.int64],
     curve: NDArray[np.float64],
+    evaluation: NDArray[np.float64],
     budget: int,
 ) -> None:
     """Run episodes from where ``counters`` says (episode, step) until about ``budget``
-    robot-steps are spent, the training episodes are over, or the evaluation episode is.
+    robot-steps are spent, the training episodes are over, or the evaluation is.
 
-    ``epsilons`` holds one rate per training episode; the evaluation episode follows them
-    (greedy, not learning, recorded). ``curve[e]`` receives episode ``e``'s steps, robots that
-    reached, summed return, collisions and robot-steps. A world with no room stops the run with
-    ``counters[LAYOUT_STATUS]`` set.
+    ``epsilons`` holds one rate per training episode; the evaluation episodes follow them, one
+    per row of ``evaluation`` (greedy, not learning, in worlds drawn from ``evaluation_rng``,
+    the first recorded); each writes its robots' tallies into its row. ``curve[e]`` receives
+    episode ``e``'s steps, robots that reached, summed return, collisions and robot-steps. A
+    world with no room stops the run with ``counters[LAYOUT_STATUS]`` set.
     """
     training = epsilons.shape[0]
+    episodes = training + evaluation.shape[0]
     episode = counters[EPISODE]
     t = counters[STEP]
-    while budget > 0 and episode <= training:
-        evaluating = episode == training
+    while budget > 0 and episode < episodes:
+        evaluating = episode >= training
+        record = episode == training
         eps = 0.0 if evaluating else epsilons[episode]
         learn = p.learn and not evaluating
         if t == 0:
-            status = _begin_episode(p, world_rng, w, s, rec, evaluating)
+            if evaluating:
+                status = _begin_episode(p, evaluation_rng, w, s, rec, True, record)
+            else:
+                status = _begin_episode(p, world_rng, w, s, rec, False, False)
             if status != 0:
                 counters[LAYOUT_STATUS] = status
                 break
         spent = counters[ROBOT_STEPS]
-        t = _run_steps(p, eps, learn, evaluating, rng, w, s, lrn, rec, t, budget, counters)
+        t = _run_steps(
+            p, eps, learn, evaluating, record, rng, w, s, lrn, rec, t, budget, counters
+        )  # fmt: skip
         budget -= counters[ROBOT_STEPS] - spent
         if not _over(p, s, t):
             continue
@@ -432,9 +551,9 @@ def run(
         curve[episode, CURVE_COLLISIONS] = s.collisions.sum()
         curve[episode, CURVE_ROBOT_STEPS] = counters[ROBOT_STEPS] - counters[EPISODE_START]
         counters[EPISODE_START] = counters[ROBOT_STEPS]
-        episode += 1
         if evaluating:
-            break
+            _evaluated(s, evaluation[episode - training])
+        episode += 1
         t = 0
         if episode == training:
             break  # the evaluation starts in a call of its own, so that it is timed alone
@@ -447,6 +566,7 @@ def _run_steps(
     p: KernelParams,
     epsilon: float,
     learn: bool,
+    evaluating: bool,
     record: bool,
     rng: np.random.Generator,
     w: World,
@@ -459,7 +579,8 @@ def _run_steps(
 ) -> int:
     """Advance the episode from step ``t`` until it ends or about ``budget`` robot-steps are
     spent; return the new step. When the episode ends (every robot reached a cell, or
-    ``max_steps``) the last transitions are learned and the final row recorded."""
+    ``max_steps``) the last transitions are learned and, in the evaluation, the final step
+    measured (and recorded)."""
     n = s.pos.shape[0]
     stop_at = counters[ROBOT_STEPS] + budget
     while t < p.max_steps and counters[ROBOT_STEPS] < stop_at:
@@ -487,30 +608,29 @@ def _run_steps(
             if cell_d <= p.reach_distance:
                 # a drifting cell came within reach: the robot spends this step receiving it
                 s.steps[i] += 1
-                s.returns[i] += p.reward_reach
+                s.returns[i] += p.reward_reach + p.reward_step
                 if learn and s.pending[i]:
                     _learn(
-                        p, lrn.q, table, s.last_state[i], s.last_action[i],
-                        s.last_reward[i] + p.reward_reach,
+                        p, lrn.q, lrn.visits, table, s.last_state[i], s.last_action[i],
+                        s.last_reward[i] + p.reward_reach + p.reward_step,
                     )  # fmt: skip
                 s.pending[i] = False
                 s.active[i] = False
                 continue
             c, gx, gy, gz = _sense(p, rng, s, i)
-            obstacle, gap = _nearest_obstacle(w.obstacles, p.obstacle_radius, px, py, pz)
 
             if p.policy == Q_LEARNING:
+                gap = _nearest_obstacle(w.obstacles, p.obstacle_radius, px, py, pz)[1]
                 state = _state(p, c, s.prev_conc[i], gx, gy, gz, gap, cell_d)
                 if learn and s.pending[i]:
                     target = _bootstrap(p, lrn.q, table, state, s.last_reward[i])
-                    _learn(p, lrn.q, table, s.last_state[i], s.last_action[i], target)
+                    _learn(p, lrn.q, lrn.visits, table, s.last_state[i], s.last_action[i], target)
                 action = _choose(epsilon, rng, lrn.q, table, state)
                 lrn.visits[table, state, action] += 1
                 if p.action_set == BEHAVIORS:
                     dx, dy, dz, step = _behavior_direction(
-                        p, rng, w, s, i, action, px, py, pz, gx, gy, gz,
-                        obstacle, gap, cell, cell_d,
-                    )  # fmt: skip
+                        p, rng, w, s, i, action, px, py, pz, gx, gy, gz, cell, cell_d
+                    )
                 else:
                     dx = lrn.directions[action, 0]
                     dy = lrn.directions[action, 1]
@@ -521,7 +641,14 @@ def _run_steps(
                 action = 0
                 step = p.speed
                 if p.policy == GRADIENT:
-                    dx, dy, dz = _unit_or_random(rng, gx, gy, gz)
+                    dx, dy, dz = _climb(p, rng, w, s, i, px, py, pz, gx, gy, gz)
+                elif p.policy == RULE:
+                    if cell_d <= p.cell_sensing_radius and cell_d > 0.0:
+                        dx, dy, dz, step = _behavior_direction(
+                            p, rng, w, s, i, APPROACH_CELL, px, py, pz, gx, gy, gz, cell, cell_d
+                        )
+                    else:
+                        dx, dy, dz = _climb(p, rng, w, s, i, px, py, pz, gx, gy, gz)
                 elif p.policy == RUN_AND_TUMBLE and c > s.prev_conc[i]:
                     dx = s.heading[i, 0]
                     dy = s.heading[i, 1]
@@ -542,8 +669,8 @@ def _run_steps(
             if abs(nz) > p.half:
                 nz = _reflect(nz, p.half)
                 dz = -dz
-            reward = 0.0
-            if _inside_obstacle(w.obstacles, p.obstacle_radius, nx, ny, nz):
+            reward = p.reward_step
+            if _segment_hit(w.obstacles, p.obstacle_radius, px, py, pz, nx, ny, nz) >= 0:
                 s.collisions[i] += 1
                 reward += p.reward_collision
                 nx = px
@@ -568,7 +695,7 @@ def _run_steps(
             s.returns[i] += reward
             if learn:
                 if reached:
-                    _learn(p, lrn.q, table, state, action, reward)
+                    _learn(p, lrn.q, lrn.visits, table, state, action, reward)
                     s.pending[i] = False
                 else:
                     s.pending[i] = True
@@ -576,13 +703,13 @@ def _run_steps(
                     s.last_action[i] = action
                     s.last_reward[i] = reward
         t += 1
-        if record:
-            observe(p, w, s, rec, t, False)
+        if evaluating:
+            observe(p, w, s, rec, t, False, record)
     if _over(p, s, t):
         if learn:
             _finish_episode(p, rng, w, s, lrn)
         if record and t % p.record_stride:
-            observe(p, w, s, rec, t, True)
+            observe(p, w, s, rec, t, True, record)
     return t
 
 
@@ -605,5 +732,5 @@ def _finish_episode(
         cell_d = _nearest(w.cells, px, py, pz)[1]
         state = _state(p, c, s.prev_conc[i], gx, gy, gz, gap, cell_d)
         target = _bootstrap(p, lrn.q, table, state, s.last_reward[i])
-        _learn(p, lrn.q, table, s.last_state[i], s.last_action[i], target)
+        _learn(p, lrn.q, lrn.visits, table, s.last_state[i], s.last_action[i], target)
         s.pending[i] = False

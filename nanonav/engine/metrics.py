@@ -1,62 +1,147 @@
-"""Table 1 of the paper, for the swarm and per robot, from the evaluation episode's tallies."""
+"""Table 1 of the paper, per robot and for the swarm, in every evaluation world; and the mean
+over the worlds with its uncertainty.
+
+Each metric means one thing, for one robot or for the swarm alike:
+
+- ``total_steps``: Table 1's Total Steps. A robot's steps to reach a cell, ``max_steps`` if it
+  did not; for a swarm, the median over its robots (so a failure counts as the step limit).
+- ``mean_steps_to_reach``: the mean steps to reach over the robots that reached (none: null).
+- ``episode_steps``: steps until every robot had reached, or the step limit.
+- ``success_rate``: the share of robots that reached a cell.
+- ``final_distance``: distance to the nearest cell at a robot's last step, mean over robots;
+  ``final_distance_reached`` and ``final_distance_unreached`` split it (null when empty).
+- ``average_distance``, ``average_concentration``: a robot's mean over its own steps (start
+  included), then the mean over robots; the concentration is the true one at the robot.
+- ``collisions``: moves blocked by an obstacle, summed over robots.
+- ``path_efficiency``: straight distance from start to end over the path length, mean over
+  robots; ``mean_return``: summed reward, mean over robots; ``duration_s``: wall time.
+"""
 
 from __future__ import annotations
 
+import math
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
-from nanonav.engine.state import Swarm
+from nanonav import stats
+from nanonav.engine.state import (
+    EV_COLLISIONS,
+    EV_FINAL_DISTANCE,
+    EV_PATH_LENGTH,
+    EV_REACHED,
+    EV_RETURN,
+    EV_STEPS,
+    EV_STRAIGHT,
+    EV_SUM_CONCENTRATION,
+    EV_SUM_DISTANCE,
+)
+
+# The summary's numbers that are averaged over worlds (the counts are summed instead).
+AVERAGED = (
+    "total_steps",
+    "mean_steps_to_reach",
+    "episode_steps",
+    "success_rate",
+    "final_distance",
+    "final_distance_reached",
+    "final_distance_unreached",
+    "average_distance",
+    "average_concentration",
+    "collisions",
+    "path_efficiency",
+    "mean_return",
+    "duration_s",
+)
 
 
-def robot_rows(swarm: Swarm, duration_s: float, episode_steps: int) -> list[dict[str, Any]]:
-    """One Table 1 row per robot; ``duration_s`` is its share of the episode's wall time, up to
-    its last step."""
-    counted = swarm.steps + 1  # rows 0..steps of the robot's own path
-    average_distance = swarm.sum_dist / counted
-    average_concentration = swarm.sum_conc / counted
-    straight = np.linalg.norm(swarm.pos - swarm.start, axis=1)
+def _efficiency(tallies: NDArray[np.float64]) -> NDArray[np.float64]:
+    path = tallies[:, EV_PATH_LENGTH]
     with np.errstate(invalid="ignore", divide="ignore"):
-        efficiency = np.where(swarm.path_length > 0, straight / swarm.path_length, 0.0)
-    share = swarm.steps / max(episode_steps, 1)
+        return np.where(path > 0, tallies[:, EV_STRAIGHT] / path, 0.0)
+
+
+def robot_rows(
+    tallies: NDArray[np.float64], max_steps: int, duration_s: float, episode_steps: int
+) -> list[dict[str, Any]]:
+    """One Table 1 row per robot of one evaluation world (``tallies``: robots x EV columns);
+    ``duration_s`` is its share of the world's wall time, up to its last step."""
+    steps = tallies[:, EV_STEPS]
+    counted = steps + 1  # rows 0..steps of the robot's own path
+    reached = tallies[:, EV_REACHED] > 0
+    efficiency = _efficiency(tallies)
+    share = steps / max(episode_steps, 1)
     return [
         {
             "robot": i,
-            "reached": bool(not swarm.active[i]),
-            "total_steps": int(swarm.steps[i]),
-            "final_distance": float(swarm.last_dist[i]),
-            "average_distance": float(average_distance[i]),
-            "average_concentration": float(average_concentration[i]),
+            "reached": bool(reached[i]),
+            "total_steps": int(steps[i]) if reached[i] else max_steps,
+            "steps_to_reach": int(steps[i]) if reached[i] else None,
+            "final_distance": float(tallies[i, EV_FINAL_DISTANCE]),
+            "average_distance": float(tallies[i, EV_SUM_DISTANCE] / counted[i]),
+            "average_concentration": float(tallies[i, EV_SUM_CONCENTRATION] / counted[i]),
             "duration_s": float(duration_s * share[i]),
-            "collisions": int(swarm.collisions[i]),
-            "path_length": float(swarm.path_length[i]),
+            "collisions": int(tallies[i, EV_COLLISIONS]),
+            "path_length": float(tallies[i, EV_PATH_LENGTH]),
             "path_efficiency": float(efficiency[i]),
-            "return": float(swarm.returns[i]),
+            "return": float(tallies[i, EV_RETURN]),
         }
-        for i in range(swarm.pos.shape[0])
+        for i in range(tallies.shape[0])
     ]
 
 
-def swarm_summary(
-    rows: list[dict[str, Any]], episode_steps: int, duration_s: float
+def _mean(values: NDArray[np.float64]) -> float | None:
+    return float(values.mean()) if values.size else None
+
+
+def world_summary(
+    tallies: NDArray[np.float64], max_steps: int, episode_steps: int, duration_s: float
 ) -> dict[str, Any]:
-    """Table 1 for the whole swarm: the episode's length, means over robots, and totals."""
-    reached = [r for r in rows if r["reached"]]
-
-    def mean(key: str, of: list[dict[str, Any]] = rows) -> float | None:
-        return float(np.mean([r[key] for r in of])) if of else None
-
+    """Table 1 for the swarm in one evaluation world (see the module's definitions)."""
+    reached = tallies[:, EV_REACHED] > 0
+    steps = tallies[:, EV_STEPS]
+    final = tallies[:, EV_FINAL_DISTANCE]
+    counted = steps + 1
     return {
-        "total_steps": int(episode_steps),
-        "final_distance": mean("final_distance"),
-        "average_distance": mean("average_distance"),
-        "average_concentration": mean("average_concentration"),
+        "total_steps": float(np.median(np.where(reached, steps, max_steps))),
+        "mean_steps_to_reach": _mean(steps[reached]),
+        "episode_steps": int(episode_steps),
+        "success_rate": float(reached.mean()),
+        "final_distance": float(final.mean()),
+        "final_distance_reached": _mean(final[reached]),
+        "final_distance_unreached": _mean(final[~reached]),
+        "average_distance": float((tallies[:, EV_SUM_DISTANCE] / counted).mean()),
+        "average_concentration": float((tallies[:, EV_SUM_CONCENTRATION] / counted).mean()),
+        "collisions": int(tallies[:, EV_COLLISIONS].sum()),
+        "path_efficiency": float(_efficiency(tallies).mean()),
+        "mean_return": float(tallies[:, EV_RETURN].mean()),
         "duration_s": float(duration_s),
-        "success_rate": len(reached) / len(rows),
-        "collisions": int(sum(r["collisions"] for r in rows)),
-        "path_efficiency": mean("path_efficiency"),
-        "mean_steps_to_reach": mean("total_steps", reached),
-        "mean_return": mean("return"),
-        "robots": len(rows),
-        "reached": len(reached),
+        "robots": int(tallies.shape[0]),
+        "reached": int(reached.sum()),
     }
+
+
+def over_worlds(
+    worlds: Sequence[dict[str, Any]],
+) -> tuple[dict[str, Any], dict[str, dict[str, Any]]]:
+    """The summary (each number the mean over the worlds where it exists, counts summed) and,
+    per averaged metric, its n, sd and 95% Student t interval over the worlds."""
+    summary: dict[str, Any] = {}
+    uncertainty: dict[str, dict[str, Any]] = {}
+    for key in AVERAGED:
+        values = [float(w[key]) for w in worlds if w.get(key) is not None]
+        values = [v for v in values if math.isfinite(v)]
+        described = stats.describe(values)
+        summary[key] = described.mean
+        uncertainty[key] = {
+            "n": described.n,
+            "sd": described.sd,
+            "ci_low": described.ci_low,
+            "ci_high": described.ci_high,
+        }
+    summary["robots"] = int(worlds[0]["robots"]) if worlds else 0
+    summary["reached"] = int(sum(w["reached"] for w in worlds))
+    summary["worlds"] = len(worlds)
+    return summary, uncertainty

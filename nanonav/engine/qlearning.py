@@ -72,6 +72,24 @@ def labels(actions: str) -> tuple[list[str], list[str]]:
     return direction_states(), DIRECTION_ACTIONS
 
 
+# Without a decay factor given, epsilon reaches its floor after this share of training episodes.
+FLOOR_AT = 0.8
+# An exponential decay never reaches 0: a floor of 0 is reached, in effect, at this rate.
+NEGLIGIBLE_EPSILON = 1e-3
+
+
+def epsilon_decay(learning: Learning) -> float:
+    """The per-episode factor: the one given, or the one that reaches the floor after
+    ``FLOOR_AT`` of the training episodes."""
+    if learning.epsilon_decay is not None:
+        return learning.epsilon_decay
+    floor = max(learning.epsilon_end, NEGLIGIBLE_EPSILON)
+    if learning.epsilon_start <= floor:
+        return 1.0
+    episodes = max(1.0, FLOOR_AT * learning.episodes)
+    return float((floor / learning.epsilon_start) ** (1.0 / episodes))
+
+
 def epsilon(learning: Learning, episode: int) -> float:
     """Exploration rate of training episode ``episode``: exponential decay to a floor."""
-    return max(learning.epsilon_end, learning.epsilon_start * learning.epsilon_decay**episode)
+    return max(learning.epsilon_end, learning.epsilon_start * epsilon_decay(learning) ** episode)

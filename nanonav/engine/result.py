@@ -8,7 +8,7 @@ binary blobs). Only the timing fields (``summary.duration_s``, ``robots[*].durat
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -87,9 +87,12 @@ class QTable:
 class SimulationResult:
     """Everything one run produced.
 
-    ``completed`` is false when the caller stopped the run early: the episodes finished so far are
-    kept, and there is no evaluation episode (``trajectory`` is None, ``summary`` and ``robots``
-    are empty).
+    ``summary`` is Table 1 for the swarm, each number the mean over the evaluation worlds
+    (``metrics`` says what each means); ``uncertainty`` gives, per number, n, sd and the 95%
+    Student t interval over those worlds; ``worlds`` holds every world's own summary;
+    ``robots`` and ``trajectory`` are the first evaluation world's. ``completed`` is false when
+    the caller stopped the run early: the episodes finished so far are kept, and there is no
+    evaluation (``trajectory`` is None, the summaries empty).
     """
 
     scenario: Scenario
@@ -100,13 +103,18 @@ class SimulationResult:
     trajectory: Trajectory | None
     qtable: QTable | None
     completed: bool = True
+    uncertainty: dict[str, dict[str, Any]] = field(default_factory=dict)
+    worlds: list[dict[str, Any]] = field(default_factory=list)
 
     def to_dict(self) -> dict[str, Any]:
-        """The metrics document: scenario, Table 1 summary, per-robot rows, learning curve, work."""
+        """The metrics document: scenario, Table 1 summary and its uncertainty over the
+        evaluation worlds, each world's summary, per-robot rows, learning curve, work."""
         return {
             "scenario": self.scenario.model_dump(mode="json"),
             "completed": self.completed,
             "summary": self.summary,
+            "uncertainty": self.uncertainty,
+            "worlds": self.worlds,
             "robots": self.robots,
             "episodes": self.episodes,
             "work": self.work,
@@ -144,6 +152,8 @@ class SimulationResult:
             trajectory=trajectory,
             qtable=None,
             completed=bool(document.get("completed", True)),
+            uncertainty=document.get("uncertainty") or {},
+            worlds=document.get("worlds") or [],
         )
 
     def arrays(self) -> dict[str, NDArray[Any]]:

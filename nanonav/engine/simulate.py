@@ -6,6 +6,7 @@ The engine takes a scenario (with its seed) and returns a result; it reads no cl
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -17,7 +18,13 @@ from numpy.typing import NDArray
 from nanonav.engine import fields, kernel, metrics, qlearning, state
 from nanonav.engine.result import QTable, SimulationResult, Trajectory
 from nanonav.engine.state import KernelParams, Learner, Recording, Swarm, World
-from nanonav.engine.world import DYNAMICS_STREAM, WORLD_STREAM, raise_for_layout, stream
+from nanonav.engine.world import (
+    DYNAMICS_STREAM,
+    EVALUATION_STREAM,
+    WORLD_STREAM,
+    raise_for_layout,
+    stream,
+)
 from nanonav.scenario import Scenario, ScenarioError
 
 # Robot-steps per compiled call between progress reports (about 0.1 s of work).
@@ -79,6 +86,14 @@ def _params(scenario: Scenario, record_bytes: int = DEFAULT_RECORD_BYTES) -> Ker
         max_steps=scenario.learning.max_steps,
         record_stride=record_stride(scenario, record_bytes),
         emitter_scatter=b.emitter_scatter,
+        noise_floor=b.noise_floor,
+        # a gradient component is the difference of two readings sensor_baseline apart
+        gradient_noise=b.noise_floor / (math.sqrt(2.0) * scenario.robots.sensor_baseline),
+        detection_threshold=b.detection_threshold,
+        cell_sensing_radius=scenario.robots.cell_sensing_radius,
+        reward_step=scenario.rewards.step,
+        alpha_schedule=state.ALPHA_SCHEDULE_CODES[scenario.learning.alpha_schedule],
+        alpha_exponent=scenario.learning.alpha_exponent,
     )
 
 
@@ -133,9 +148,12 @@ def history_row_bytes(scenario: Scenario) -> int:
     return FLOAT_BYTES * floats
 
 
-def still_obstacle_bytes(scenario: Scenario) -> int:
-    """Bytes of the one row of obstacle centres kept when obstacles do not move."""
-    return 0 if obstacles_move(scenario) else FLOAT_BYTES * 3 * scenario.obstacles.count
+def fixed_history_bytes(scenario: Scenario) -> int:
+    """Bytes the history keeps once, whatever its length: the recorded world's emitter offsets,
+    and the one row of obstacle centres when obstacles do not move."""
+    offsets = 3 * scenario.cells.count * scenario.biomarker.emitters_per_cell
+    still = 0 if obstacles_move(scenario) else 3 * scenario.obstacles.count
+    return FLOAT_BYTES * (offsets + still)
 
 
 def history_rows(max_steps: int, stride: int) -> int:
@@ -150,7 +168,7 @@ def record_stride(scenario: Scenario, record_bytes: int) -> int:
     Strides only thin what is recorded; the dynamics are the same for every stride. When not even
     the start and the end rows fit, the scenario is refused rather than the cap broken."""
     row = history_row_bytes(scenario)
-    rows = (record_bytes - still_obstacle_bytes(scenario)) // row
+    rows = (record_bytes - fixed_history_bytes(scenario)) // row
     if rows < 2:
         n, c, o = scenario.robots.count, scenario.cells.count, scenario.obstacles.count
         share = {
@@ -187,6 +205,7 @@ class _Run:
             else np.zeros(learning.episodes)
         )
         self.world_rng = stream(scenario.seed, WORLD_STREAM)
+        self.evaluation_rng = stream(scenario.seed, EVALUATION_STREAM)
         self.rng = stream(scenario.seed, DYNAMICS_STREAM)
         n = scenario.robots.count
         cells = scenario.cells.count
@@ -229,9 +248,11 @@ class _Run:
             conc=np.zeros((rows, n)),
             dist=np.zeros((rows, n)),
             step=np.zeros(rows, dtype=np.int64),
+            offsets=np.zeros_like(self.world.offsets),
         )
         self.counters = np.zeros(state.COUNTERS, dtype=np.int64)
-        self.curve = np.zeros((learning.episodes + 1, state.CURVE_COLUMNS))
+        self.curve = np.zeros((scenario.episodes, state.CURVE_COLUMNS))
+        self.evaluation = np.zeros((scenario.evaluation.worlds, n, state.EV_COLUMNS))
 
     @property
     def episode(self) -> int:
@@ -249,8 +270,9 @@ class _Run:
         """Run about ``budget`` robot-steps, stopping early at the end of training or of the
         evaluation."""
         kernel.run(
-            self.params, self.epsilons, self.world_rng, self.rng, self.world, self.swarm,
-            self.learner, self.recording, self.counters, self.curve, budget,
+            self.params, self.epsilons, self.world_rng, self.evaluation_rng, self.rng,
+            self.world, self.swarm, self.learner, self.recording, self.counters, self.curve,
+            self.evaluation, budget,
         )  # fmt: skip
         raise_for_layout(int(self.counters[state.LAYOUT_STATUS]), self.scenario)
 
@@ -268,9 +290,29 @@ class _Run:
             for e, row in enumerate(self.curve[:episodes])
         ]
 
+    def evaluated(self, duration_s: float) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+        """Every evaluation world's summary, and the first world's per-robot rows; the wall
+        time is shared out over the worlds by their robot-steps."""
+        training = self.scenario.learning.episodes
+        max_steps = self.scenario.learning.max_steps
+        curve = self.curve[training:]
+        robot_steps = curve[:, state.CURVE_ROBOT_STEPS]
+        shares = robot_steps / max(float(robot_steps.sum()), 1.0)
+        worlds = [
+            metrics.world_summary(
+                tallies, max_steps, int(row[state.CURVE_STEPS]), duration_s * float(share)
+            )
+            for tallies, row, share in zip(self.evaluation, curve, shares, strict=True)
+        ]
+        rows = metrics.robot_rows(
+            self.evaluation[0], max_steps, duration_s * float(shares[0]),
+            int(curve[0, state.CURVE_STEPS]),
+        )  # fmt: skip
+        return worlds, rows
+
     def trajectory(self) -> Trajectory:
-        """The evaluation episode's history (valid once it has ended)."""
-        length = int(self.curve[-1, state.CURVE_STEPS])
+        """The first evaluation world's history (valid once it has ended)."""
+        length = int(self.curve[self.scenario.learning.episodes, state.CURVE_STEPS])
         stride = self.params.record_stride
         rows = history_rows(length, stride)
         r = self.recording
@@ -281,9 +323,9 @@ class _Run:
             obstacles=r.obstacles[:rows].copy(),
             concentration=r.conc[:rows].copy(),
             distance=r.dist[:rows].copy(),
-            steps=self.swarm.steps.copy(),
-            reached=~self.swarm.active,
-            emitter_offsets=self.world.offsets.reshape(self.scenario.cells.count, -1, 3).copy(),
+            steps=self.evaluation[0, :, state.EV_STEPS].astype(np.int64),
+            reached=self.evaluation[0, :, state.EV_REACHED] > 0.0,
+            emitter_offsets=r.offsets.reshape(self.scenario.cells.count, -1, 3).copy(),
             obstacle_radius=self.params.obstacle_radius,
             stride=stride,
         )
@@ -299,10 +341,11 @@ def _warm_up() -> None:
     if _compiled:
         return
     tiny = Scenario.model_validate(
-        {"learning": {"episodes": 1, "max_steps": 2}, "obstacles": {"count": 1}}
-    )
+        {"learning": {"episodes": 1, "max_steps": 2}, "obstacles": {"count": 1},
+         "evaluation": {"worlds": 1}}
+    )  # fmt: skip
     run = _Run(tiny, _params(tiny))
-    while run.episode <= tiny.learning.episodes:
+    while run.episode < tiny.episodes:
         run.advance(CHUNK_ROBOT_STEPS)
     fields.field_and_gradient(
         tiny.biomarker, run.world.cells, np.zeros((1, 0, 3)), np.zeros((1, 3))
@@ -333,12 +376,12 @@ def simulate(
     params = _params(scenario, record_bytes)
     _warm_up()
     learning = scenario.learning
-    total = learning.episodes + 1
+    total = scenario.episodes
     run = _Run(scenario, params, policy)
     engine_s = 0.0
     eval_s = 0.0
     while run.episode < total:
-        evaluating = run.episode == learning.episodes
+        evaluating = run.episode >= learning.episodes
         started = time.perf_counter()
         run.advance(CHUNK_ROBOT_STEPS)
         elapsed = time.perf_counter() - started
@@ -362,7 +405,9 @@ def simulate(
         qtable = QTable(states, actions, values.copy(), visits.copy())
     if run.episode < total:
         return SimulationResult(scenario, {}, [], curve, work, None, qtable, completed=False)
-    length = int(run.curve[-1, state.CURVE_STEPS])
-    rows = metrics.robot_rows(run.swarm, eval_s, length)
-    summary = metrics.swarm_summary(rows, length, eval_s)
-    return SimulationResult(scenario, summary, rows, curve, work, run.trajectory(), qtable)
+    worlds, rows = run.evaluated(eval_s)
+    summary, uncertainty = metrics.over_worlds(worlds)
+    return SimulationResult(
+        scenario, summary, rows, curve, work, run.trajectory(), qtable,
+        uncertainty=uncertainty, worlds=worlds,
+    )  # fmt: skip

@@ -12,11 +12,15 @@ Q_LEARNING = 0
 GRADIENT = 1
 RUN_AND_TUMBLE = 2
 RANDOM = 3
+RULE = 4
 POLICY_CODES = {"q_learning": Q_LEARNING, "gradient": GRADIENT, "run_and_tumble": RUN_AND_TUMBLE,
-                "random": RANDOM}  # fmt: skip
+                "random": RANDOM, "rule": RULE}  # fmt: skip
 BEHAVIORS = 0
 DIRECTIONS = 1
 ACTION_SET_CODES = {"behaviors": BEHAVIORS, "directions": DIRECTIONS}
+ALPHA_CONSTANT = 0
+ALPHA_VISITS = 1
+ALPHA_SCHEDULE_CODES = {"constant": ALPHA_CONSTANT, "visits": ALPHA_VISITS}
 
 
 class KernelParams(NamedTuple):
@@ -49,6 +53,13 @@ class KernelParams(NamedTuple):
     max_steps: int
     record_stride: int
     emitter_scatter: float
+    noise_floor: float  # additive noise on a concentration reading (concentration units)
+    gradient_noise: float  # additive noise on each sensed gradient component
+    detection_threshold: float  # readings below it are read as nothing
+    cell_sensing_radius: float  # a cell within it is sensed (its position)
+    reward_step: float
+    alpha_schedule: int
+    alpha_exponent: float
 
 
 class Swarm(NamedTuple):
@@ -103,6 +114,7 @@ class Recording(NamedTuple):
     conc: NDArray[np.float64]  # (R, N)
     dist: NDArray[np.float64]  # (R, N)
     step: NDArray[np.int64]  # (R,) the step each row shows
+    offsets: NDArray[np.float64]  # (K, 3) the recorded world's emitter offsets
 
 
 # counters[] slots: where the run is, and what it has spent
@@ -112,6 +124,18 @@ EPISODE = 2  # the episode in progress (training episodes, then the evaluation)
 STEP = 3  # its step
 EPISODE_START = 4  # ROBOT_STEPS when it began
 COUNTERS = 5
+
+# evaluation[world, robot, ...] columns written by the kernel when an evaluation episode ends
+EV_STEPS = 0  # steps the robot was active (to its reach, or the episode's end)
+EV_REACHED = 1  # 1 if it reached a cell
+EV_FINAL_DISTANCE = 2  # distance to the nearest cell at its last step
+EV_SUM_DISTANCE = 3  # distance to the nearest cell summed over its steps 0..EV_STEPS
+EV_SUM_CONCENTRATION = 4  # true concentration summed likewise
+EV_COLLISIONS = 5
+EV_PATH_LENGTH = 6
+EV_STRAIGHT = 7  # straight-line distance from its start to where it ended
+EV_RETURN = 8
+EV_COLUMNS = 9
 
 # curve[episode, ...] columns written by the kernel when an episode ends
 CURVE_STEPS = 0

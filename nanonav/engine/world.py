@@ -25,6 +25,7 @@ NO_ROOM_FOR_ROBOTS = -1
 
 WORLD_STREAM = 0
 DYNAMICS_STREAM = 1
+EVALUATION_STREAM = 2  # the evaluation's worlds: the same for every policy run with a seed
 
 
 def stream(seed: int, which: int) -> np.random.Generator:
@@ -80,8 +81,9 @@ def draw_world(p: KernelParams, rng: np.random.Generator, w: World, s: Swarm) ->
             if attempt == PLACEMENT_ATTEMPTS:
                 return k + 1
             _uniform(rng, w.obstacles[k], -half + p.obstacle_radius, half - p.obstacle_radius)
+            # robots start at least one step clear of every obstacle's surface
             if _clear(w.obstacles[k], w.cells, cell_clearance) and _clear(
-                w.obstacles[k], s.pos, p.obstacle_radius
+                w.obstacles[k], s.pos, p.obstacle_radius + p.speed
             ):
                 break
     for k in range(w.offsets.shape[0]):

@@ -65,7 +65,7 @@ def submit_job(
     job = store.enqueue(
         scenario.model_dump(mode="json"),
         robot_steps=scenario.robot_steps_budget,
-        episodes=scenario.learning.episodes + 1,
+        episodes=scenario.episodes,
         idempotency_key=idempotency_key,
     )
     response.headers["Location"] = f"/jobs/{job.id}"

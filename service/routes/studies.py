@@ -94,7 +94,7 @@ def submit_study(
         StudyJob(
             scenario=point.with_seed(seed).model_dump(mode="json"),
             robot_steps=point.scenario.robot_steps_budget,
-            episodes=point.scenario.learning.episodes + 1,
+            episodes=point.scenario.episodes,
             point=point.index,
             seed=seed,
         )

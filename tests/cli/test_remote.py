@@ -80,10 +80,10 @@ def test_submit_wait_prints_the_id_then_table_1(
     assert lines[2].startswith("Table 1: custom scenario, seed 11, 2 robots, 1 cell, q_learning")
     summary = api.metrics(job.id)["summary"]
     (steps,) = [line for line in lines if line.startswith("Total Steps")]
-    assert steps.split()[-1] == str(summary["total_steps"])
+    assert steps.split()[2] == f"{summary['total_steps']:.2f}"
     for row in TABLE_1:
         assert any(line.startswith(row) for line in lines), row
-    assert "Per robot (evaluation episode):" in lines
+    assert "Per robot (the first evaluation world):" in lines
 
 
 def test_submit_a_preset_without_waiting_prints_the_id(

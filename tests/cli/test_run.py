@@ -17,7 +17,9 @@ from nanonav import cli, plots
 from nanonav.engine import Progress, SimulationResult, simulate
 
 SMALL: dict[str, Any] = {"learning": {"episodes": 2, "max_steps": 200}, "obstacles": {"count": 3}}
-DOCUMENT_KEYS = {"scenario", "completed", "summary", "robots", "episodes", "work"}
+DOCUMENT_KEYS = {
+    "scenario", "completed", "summary", "uncertainty", "worlds", "robots", "episodes", "work"
+}  # fmt: skip
 TABLE_ROWS = (
     "Total Steps",
     "Final Distance",
@@ -65,7 +67,7 @@ def test_text_output_is_table_1_with_a_row_per_robot_for_a_swarm(
     assert lines[0].startswith("Table 1: custom scenario, seed 1, 3 robots")
     for row in TABLE_ROWS:
         assert any(line.startswith(row) for line in lines), row
-    assert "Per robot (evaluation episode):" in lines
+    assert "Per robot (the first evaluation world):" in lines
     robot_rows = [line.split() for line in lines if line.split()[:1] in (["0"], ["1"], ["2"])]
     assert [row[0] for row in robot_rows] == ["0", "1", "2"]
 

@@ -80,7 +80,7 @@ def test_a_submitted_job_runs_and_every_result_comes_back(
     job_id = submit(api, TINY)
     job, seen = wait_for(api, job_id, finished, FIRST_JOB_S)
     assert job["status"] == "succeeded", job
-    assert job["progress"] == {"episode": 3, "episodes": 3, "fraction": 1.0}
+    assert job["progress"] == {"episode": 2 + 20, "episodes": 2 + 20, "fraction": 1.0}
     assert job["attempts"] == 1
     assert job["started_at"] is not None and job["finished_at"] >= job["started_at"]
     fractions = [s["progress"]["fraction"] for s in seen]
@@ -93,12 +93,13 @@ def test_a_submitted_job_runs_and_every_result_comes_back(
         assert key in summary, key
     assert len(metrics["robots"]) == 2
     assert len(metrics["episodes"]) == 2
+    assert len(metrics["worlds"]) == 20 and metrics["uncertainty"]["success_rate"]["n"] == 20
     assert metrics["scenario"] == job["scenario"]
 
     full = api.client.get(f"/jobs/{job_id}/trajectory").json()
     length = full["length"]
     assert 1 <= length <= 60
-    assert length == summary["total_steps"]
+    assert length == metrics["worlds"][0]["episode_steps"]
     assert full["steps"] == list(range(length + 1))
     assert np.asarray(full["robots"]).shape == (length + 1, 2, 3)
     assert np.asarray(full["cells"]).shape == (length + 1, 1, 3)

@@ -15,6 +15,7 @@ BASE: dict[str, Any] = {
     "cells": {"count": 4},
     "obstacles": {"count": 10},
     "learning": {"episodes": 9, "max_steps": 500},
+    "evaluation": {"worlds": 1},
 }
 INVERSE = {"model": "inverse_square"}
 

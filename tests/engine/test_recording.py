@@ -12,10 +12,10 @@ from nanonav.engine.simulate import (
     DEFAULT_RECORD_BYTES,
     _params,
     _Run,
+    fixed_history_bytes,
     history_row_bytes,
     history_rows,
     record_stride,
-    still_obstacle_bytes,
 )
 from nanonav.scenario import Scenario, ScenarioError
 
@@ -41,13 +41,14 @@ SWARM: dict[str, Any] = {
     "robots": {"count": 40, "policy": "q_learning"},
     "cells": {"count": 3},
     "learning": {"episodes": 2, "max_steps": 300},
+    "evaluation": {"worlds": 1},  # the world left at the end is the recorded one
 }
 
 
 def test_still_obstacles_are_recorded_once_as_the_worlds_obstacles() -> None:
     s = scenario(**SWARM, obstacles={"count": 25})
     run = _Run(s, _params(s))
-    while run.episode <= s.learning.episodes:
+    while run.episode < s.episodes:
         run.advance(CHUNK_ROBOT_STEPS)
     t = run.trajectory()
     assert t.obstacles.shape == (1, 25, 3)
@@ -95,7 +96,7 @@ def test_the_history_fits_its_byte_cap_and_ends_at_the_episodes_end() -> None:
     assert t.stride > 1
     # the smallest stride that fits: one step less would not
     assert history_rows(s.learning.max_steps, t.stride - 1) * row > cap
-    assert t.step[0] == 0 and t.step[-1] == result.summary["total_steps"] == t.length
+    assert t.step[0] == 0 and t.step[-1] == result.worlds[0]["episode_steps"] == t.length
     assert (np.diff(t.step)[:-1] == t.stride).all() and 0 < t.step[-1] - t.step[-2] <= t.stride
 
 
@@ -138,7 +139,7 @@ def test_large_swarms_get_a_strided_history_within_the_default_cap() -> None:
 
 def test_a_cap_that_cannot_hold_the_start_and_end_is_refused_by_field() -> None:
     swarm = scenario(robots={"count": 1000}, learning={"max_steps": 10})
-    two_rows = 2 * history_row_bytes(swarm) + still_obstacle_bytes(swarm)
+    two_rows = 2 * history_row_bytes(swarm) + fixed_history_bytes(swarm)
     assert record_stride(swarm, two_rows) == 10  # the start and the end only
     with pytest.raises(ScenarioError) as error:
         simulate(swarm, record_bytes=two_rows - 1)

@@ -135,10 +135,13 @@ def test_table_1_agrees_with_the_trajectory() -> None:
     result = simulate(scenario(preset="paper-swarm", learning={"episodes": 2, "max_steps": 300}))
     t = result.trajectory
     assert t is not None
-    assert result.summary["total_steps"] == t.length == int(t.steps.max())
+    first = result.worlds[0]  # the recorded evaluation world
+    assert first["episode_steps"] == t.length == int(t.steps.max())
+    steps = [r["steps_to_reach"] or result.scenario.learning.max_steps for r in result.robots]
+    assert first["total_steps"] == float(np.median(steps))
     for row in result.robots:
         i = row["robot"]
-        own = slice(0, row["total_steps"] + 1)
+        own = slice(0, int(t.steps[i]) + 1)
         assert row["average_distance"] == pytest.approx(t.distance[own, i].mean(), rel=1e-12)
         assert row["average_concentration"] == pytest.approx(
             t.concentration[own, i].mean(), rel=1e-12
@@ -147,14 +150,22 @@ def test_table_1_agrees_with_the_trajectory() -> None:
             assert row["final_distance"] <= result.scenario.reach_distance
         assert 0.0 <= row["path_efficiency"] <= 1.0 + 1e-12
     reached = [r for r in result.robots if r["reached"]]
-    assert result.summary["success_rate"] == len(reached) / 15
-    assert result.summary["collisions"] == sum(r["collisions"] for r in result.robots)
+    assert first["success_rate"] == len(reached) / 15
+    assert first["collisions"] == sum(r["collisions"] for r in result.robots)
+    for key in ("success_rate", "total_steps", "average_distance"):
+        values = [w[key] for w in result.worlds]
+        assert result.summary[key] == pytest.approx(float(np.mean(values)), rel=1e-12)
+        assert result.uncertainty[key]["n"] == len(result.worlds) == 20
 
 
 def test_work_counts_every_robot_step() -> None:
-    s = scenario(robots={"policy": "random", "count": 3}, learning={"episodes": 2, "max_steps": 50})
+    s = scenario(
+        robots={"policy": "random", "count": 3},
+        learning={"episodes": 2, "max_steps": 50},
+        evaluation={"worlds": 4},
+    )
     result = simulate(s)
-    assert result.work["robot_steps"] == 3 * 50 * 3
+    assert result.work["robot_steps"] == 3 * 50 * (2 + 4)
     assert result.work["engine_s"] > 0
 
 
@@ -182,7 +193,7 @@ def test_progress_reaches_one_at_the_end() -> None:
     seen: list[Progress] = []
     result = simulate(scenario(learning={"episodes": 2, "max_steps": 50}), seen.append)
     assert result.completed
-    assert seen[-1].fraction == 1.0 and seen[-1].episode == seen[-1].episodes == 3
+    assert seen[-1].fraction == 1.0 and seen[-1].episode == seen[-1].episodes == 2 + 20
 
 
 def test_the_episode_ends_on_the_step_the_last_robot_reaches_a_cell() -> None:
@@ -199,7 +210,7 @@ def test_the_episode_ends_on_the_step_the_last_robot_reaches_a_cell() -> None:
         t = result.trajectory
         assert t is not None
         if t.reached.all():
-            assert result.summary["total_steps"] == int(t.steps.max())
+            assert result.worlds[0]["episode_steps"] == int(t.steps.max())
         for i in np.flatnonzero(t.reached):
             assert t.distance[t.steps[i], i] <= s.reach_distance
             assert result.robots[i]["final_distance"] == t.distance[t.steps[i], i]

@@ -49,7 +49,7 @@ def test_submit_answers_202_with_location_and_the_resolved_scenario(api: Api) ->
     assert job["status"] == "queued"
     assert job["scenario"]["seed"] == 0
     assert job["scenario"]["learning"]["episodes"] == 50
-    assert job["progress"] == {"episode": 0, "episodes": 51, "fraction": 0.0}
+    assert job["progress"] == {"episode": 0, "episodes": 50 + 20, "fraction": 0.0}
     assert job["links"]["plots"]["learning"] == f"/jobs/{job['id']}/plots/learning.png"
     assert api.store.get(job["id"]).status is JobStatus.QUEUED
 
@@ -95,6 +95,7 @@ def test_a_scenario_over_the_work_budget_is_refused_with_422(api: Api) -> None:
         "#/robots/count",
         "#/learning/max_steps",
         "#/learning/episodes",
+        "#/evaluation/worlds",
     }
     assert api.store.page(status=None, limit=10, before_id=None).jobs == []
 
@@ -122,9 +123,9 @@ def test_the_budget_comes_from_the_settings(sqlite_url: str) -> None:
     upgrade(sqlite_url)
     app = create_app(Settings(database_url=sqlite_url, robot_steps_budget=1000))
     with serve(app) as url, httpx.Client(base_url=url) as client:
-        small = {"learning": {"episodes": 9, "max_steps": 100}}
+        small = {"learning": {"episodes": 9, "max_steps": 100}, "evaluation": {"worlds": 1}}
         assert client.post("/jobs", json=small).status_code == 202
-        small["learning"]["episodes"] = 10
+        small["evaluation"]["worlds"] = 2
         assert client.post("/jobs", json=small).status_code == 422
 
 
