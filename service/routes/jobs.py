@@ -24,6 +24,7 @@ from service.budget import check_budget
 from service.deps import DrawerDep, JsonBody, SettingsDep, StoreDep
 from service.drawing import Drawer
 from service.paging import decode_cursor, encode_cursor
+from service.policy_from import check_policy_from
 from service.problems import InvalidInput, NoQTable, field_error, problems
 from service.schemas import GreedyState, Job, JobPage, Metrics, QTable, Trajectory
 
@@ -63,6 +64,7 @@ def submit_job(
 ) -> Job:
     """Queue a scenario to run; answers once the job is stored."""
     check_budget(scenario, settings)
+    check_policy_from(scenario, store.qtable, ("body", "policy_from"))
     job = store.enqueue(
         scenario.model_dump(mode="json"),
         robot_steps=scenario.robot_steps_budget,
