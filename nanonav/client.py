@@ -40,8 +40,13 @@ FINISHED: frozenset[str] = frozenset({"succeeded", "failed", "cancelled"})
 # A job's pictures by name: the path under /jobs/{id}/ and its query.
 JOB_PICTURES: dict[str, tuple[str, dict[str, str]]] = {
     **{f"heatmap_{p}": ("heatmap.png", {"plane": p}) for p in ("xy", "xz", "yz", "all")},
-    **{name: (f"plots/{name}.png", {}) for name in ("trajectory", "concentration", "learning")},
+    **{
+        name: (f"plots/{name}.png", {})
+        for name in ("trajectory", "concentration", "learning", "qtable")
+    },
 }
+# Pictures only a job whose policy learns a Q-table has; others answer 404 for them.
+QTABLE_PICTURES = frozenset({"qtable"})
 PAGE_SIZE = 100  # the most the API lists per page
 
 _T = TypeVar("_T")
@@ -456,11 +461,13 @@ class Client:
             return {name: loaded[name] for name in loaded.files}
 
     def qtable(self, job_id: int) -> dict[str, Any]:
-        """The learned Q-table: ``states``, ``actions``, ``values`` and ``visits``."""
+        """The learned Q-table: ``states``, ``actions``, ``values``, ``visits``, and ``greedy``,
+        the greedy action of every state (all empty for a baseline policy)."""
         return self._json("GET", f"/jobs/{job_id}/qtable")
 
     def picture(self, job_id: int, name: str) -> bytes:
-        """A PNG of a succeeded job; ``name`` is one of ``JOB_PICTURES``."""
+        """A PNG of a succeeded job; ``name`` is one of ``JOB_PICTURES`` (``qtable`` answers
+        404 for a job whose policy learns no Q-table)."""
         if name not in JOB_PICTURES:
             raise ValueError(f"no picture {name!r}; there are {', '.join(JOB_PICTURES)}")
         path, params = JOB_PICTURES[name]

@@ -97,6 +97,12 @@ class StudyFinished(ProblemError):
     title = "Study already finished"
 
 
+class NoQTable(ProblemError):
+    status = 404
+    slug = "no-qtable"
+    title = "No Q-table"
+
+
 class InvalidInput(ProblemError):
     status = 422
     slug = "invalid-input"

@@ -10,7 +10,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from nanonav.store import JobRecord
 
 Status = Literal["queued", "running", "succeeded", "failed", "cancelled"]
-PLOTS = ("trajectory", "concentration", "learning")
+PLOTS = ("trajectory", "concentration", "learning", "qtable")
 PLANES = ("xy", "xz", "yz", "all")
 
 JOB_EXAMPLE: dict[str, Any] = {
@@ -252,8 +252,29 @@ class Trajectory(BaseModel):
     robot_steps: list[int] = Field(description="[robot] steps it was active")
 
 
+class GreedyState(BaseModel):
+    """What a greedy robot does in one state."""
+
+    state: str
+    action: str = Field(
+        description="The label of the action with the largest Q, the first if several tie; "
+        "'unvisited' for a state never visited whose row is all zeros (no action is preferred)."
+    )
+    value: float | None = Field(description="The largest Q of the state; null when unvisited.")
+    visits: int = Field(description="Times any action was chosen in this state, in this run.")
+    learned: bool = Field(
+        description="false for a state never visited with nothing learned; a table evaluated "
+        "from another job (policy_from) is learned where that job learned, visited or not."
+    )
+    ties: list[str] = Field(
+        description="Every action sharing the largest Q when there are several (a greedy robot "
+        "picks among them at random); empty otherwise."
+    )
+
+
 class QTable(BaseModel):
-    """The learned Q-table: ``values[state][action]`` (or ``[robot][state][action]``)."""
+    """The learned Q-table: ``values[state][action]`` (or ``[robot][state][action]``), and the
+    greedy policy read from it."""
 
     model_config = ConfigDict(
         json_schema_extra={
@@ -262,10 +283,37 @@ class QTable(BaseModel):
                     "states": [
                         "conc=low|trend=rising|obstacle=none|cell=none",
                         "conc=high|trend=falling|obstacle=near|cell=near",
+                        "conc=high|trend=falling|obstacle=near|cell=sensed",
                     ],
                     "actions": ["follow_gradient", "approach_cell", "avoid_obstacle", "explore"],
-                    "values": [[0.1, 0.0, -0.2, 0.05], [1.2, 3.4, 0.0, 0.1]],
-                    "visits": [[10, 2, 1, 4], [3, 9, 0, 1]],
+                    "values": [[0.1, 0.0, -0.2, 0.05], [1.2, 3.4, 0.0, 0.1], [0.0, 0.0, 0.0, 0.0]],
+                    "visits": [[10, 2, 1, 4], [3, 9, 0, 1], [0, 0, 0, 0]],
+                    "greedy": [
+                        {
+                            "state": "conc=low|trend=rising|obstacle=none|cell=none",
+                            "action": "follow_gradient",
+                            "value": 0.1,
+                            "visits": 17,
+                            "learned": True,
+                            "ties": [],
+                        },
+                        {
+                            "state": "conc=high|trend=falling|obstacle=near|cell=near",
+                            "action": "approach_cell",
+                            "value": 3.4,
+                            "visits": 13,
+                            "learned": True,
+                            "ties": [],
+                        },
+                        {
+                            "state": "conc=high|trend=falling|obstacle=near|cell=sensed",
+                            "action": "unvisited",
+                            "value": None,
+                            "visits": 0,
+                            "learned": False,
+                            "ties": [],
+                        },
+                    ],
                 }
             ]
         }
@@ -273,8 +321,16 @@ class QTable(BaseModel):
 
     states: list[str]
     actions: list[str]
-    values: list[Any]
-    visits: list[Any]
+    values: list[Any] = Field(
+        description="[state][action] for a table the swarm shares, [robot][state][action] when "
+        "every robot learns its own."
+    )
+    visits: list[Any] = Field(description="How often each action was chosen, shaped as values.")
+    greedy: list[GreedyState] = Field(
+        description="A row per state: its greedy action. For per-robot tables, the greedy "
+        "table of their mean over robots, each state-action pair weighted by the robots' visits "
+        "(a pair no robot chose: the plain mean). Empty for a job without a Q-table."
+    )
 
 
 class Queue(BaseModel):

@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 from pydantic import ValidationError
 
 from nanonav.engine import Progress, SimulationResult, simulate
+from nanonav.policy import UnusablePolicy, learned_table
 from nanonav.scenario import Scenario
 from nanonav.settings import Settings
 from nanonav.store import Claim, JobRecord, JobStore, LeaseLost, Outcome
@@ -102,10 +103,17 @@ def run_job(
         scenario = Scenario.model_validate(claim.job.scenario)
     except ValidationError as error:
         return store.fail(claim, f"the stored scenario is no longer valid: {error}")
+    policy = None
+    if scenario.policy_from is not None:
+        # checked at submit too; the run uses the table as the store holds it now
+        try:
+            policy = learned_table(scenario, store.qtable)
+        except UnusablePolicy as error:
+            return _fail(store, claim, f"policy_from: {error}")
     watch = Watch(store, claim, settings, shutdown)
     started = time.perf_counter()
     try:
-        result = simulate(scenario, watch)
+        result = simulate(scenario, watch, policy=policy)
     except Exception as error:
         logger.exception("job %d failed", job_id)
         return _fail(store, claim, f"the simulation failed: {type(error).__name__}: {error}")

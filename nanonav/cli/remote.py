@@ -25,7 +25,7 @@ from nanonav.cli.common import (
     validation_messages,
 )
 from nanonav.cli.tables import format_jobs, format_study, format_table, plural, study_counts
-from nanonav.client import JOB_PICTURES, Client, Job, Status, Study
+from nanonav.client import JOB_PICTURES, QTABLE_PICTURES, Client, Job, Status, Study
 from nanonav.scenario import PRESETS
 
 JOB_POLL_S = 0.25
@@ -232,8 +232,9 @@ def add_fetch(subcommands: Subcommands) -> None:
         "fetch",
         help="download a job's or a study's results into a directory",
         description="Write a succeeded job's metrics.json, trajectory.npz, qtable.json and "
-        "every picture (<name>.png) into DIR; or, with --study, a study's results.csv, "
-        "results.parquet, study.json and its pictures. DIR is created if missing.",
+        "every picture (<name>.png; qtable.png if it learned a Q-table) into DIR; or, with "
+        "--study, a study's results.csv, results.parquet, study.json and its pictures. DIR is "
+        "created if missing.",
     )
     fetch.add_argument("id", nargs="?", type=_positive, metavar="ID", help="a job's id")
     fetch.add_argument("--study", type=_positive, metavar="ID", help="a study's id instead")
@@ -268,8 +269,11 @@ def _job_files(api: Client, job_id: int) -> Iterator[tuple[str, bytes]]:
         raise UsageError([f"job {job_id} has no results: {ended}{why}"])
     yield "metrics.json", _document(api.metrics(job_id))
     yield "trajectory.npz", api.trajectory_npz(job_id)
-    yield "qtable.json", _document(api.qtable(job_id))
+    qtable = api.qtable(job_id)
+    yield "qtable.json", _document(qtable)
     for name in JOB_PICTURES:
+        if name in QTABLE_PICTURES and not qtable["states"]:
+            continue  # a baseline policy learns no table to draw
         yield f"{name}.png", api.picture(job_id, name)
 
 

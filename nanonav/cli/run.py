@@ -63,6 +63,13 @@ def _run(args: argparse.Namespace) -> int:
     from nanonav.engine import simulate
 
     scenario = load_scenario(args.scenario, preset=args.preset, seed=args.seed)
+    if scenario.policy_from is not None:
+        raise UsageError(
+            [
+                f"policy_from: job {scenario.policy_from} is a job of the service, whose table "
+                "only the service can read; submit this scenario with `nanonav submit`"
+            ]
+        )
     show_bar = not args.json and sys.stderr.isatty()
     with _stop_on_interrupt() as stopped, _progress_bar(show_bar) as report:
 

@@ -16,6 +16,7 @@ from numpy.typing import NDArray
 
 from nanonav import plots
 from nanonav.engine import SimulationResult
+from nanonav.policy import greedy_table
 from nanonav.scenario import Scenario
 from nanonav.store import JobStatus, JobStore
 from nanonav.store.arrays import pack
@@ -23,8 +24,9 @@ from service.budget import check_budget
 from service.deps import DrawerDep, JsonBody, SettingsDep, StoreDep
 from service.drawing import Drawer
 from service.paging import decode_cursor, encode_cursor
-from service.problems import InvalidInput, field_error, problems
-from service.schemas import Job, JobPage, Metrics, QTable, Trajectory
+from service.policy_from import check_policy_from
+from service.problems import InvalidInput, NoQTable, field_error, problems
+from service.schemas import GreedyState, Job, JobPage, Metrics, QTable, Trajectory
 
 router = APIRouter(prefix="/jobs", tags=["jobs"])
 
@@ -62,6 +64,7 @@ def submit_job(
 ) -> Job:
     """Queue a scenario to run; answers once the job is stored."""
     check_budget(scenario, settings)
+    check_policy_from(scenario, store.qtable, ("body", "policy_from"))
     job = store.enqueue(
         scenario.model_dump(mode="json"),
         robot_steps=scenario.robot_steps_budget,
@@ -180,15 +183,20 @@ def get_trajectory(
 
 @router.get("/{job_id}/qtable", response_model=QTable, responses=NOT_FOUND_OR_NOT_READY)
 def get_qtable(job_id: JobId, store: StoreDep) -> QTable:
-    """The learned action values and visit counts, with state and action labels."""
+    """The learned action values and visit counts, with state and action labels, and the
+    greedy action of every state."""
     arrays = store.qtable(job_id)
     if not arrays:
-        return QTable(states=[], actions=[], values=[], visits=[])
+        return QTable(states=[], actions=[], values=[], visits=[], greedy=[])
+    states = arrays["states"].tolist()
+    actions = arrays["actions"].tolist()
+    greedy = greedy_table(states, actions, arrays["values"], arrays["visits"])
     return QTable(
-        states=arrays["states"].tolist(),
-        actions=arrays["actions"].tolist(),
+        states=states,
+        actions=actions,
         values=arrays["values"].tolist(),
         visits=arrays["visits"].tolist(),
+        greedy=[GreedyState.model_validate(g.to_dict()) for g in greedy],
     )
 
 
@@ -214,11 +222,12 @@ async def get_heatmap(
 )
 async def get_plot(
     job_id: JobId,
-    name: Literal["trajectory", "concentration", "learning"],
+    name: Literal["trajectory", "concentration", "learning", "qtable"],
     store: StoreDep,
     drawer: DrawerDep,
 ) -> Response:
-    """A picture of the run: 3-D trajectory, concentration over time, or learning curve."""
+    """A picture of the run: 3-D trajectory, concentration over time, learning curve, or the
+    learned Q-table (404 for a job whose policy learns none)."""
     return await _picture(store, drawer, job_id, name)
 
 
@@ -231,11 +240,28 @@ async def _picture(store: JobStore, drawer: Drawer, job_id: int, name: str) -> R
 
 
 def _draw(store: JobStore, job_id: int, name: str) -> bytes:
-    metrics = store.metrics(job_id)
-    arrays = {} if name == "learning" else store.trajectory(job_id)
-    png = plots.render(SimulationResult.from_stored(metrics, arrays), name)
+    """Draw ``name`` from what it shows: the Q-table's arrays, or the metrics and trajectory."""
+    if name == "qtable":
+        png = _qtable_png(store, job_id)
+    else:
+        metrics = store.metrics(job_id)
+        arrays = {} if name == "learning" else store.trajectory(job_id)
+        png = plots.render(SimulationResult.from_stored(metrics, arrays), name)
     store.save_plot(job_id, name, png)
     return png
+
+
+def _qtable_png(store: JobStore, job_id: int) -> bytes:
+    arrays = store.qtable(job_id)
+    if not arrays:
+        policy = store.get(job_id).scenario.get("robots", {}).get("policy")
+        raise NoQTable(
+            f"job {job_id} learned no Q-table: its robots used the {policy!r} policy, and only "
+            "q_learning learns one"
+        )
+    return plots.qtable_png(
+        arrays["states"].tolist(), arrays["actions"].tolist(), arrays["values"], arrays["visits"]
+    )
 
 
 PER_ROW = ("step", "robots", "cells", "obstacles", "concentration", "distance")

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
-from functools import partial
+from functools import cache, partial
 from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Body, Header, Path, Query, Response
@@ -24,9 +24,10 @@ from nanonav.studies.report import (
 )
 from nanonav.studies.spec import StudySpec, point_values, points
 from service.budget import check_budget
-from service.deps import DrawerDep, JsonBody, SettingsDep, StudiesDep
+from service.deps import DrawerDep, JsonBody, SettingsDep, StoreDep, StudiesDep
 from service.drawing import Drawer
 from service.paging import decode_cursor, encode_cursor
+from service.policy_from import check_policy_from
 from service.problems import InvalidInput, StudyFinished, field_error, invalid_body, problems
 from service.routes.jobs import IMMUTABLE, PNG
 from service.schemas import JobCounts, Study, StudyLinks, StudyPage, StudySummary
@@ -67,6 +68,7 @@ STUDY_EXAMPLES: dict[str, Any] = {
 def submit_study(
     spec: Annotated[StudySpec, Body(openapi_examples=STUDY_EXAMPLES)],
     studies: StudiesDep,
+    store: StoreDep,
     settings: SettingsDep,
     response: Response,
     idempotency_key: Annotated[str | None, Header(max_length=200)] = None,
@@ -86,9 +88,11 @@ def submit_study(
         grid = points(spec)
     except ValidationError as error:
         raise invalid_body(error) from None
+    read = cache(store.qtable)  # points that name the same job read its table once
     for point in grid:
         blame = [("body", "grid", k, spec.grid[k].index(v)) for k, v in point.values.items()]
         check_budget(point.scenario, settings, blame or None)
+        check_policy_from(point.scenario, read, *_policy_blame(spec, point.values))
     seeds = spec.seed_list
     jobs = [
         StudyJob(
@@ -285,6 +289,20 @@ def _study(studies: StudyStore, record: StudyRecord) -> Study:
         links=_links(record.id),
         **loaded.report(studies),
     )
+
+
+def _policy_blame(spec: StudySpec, values: Mapping[str, Any]) -> tuple[tuple[str | int, ...], str]:
+    """Where a grid point's policy_from comes from (the grid value or the base), and which
+    point it is, to name in a refusal."""
+    if "policy_from" in values:
+        loc: tuple[str | int, ...] = (
+            "body", "grid", "policy_from", spec.grid["policy_from"].index(values["policy_from"])
+        )  # fmt: skip
+    else:
+        loc = ("body", "base", "policy_from")
+    others = {k: v for k, v in values.items() if k != "policy_from"}
+    where = f"at the grid point {others}: " if others else ""
+    return loc, where
 
 
 def _counts(found: Mapping[str, int]) -> JobCounts:

@@ -231,6 +231,18 @@ def test_fetch_writes_a_jobs_results(
         assert imread(out_dir / f"{name}.png", format="png").ndim == 3
 
 
+def test_fetch_of_a_baseline_job_writes_no_qtable_picture(
+    live_api: LiveApi, tmp_path: Path, capsys: pytest.CaptureFixture[str], api: Client
+) -> None:
+    job = api.wait(api.submit({**TINY, "robots": {"count": 1, "policy": "gradient"}}).id)
+    assert job.status == "succeeded"
+    assert main(["fetch", str(job.id), "--out", str(tmp_path), "--url", live_api.url]) == 0
+    written = sorted(p.name for p in tmp_path.iterdir())
+    assert "qtable.json" in written and "trajectory.png" in written
+    assert "qtable.png" not in written
+    assert json.loads((tmp_path / "qtable.json").read_text())["greedy"] == []
+
+
 def test_fetch_writes_a_studys_table_and_pictures(
     live_api: LiveApi,
     finished: tuple[Job, Study],

@@ -132,6 +132,14 @@ def test_a_rule_across_fields_names_the_field_at_fault(
     assert "learning.epsilon_end: must not exceed epsilon_start" in capsys.readouterr().err
 
 
+def test_a_scenario_that_evaluates_a_jobs_table_is_sent_to_the_service(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = write_scenario(tmp_path, {"policy_from": 4, "learning": {"episodes": 0}})
+    assert cli.main(["run", "--scenario", path]) == 2
+    assert "policy_from: job 4 is a job of the service" in capsys.readouterr().err
+
+
 def test_a_world_with_no_room_for_its_obstacles_is_a_usage_error(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -6,11 +6,12 @@ import math
 import threading
 from typing import Any
 
+import numpy as np
 import pytest
 
 from nanonav.engine import Progress
 from nanonav.settings import Settings
-from nanonav.store import Claim, JobStatus, JobStore
+from nanonav.store import Claim, JobRecord, JobStatus, JobStore
 from worker.job import Stop, Watch, finite, run_job
 from worker.loop import work
 
@@ -126,3 +127,37 @@ def test_work_runs_queued_jobs_then_returns(store: JobStore) -> None:
 def test_finite_replaces_nan_and_infinity_with_none() -> None:
     document = {"a": [1.0, math.nan], "b": {"c": -math.inf}, "d": "x", "e": 2}
     assert finite(document) == {"a": [1.0, None], "b": {"c": None}, "d": "x", "e": 2}
+
+
+def run_claimed(store: JobStore, scenario: dict[str, Any]) -> JobRecord:
+    record = run_job(store, claimed(store, scenario), settings_for(store), threading.Event())
+    assert record is not None
+    return record
+
+
+def test_a_policy_from_job_evaluates_the_named_table_without_learning(
+    sqlite_store: JobStore,
+) -> None:
+    source = run_claimed(sqlite_store, TINY)
+    assert source.status is JobStatus.SUCCEEDED
+    evaluation = {**TINY, "seed": 5, "learning": {"episodes": 0, "max_steps": 40}}
+    evaluated = run_claimed(sqlite_store, {**evaluation, "policy_from": source.id})
+    assert evaluated.status is JobStatus.SUCCEEDED, evaluated.error
+    learned = sqlite_store.qtable(source.id)["values"]
+    assert np.any(learned != 0.0)
+    np.testing.assert_array_equal(sqlite_store.qtable(evaluated.id)["values"], learned)
+
+
+def test_a_policy_from_job_whose_table_is_gone_or_unfit_fails_with_the_reason(
+    sqlite_store: JobStore,
+) -> None:
+    baseline = run_claimed(sqlite_store, {**TINY, "robots": {"count": 2, "policy": "gradient"}})
+    evaluation = {**TINY, "learning": {"episodes": 0, "max_steps": 40}}
+    missing = run_claimed(sqlite_store, {**evaluation, "policy_from": 999})
+    assert missing.status is JobStatus.FAILED
+    assert missing.error == "policy_from: there is no job 999"
+    unfit = run_claimed(sqlite_store, {**evaluation, "policy_from": baseline.id})
+    assert unfit.status is JobStatus.FAILED
+    assert (
+        unfit.error == f"policy_from: job {baseline.id} learned no Q-table: only q_learning jobs do"
+    )

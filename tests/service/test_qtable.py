@@ -1,0 +1,83 @@
+"""The learned Q-table through the API: the greedy action of every state in the answer, and
+its picture, drawn on first request from the stored arrays."""
+
+from __future__ import annotations
+
+import io
+
+import numpy as np
+from matplotlib.image import imread
+
+from nanonav.policy import greedy_table
+from nanonav.settings import Settings
+from tests.conftest import Api
+from tests.service.conftest import TINY, ran
+from tests.service.test_api import assert_problem
+
+# ---------------------------------------------------------------- the greedy table
+
+
+def test_the_qtable_answer_names_the_greedy_action_of_every_state(api: Api, trained: int) -> None:
+    answer = api.client.get(f"/jobs/{trained}/qtable").json()
+    values = np.asarray(answer["values"])
+    visits = np.asarray(answer["visits"])
+    greedy = answer["greedy"]
+    assert [g["state"] for g in greedy] == answer["states"]
+    expected = greedy_table(answer["states"], answer["actions"], values, visits)
+    assert greedy == [g.to_dict() for g in expected]
+    seen = [g for g in greedy if g["learned"]]
+    assert seen, "a trained table has visited states"
+    for g in seen:
+        row = values[answer["states"].index(g["state"])]
+        assert g["value"] == row.max()
+        assert row[answer["actions"].index(g["action"])] == row.max()
+    unseen = [g for g in greedy if not g["learned"]]
+    assert all(g["action"] == "unvisited" and g["visits"] == 0 for g in unseen)
+    assert sum(g["visits"] for g in greedy) == visits.sum()
+
+
+def test_per_robot_tables_give_the_greedy_table_of_their_mean(
+    api: Api, api_settings: Settings
+) -> None:
+    own = {**TINY, "learning": {**TINY["learning"], "shared_table": False}}
+    job_id = ran(api.store, api_settings, own)
+    answer = api.client.get(f"/jobs/{job_id}/qtable").json()
+    visits = np.asarray(answer["visits"])
+    assert visits.shape == (2, 72, 4)
+    assert [g["visits"] for g in answer["greedy"]] == visits.sum(axis=(0, 2)).tolist()
+
+
+def test_a_job_without_a_qtable_answers_an_empty_greedy_table(
+    api: Api, api_settings: Settings
+) -> None:
+    baseline = ran(api.store, api_settings, {**TINY, "robots": {"count": 1, "policy": "gradient"}})
+    answer = api.client.get(f"/jobs/{baseline}/qtable").json()
+    assert answer == {"states": [], "actions": [], "values": [], "visits": [], "greedy": []}
+
+
+# ---------------------------------------------------------------- the picture
+
+
+def test_the_qtable_picture_is_drawn_from_the_stored_table_and_kept(api: Api, trained: int) -> None:
+    job = api.client.get(f"/jobs/{trained}").json()
+    assert job["links"]["plots"]["qtable"] == f"/jobs/{trained}/plots/qtable.png"
+    response = api.client.get(job["links"]["plots"]["qtable"])
+    assert response.status_code == 200, response.text
+    assert response.headers["content-type"] == "image/png"
+    image = imread(io.BytesIO(response.content), format="png")
+    assert image.shape[:2] == (1500, 780)  # 72 states x 4 actions: a tall picture
+    assert float(image[..., :3].std()) > 0.05
+    assert api.store.plot(trained, "qtable") == response.content
+
+
+def test_the_qtable_picture_of_a_baseline_job_is_404_saying_why(
+    api: Api, api_settings: Settings
+) -> None:
+    baseline = ran(api.store, api_settings, {**TINY, "robots": {"count": 1, "policy": "random"}})
+    body = assert_problem(api.client.get(f"/jobs/{baseline}/plots/qtable.png"), 404)
+    assert body["type"].endswith("no-qtable")
+    assert body["detail"] == (
+        f"job {baseline} learned no Q-table: its robots used the 'random' policy, and only "
+        "q_learning learns one"
+    )
+    assert api.store.plot(baseline, "qtable") is None

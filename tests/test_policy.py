@@ -1,0 +1,180 @@
+"""The learned policy as data: the greedy table (ties, unvisited states, per-robot tables) and
+the rule for which stored tables a scenario can evaluate."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pytest
+from numpy.typing import NDArray
+
+from nanonav.engine import qlearning
+from nanonav.policy import (
+    UNVISITED,
+    GreedyState,
+    UnusablePolicy,
+    fit_problem,
+    greedy_table,
+    learned_table,
+    swarm_table,
+)
+from nanonav.scenario import Scenario
+from nanonav.store import JobNotFound, JobStatus, ResultsUnavailable
+
+STATES = ["s0", "s1", "s2"]
+ACTIONS = ["a", "b", "c"]
+
+
+def scenario(**fields: Any) -> Scenario:
+    return Scenario.model_validate({"learning": {"episodes": 0}, "policy_from": 7, **fields})
+
+
+def stored(actions: str, robots: int | None = None, fill: float = 0.5) -> dict[str, NDArray[Any]]:
+    """A table as a job stores it: shared, or one per robot."""
+    states, labels = qlearning.labels(actions)
+    shape = (len(states), len(labels)) if robots is None else (robots, len(states), len(labels))
+    return {
+        "states": np.array(states, dtype=np.str_),
+        "actions": np.array(labels, dtype=np.str_),
+        "values": np.full(shape, fill),
+        "visits": np.ones(shape, dtype=np.int64),
+    }
+
+
+# ---------------------------------------------------------------- the greedy table
+
+
+def test_each_state_names_its_best_action_with_its_value_and_visits() -> None:
+    values = np.array([[0.1, 2.5, -1.0], [-3.0, -2.0, -0.5], [0.0, 0.0, 0.0]])
+    visits = np.array([[3, 4, 1], [0, 2, 5], [0, 0, 0]])
+    table = greedy_table(STATES, ACTIONS, values, visits)
+    assert table[0] == GreedyState("s0", "b", 2.5, 8, True, [])
+    assert table[1] == GreedyState("s1", "c", -0.5, 7, True, [])
+    assert table[1].to_dict() == {
+        "state": "s1",
+        "action": "c",
+        "value": -0.5,
+        "visits": 7,
+        "learned": True,
+        "ties": [],
+    }
+
+
+def test_a_state_never_visited_with_a_zero_row_names_no_action() -> None:
+    values = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
+    visits = np.array([[1, 0, 0], [0, 0, 0], [0, 0, 0]])
+    table = greedy_table(STATES, ACTIONS, values, visits)
+    assert [(g.action, g.learned, g.value, g.visits) for g in table[1:]] == [
+        (UNVISITED, False, None, 0),
+        (UNVISITED, False, None, 0),
+    ]
+
+
+def test_ties_name_the_first_and_list_every_tied_action() -> None:
+    values = np.array([[1.0, -1.0, 1.0], [0.0, 0.0, 0.0], [2.0, 2.0, 2.0]])
+    visits = np.array([[1, 1, 1], [2, 0, 0], [1, 1, 1]])
+    table = greedy_table(STATES, ACTIONS, values, visits)
+    assert (table[0].action, table[0].ties) == ("a", ["a", "c"])
+    # visited, still all zeros: learned, and every action is as good
+    assert (table[1].action, table[1].learned, table[1].ties) == ("a", True, ["a", "b", "c"])
+    assert table[2].ties == ["a", "b", "c"] and table[2].value == 2.0
+
+
+def test_a_row_from_another_job_is_learned_though_this_run_never_visited_it() -> None:
+    values = np.array([[0.0, 0.0, 0.3], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
+    table = greedy_table(STATES, ACTIONS, values, np.zeros((3, 3), dtype=np.int64))
+    assert table[0] == GreedyState("s0", "c", 0.3, 0, True, [])
+
+
+def test_per_robot_tables_are_averaged_by_visits() -> None:
+    values = np.array(
+        [
+            [[4.0, 1.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]],
+            [[0.0, 2.0, 0.0], [0.0, 5.0, 0.0], [0.0, 0.0, 0.0]],
+        ]
+    )
+    visits = np.array(
+        [
+            [[1, 3, 0], [0, 0, 0], [0, 0, 0]],
+            [[0, 1, 0], [0, 2, 0], [0, 0, 0]],
+        ]
+    )
+    mean, total = swarm_table(values, visits)
+    # robot 1 never chose a in s0: its 0 is no evidence, so a keeps robot 0's 4.0;
+    # b is (3 x 1.0 + 1 x 2.0) / 4 = 1.25; c was chosen by no robot: the plain mean, 0
+    np.testing.assert_allclose(mean[0], [4.0, 1.25, 0.0])
+    np.testing.assert_array_equal(total[0], [1, 4, 0])
+    table = greedy_table(STATES, ACTIONS, values, visits)
+    assert table[0] == GreedyState("s0", "a", 4.0, 5, True, [])
+    assert table[1] == GreedyState("s1", "b", 5.0, 2, True, [])
+    assert table[2].action == UNVISITED
+
+
+def test_per_robot_tables_evaluated_unvisited_keep_their_plain_mean() -> None:
+    values = np.array([[[1.0, 3.0, 0.0]], [[1.0, -1.0, 0.0]]])
+    mean, _ = swarm_table(values, np.zeros((2, 1, 3), dtype=np.int64))
+    np.testing.assert_allclose(mean, [[1.0, 1.0, 0.0]])
+    assert greedy_table(["s0"], ACTIONS, values, np.zeros((2, 1, 3), dtype=np.int64))[0].ties == [
+        "a",
+        "b",
+    ]
+
+
+# ---------------------------------------------------------------- which tables fit
+
+
+def test_a_shared_table_fits_shared_and_per_robot_learners_of_its_action_set() -> None:
+    table = stored("directions")
+    directions = {"actions": "directions", "episodes": 0}
+    assert fit_problem(scenario(learning=directions), 7, table) is None
+    per_robot = {**directions, "shared_table": False}
+    assert fit_problem(scenario(learning=per_robot, robots={"count": 5}), 7, table) is None
+
+
+def test_a_table_of_the_other_action_set_does_not_fit() -> None:
+    problem = fit_problem(scenario(), 7, stored("directions"))
+    assert problem == (
+        "job 7 learned the 'directions' actions and this scenario uses 'behaviors': "
+        "learning.actions must be the same"
+    )
+
+
+def test_a_per_robot_table_needs_per_robot_learners_and_as_many_robots() -> None:
+    table = stored("behaviors", robots=3)
+    shared = fit_problem(scenario(robots={"count": 3}), 7, table)
+    assert shared is not None and "learning.shared_table must be false" in shared
+    own = {"episodes": 0, "shared_table": False}
+    fewer = fit_problem(scenario(robots={"count": 2}, learning=own), 7, table)
+    assert fewer is not None and "each of its 3 robots and this scenario has 2" in fewer
+    assert fit_problem(scenario(robots={"count": 3}, learning=own), 7, table) is None
+
+
+def test_no_table_or_a_table_of_other_labels_or_shape_does_not_fit() -> None:
+    assert fit_problem(scenario(), 7, {}) == "job 7 learned no Q-table: only q_learning jobs do"
+    renamed = {**stored("behaviors"), "actions": np.array(["up", "down"], dtype=np.str_)}
+    assert "not those of any action set" in str(fit_problem(scenario(), 7, renamed))
+    fewer_states = {**stored("behaviors"), "states": np.array(["s0"], dtype=np.str_)}
+    assert "another version" in str(fit_problem(scenario(), 7, fewer_states))
+    wrong_shape = {**stored("behaviors"), "values": np.zeros((72, 3))}
+    assert "the shape (72, 3)" in str(fit_problem(scenario(), 7, wrong_shape))
+
+
+def test_learned_table_reads_the_named_job_and_says_why_it_cannot() -> None:
+    table = stored("behaviors", fill=1.5)
+
+    def read(job_id: int) -> dict[str, NDArray[Any]]:
+        if job_id == 7:
+            return table
+        if job_id == 8:
+            raise ResultsUnavailable(8, JobStatus.FAILED)
+        raise JobNotFound(job_id)
+
+    values = learned_table(scenario(), read)
+    assert values.shape == (72, 4) and float(values[0, 0]) == 1.5
+    with pytest.raises(UnusablePolicy, match=r"^there is no job 9$"):
+        learned_table(scenario(policy_from=9), read)
+    with pytest.raises(UnusablePolicy, match="job 8 is failed: only a succeeded job's table"):
+        learned_table(scenario(policy_from=8), read)
+    with pytest.raises(UnusablePolicy, match="'behaviors' actions and this scenario uses"):
+        learned_table(scenario(learning={"episodes": 0, "actions": "directions"}), read)
