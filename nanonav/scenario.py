@@ -360,7 +360,8 @@ class Scenario(_Part):
         le=2**63 - 1,
         description="The id of a succeeded Q-learning job whose learned table this run starts "
         "from, to evaluate it in this scenario's worlds without training (learning.episodes "
-        "must be 0; the action set and table sharing must match the job's).",
+        "must be 0). The action set must be the job's; a shared table may drive robots that "
+        "each learn their own, a per-robot table needs as many robots.",
     )
 
     @model_validator(mode="before")
