@@ -171,3 +171,48 @@ def learned_table(
         raise UnusablePolicy(problem)
     values: NDArray[np.float64] = np.asarray(table["values"], dtype=np.float64)
     return values
+
+
+@dataclass(frozen=True)
+class Chemotaxis:
+    """How many states that sense a gradient move up it: of ``states`` such visited states of a
+    'directions' table, ``agree`` have a greedy move with a positive component along the sensed
+    gradient's signs."""
+
+    agree: int
+    states: int
+
+    @property
+    def share(self) -> float | None:
+        return self.agree / self.states if self.states else None
+
+
+def _signs(label: str) -> NDArray[np.float64]:
+    """(+1, 0, -1) per axis from a label such as ``grad=(+x,0y,-z)|...`` or ``move(+x,0y,-z)``."""
+    inside = label[label.index("(") + 1 : label.index(")")]
+    return np.array([{"+": 1.0, "-": -1.0, "0": 0.0}[part[0]] for part in inside.split(",")])
+
+
+def chemotaxis(
+    states: Sequence[str],
+    actions: Sequence[str],
+    values: NDArray[np.float64],
+    visits: NDArray[np.int64],
+    *,
+    near_obstacles: bool = True,
+) -> Chemotaxis:
+    """Whether a learned 'directions' table climbs the gradient: in every visited state whose
+    sensed gradient has a sign on some axis (with an obstacle near, too, unless
+    ``near_obstacles`` is false), is the greedy move's dot product with those signs positive?"""
+    table, counts = swarm_table(values, visits)
+    moves = np.array([_signs(a) for a in actions])
+    agree = counted = 0
+    for index, label in enumerate(states):
+        signs = _signs(label)
+        if not signs.any() or counts[index].sum() == 0:
+            continue
+        if not near_obstacles and label.endswith("obstacle=near"):
+            continue
+        counted += 1
+        agree += bool(moves[int(np.argmax(table[index]))] @ signs > 0)
+    return Chemotaxis(agree=agree, states=counted)

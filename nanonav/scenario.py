@@ -14,8 +14,9 @@ from typing import Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 from pydantic_core import InitErrorDetails, PydanticCustomError
 
-PresetName = Literal["paper-single", "paper-swarm"]
-FieldModel = Literal["gaussian", "inverse_square", "diffusion"]
+PresetName = Literal["paper-single", "paper-swarm", "authors-script", "hard-single", "hard-swarm"]
+FieldModel = Literal["gaussian", "inverse_square", "diffusion", "sampled_gaussian"]
+RobotStart = Literal["anywhere", "corner"]
 Policy = Literal["q_learning", "gradient", "run_and_tumble", "rule", "random"]
 AlphaSchedule = Literal["constant", "visits"]
 ActionSet = Literal["behaviors", "directions"]
@@ -33,7 +34,7 @@ WORK_DRAW = 32  # one random point, direction or offset (three normal draws)
 WORK_PLACE = 2.5  # one source moved with its cell
 # one source's term of the field at one point: an exp for these two, a division for the
 # inverse-square emitters, whose sum the compiler vectorises
-WORK_SOURCE = {"gaussian": 6.5, "diffusion": 6.5, "inverse_square": 0.55}
+WORK_SOURCE = {"gaussian": 6.5, "diffusion": 6.5, "inverse_square": 0.55, "sampled_gaussian": 6.5}
 
 
 class ScenarioError(ValueError):
@@ -68,6 +69,12 @@ class Space(_Part):
         description="Side of the cube, in length units (paper 2.4: 50). The cube spans "
         "[-size/2, size/2] on every axis.",
     )
+    walls: bool = Field(
+        True,
+        description="true: the cube's walls reflect robots, cells and obstacles. false: the "
+        "cube only says where things start, and anything may leave it (as in the authors' "
+        "published script, whose cell drifts freely).",
+    )
 
 
 class Cells(_Part):
@@ -81,6 +88,13 @@ class Cells(_Part):
         description="Standard deviation of the cells' random walk, length units per axis per "
         "step: each step a cell moves by N(0, motion_std) on x, y and z. 0 keeps cells still.",
     )
+    start_extent: float = Field(
+        0.8,
+        gt=0.0,
+        le=1.0,
+        description="Cells start uniformly within this share of the half-width of the space on "
+        "every axis (1: anywhere in the cube).",
+    )
 
 
 class Biomarker(_Part):
@@ -92,7 +106,10 @@ class Biomarker(_Part):
         "gradient eq. 2.2. 'inverse_square': eq. 2.6, C = sum over point emitters of B/d^2 with "
         "B = peak/emitters_per_cell, softened to B/(d^2 + softening^2). 'diffusion': the steady "
         "state of a source that diffuses and decays, C = peak*exp(-r/decay_length)/r per cell "
-        "(peak = Q/(4*pi*D)), with r softened to sqrt(r^2 + softening^2).",
+        "(peak = Q/(4*pi*D)), with r softened to sqrt(r^2 + softening^2). "
+        "'sampled_gaussian': the authors' published script: the mean over emitters_per_cell "
+        "points, redrawn every step uniformly within emitter_scatter of the cell on each axis, "
+        "of peak*exp(-d^2/(2*spread^2)); the script's exp(-d^2/40^2) is spread = 28.28.",
     )
     peak: float = Field(
         1.0,
@@ -111,15 +128,16 @@ class Biomarker(_Part):
         50,
         ge=1,
         le=1000,
-        description="Point emitters of the inverse-square model (eq. 2.6) around each cell; "
-        "they move with their cell.",
+        description="Point emitters around each cell, for the inverse-square model (eq. 2.6) "
+        "and the sampled Gaussian; they move with their cell.",
     )
     emitter_scatter: float = Field(
         1.0,
         ge=0.0,
         le=100.0,
-        description="Standard deviation, length units per axis, of the emitters' offsets from "
-        "their cell (inverse-square model).",
+        description="How far emitters lie from their cell, length units per axis: the "
+        "standard deviation of their offsets (inverse-square model) or the half-width of the "
+        "uniform box they are redrawn in every step (sampled Gaussian).",
     )
     decay_length: float = Field(
         10.0,
@@ -198,6 +216,12 @@ class Robots(_Part):
         "paper's state holds the distance to cells). 0: a robot learns of a cell only by "
         "touching it, and must find it from the biomarker alone.",
     )
+    start: RobotStart = Field(
+        "anywhere",
+        description="Where robots start: 'anywhere' in the cube (away from the walls by a "
+        "twentieth of its half-width), or 'corner', the octant at (-,-,-): every coordinate "
+        "within [-size/2, -size/4], as in the authors' published script.",
+    )
     sensor_baseline: float = Field(
         0.5,
         gt=0.0,
@@ -243,11 +267,12 @@ class Learning(_Part):
         "table settles (a constant rate keeps chasing the last few noisy rewards).",
     )
     alpha_exponent: float = Field(
-        0.7,
+        1.0,
         gt=0.5,
         le=1.0,
-        description="omega of the 'visits' schedule: 1 averages every reward alike; between 0.5 "
-        "and 1 later rewards weigh more, which suits a target that drifts.",
+        description="omega of the 'visits' schedule: 1 (the default, chosen by measurement: see "
+        "benchmarks/science.py) averages every target alike; between 0.5 and 1 later targets "
+        "weigh more.",
     )
     gamma: float = Field(0.9, ge=0.0, le=1.0, description="Discount factor gamma of eq. 2.7.")
     epsilon_start: float = Field(
@@ -328,9 +353,15 @@ class Scenario(_Part):
 
     preset: PresetName | None = Field(
         None,
-        description="Base values: 'paper-single' (Figures 1, 3, 4: one robot, one cell, ten "
-        "obstacles) or 'paper-swarm' (Figure 2: 15 robots, 2 cells, 10 obstacles). Fields given "
-        "explicitly override the preset's.",
+        description="Base values; fields given explicitly override the preset's. The paper's: "
+        "'paper-single' (Figures 1, 3, 4: one robot, one cell, ten obstacles) and 'paper-swarm' "
+        "(Figure 2: 15 robots, 2 cells, 10 obstacles), with the paper's state (exact readings, "
+        "cells sensed within 8 units). 'authors-script': the world of the authors' published "
+        "script (a 100-unit cube, the robot starting in a corner octant, a sampled Gaussian "
+        "field, no walls, no obstacles) with NanoNav's Q-learning. Hard: "
+        "'hard-single' and 'hard-swarm', the paper's worlds with honest sensing (a noise floor "
+        "of 0.01 and a detection threshold of 0.005 on the readings, cells sensed within 2 "
+        "units only) and 30 drifting obstacles.",
     )
     seed: int = Field(
         0,
@@ -426,7 +457,7 @@ class Scenario(_Part):
     @property
     def sources(self) -> int:
         """Point sources of the field: the cells, or their emitters for the inverse-square model."""
-        if self.biomarker.model == "inverse_square":
+        if self.biomarker.model in ("inverse_square", "sampled_gaussian"):
             return self.cells.count * self.biomarker.emitters_per_cell
         return self.cells.count
 
@@ -490,6 +521,14 @@ class Scenario(_Part):
         return math.ceil(total)
 
 
+# The paper's worlds (its text and figures), the world of the authors' published script, and
+# worlds where sensing is honest: a noise floor, a detection threshold, cells sensed only up
+# close, and more obstacles that drift.
+HARD: dict[str, Any] = {
+    "biomarker": {"noise_floor": 0.01, "detection_threshold": 0.005},
+    "robots": {"cell_sensing_radius": 2.0},
+    "obstacles": {"count": 30, "motion_std": 0.05},
+}
 PRESETS: dict[str, dict[str, Any]] = {
     "paper-single": {
         "cells": {"count": 1, "motion_std": 0.2},
@@ -500,6 +539,32 @@ PRESETS: dict[str, dict[str, Any]] = {
         "cells": {"count": 2, "motion_std": 0.2},
         "robots": {"count": 15},
         "obstacles": {"count": 10},
+    },
+    "authors-script": {
+        "space": {"size": 100.0, "walls": False},
+        "cells": {"count": 1, "motion_std": 0.2, "start_extent": 1.0},
+        "biomarker": {
+            "model": "sampled_gaussian",
+            "spread": 40.0 / math.sqrt(2.0),
+            "emitters_per_cell": 50,
+            "emitter_scatter": 5.0,
+        },
+        "robots": {"count": 1, "start": "corner"},
+        "obstacles": {"count": 0},
+        "learning": {"max_steps": 1000},
+        "reach_distance": 0.5,
+    },
+    "hard-single": {
+        "cells": {"count": 1, "motion_std": 0.2},
+        "robots": {"count": 1, **HARD["robots"]},
+        "biomarker": HARD["biomarker"],
+        "obstacles": HARD["obstacles"],
+    },
+    "hard-swarm": {
+        "cells": {"count": 2, "motion_std": 0.2},
+        "robots": {"count": 15, **HARD["robots"]},
+        "biomarker": HARD["biomarker"],
+        "obstacles": HARD["obstacles"],
     },
 }
 

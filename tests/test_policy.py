@@ -14,6 +14,7 @@ from nanonav.policy import (
     UNVISITED,
     GreedyState,
     UnusablePolicy,
+    chemotaxis,
     fit_problem,
     greedy_table,
     learned_table,
@@ -178,3 +179,22 @@ def test_learned_table_reads_the_named_job_and_says_why_it_cannot() -> None:
         learned_table(scenario(policy_from=8), read)
     with pytest.raises(UnusablePolicy, match="'behaviors' actions and this scenario uses"):
         learned_table(scenario(learning={"episodes": 0, "actions": "directions"}), read)
+
+
+def test_chemotaxis_counts_visited_gradient_states_whose_greedy_move_climbs() -> None:
+    states, actions = qlearning.labels("directions")
+    values = np.zeros((len(states), len(actions)))
+    visits = np.zeros_like(values, dtype=np.int64)
+    up_x = actions.index("move(+x,0y,0z)")
+    down_x = actions.index("move(-x,0y,0z)")
+    climbing = states.index("grad=(+x,0y,0z)|obstacle=clear")
+    backwards = states.index("grad=(+x,+y,0z)|obstacle=near")
+    flat = states.index("grad=(0x,0y,0z)|obstacle=clear")
+    for state, action in ((climbing, up_x), (backwards, down_x), (flat, down_x)):
+        values[state, action] = 1.0
+        visits[state, action] = 3
+    found = chemotaxis(states, actions, values, visits)
+    assert (found.agree, found.states, found.share) == (1, 2, 0.5)  # the flat state has no sign
+    clear = chemotaxis(states, actions, values, visits, near_obstacles=False)
+    assert (clear.agree, clear.states) == (1, 1)
+    assert chemotaxis(states, actions, values, np.zeros_like(visits)).share is None

@@ -19,7 +19,11 @@ from nanonav.scenario import Biomarker
 GAUSSIAN = 0
 INVERSE_SQUARE = 1
 DIFFUSION = 2
-MODEL_CODES = {"gaussian": GAUSSIAN, "inverse_square": INVERSE_SQUARE, "diffusion": DIFFUSION}
+SAMPLED_GAUSSIAN = 3
+MODEL_CODES = {"gaussian": GAUSSIAN, "inverse_square": INVERSE_SQUARE, "diffusion": DIFFUSION,
+               "sampled_gaussian": SAMPLED_GAUSSIAN}  # fmt: skip
+# Models whose sources are emitters around each cell, not the cells themselves.
+EMITTER_MODELS = ("inverse_square", "sampled_gaussian")
 
 FASTMATH = {"reassoc", "contract", "nsz", "arcp"}
 
@@ -45,7 +49,7 @@ def sample(
     gy = 0.0
     gz = 0.0
     eps2 = softening * softening
-    if model == GAUSSIAN:
+    if model in (GAUSSIAN, SAMPLED_GAUSSIAN):
         # eq. 2.1: rho = rho0 exp(-r^2 / 2 sigma^2); eq. 2.2: d rho/dx = -(x - x0)/sigma^2 rho
         inv_s2 = 1.0 / (length * length)
         for k in range(sx.shape[0]):
@@ -99,8 +103,8 @@ def place_sources(
     sz: NDArray[np.float64],
 ) -> None:
     """Write the source positions for the cells' current positions: the cells themselves, or
-    for the inverse-square model their emitters, which move with them."""
-    if model == INVERSE_SQUARE:
+    the emitters around them, which move with them."""
+    if model in (INVERSE_SQUARE, SAMPLED_GAUSSIAN):
         per_cell = offsets.shape[0] // cells.shape[0]
         for k in range(offsets.shape[0]):
             j = k // per_cell
@@ -143,19 +147,21 @@ def sample_many(
 
 def source_weight(biomarker: Biomarker) -> float:
     """Strength of one source: the whole peak per cell, or an equal share per emitter."""
-    if biomarker.model == "inverse_square":
+    if biomarker.model in EMITTER_MODELS:
         return biomarker.peak / biomarker.emitters_per_cell
     return biomarker.peak
 
 
 def length_scale(biomarker: Biomarker) -> float:
-    """sigma for the Gaussian model, lambda for diffusion (unused by inverse-square)."""
-    return biomarker.spread if biomarker.model == "gaussian" else biomarker.decay_length
+    """sigma for the Gaussian models, lambda for diffusion (unused by inverse-square)."""
+    if biomarker.model in ("gaussian", "sampled_gaussian"):
+        return biomarker.spread
+    return biomarker.decay_length
 
 
 def source_count(biomarker: Biomarker, cells: int) -> int:
     """How many point sources ``cells`` cells give."""
-    return cells * biomarker.emitters_per_cell if biomarker.model == "inverse_square" else cells
+    return cells * biomarker.emitters_per_cell if biomarker.model in EMITTER_MODELS else cells
 
 
 def field_and_gradient(
@@ -174,7 +180,7 @@ def field_and_gradient(
     offsets = np.ascontiguousarray(emitter_offsets, dtype=np.float64).reshape(-1, 3)
     model = MODEL_CODES[biomarker.model]
     n = source_count(biomarker, cells.shape[0])
-    if model == INVERSE_SQUARE and offsets.shape[0] != n:
+    if model in (INVERSE_SQUARE, SAMPLED_GAUSSIAN) and offsets.shape[0] != n:
         raise ValueError(f"expected {n} emitter offsets, got {offsets.shape[0]}")
     sx, sy, sz = np.empty(n), np.empty(n), np.empty(n)
     place_sources(model, cells, offsets, sx, sy, sz)

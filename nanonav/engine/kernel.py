@@ -14,7 +14,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from nanonav.engine.fields import place_sources, sample_many
+from nanonav.engine.fields import SAMPLED_GAUSSIAN, place_sources, sample_many
 from nanonav.engine.qlearning import (
     APPROACH_CELL,
     AVOID_OBSTACLE,
@@ -132,10 +132,15 @@ def _segment_hit(
     uz = nz - pz
     length2 = ux * ux + uy * uy + uz * uz
     r2 = radius * radius
+    # an obstacle whose centre is farther than radius + the move's length cannot be touched
+    reach = radius + math.sqrt(length2)
+    reach2 = reach * reach
     for j in range(obstacles.shape[0]):
         cx = obstacles[j, 0] - px
         cy = obstacles[j, 1] - py
         cz = obstacles[j, 2] - pz
+        if cx * cx + cy * cy + cz * cz >= reach2:
+            continue
         # the segment's point nearest the centre: p + f u, f clamped to [0, 1]
         f = 0.0
         if length2 > 0.0:
@@ -353,7 +358,8 @@ def _learn(
     # alpha / N(s,a)^omega over the visits N of (s, a)
     alpha = p.alpha
     if p.alpha_schedule == ALPHA_VISITS and visits[table, s, a] > 1:
-        alpha = p.alpha / visits[table, s, a] ** p.alpha_exponent
+        n = visits[table, s, a]
+        alpha = p.alpha / n if p.alpha_exponent == 1.0 else p.alpha / n**p.alpha_exponent
     q[table, s, a] += alpha * (target - q[table, s, a])
 
 
@@ -367,11 +373,16 @@ def _bootstrap(p: KernelParams, q: NDArray[np.float64], table: int, s: int, rewa
 
 @njit(cache=True, error_model="numpy")
 def _move_cells(p: KernelParams, rng: np.random.Generator, w: World) -> None:
-    """Random walk of the cells (paper 3.1); a move into an obstacle is refused."""
+    """Random walk of the cells (paper 3.1); a move into an obstacle is refused. Without walls
+    a cell may drift out of the cube."""
     for j in range(w.cells.shape[0]):
-        x = _reflect(w.cells[j, 0] + p.cell_std * rng.standard_normal(), p.half)
-        y = _reflect(w.cells[j, 1] + p.cell_std * rng.standard_normal(), p.half)
-        z = _reflect(w.cells[j, 2] + p.cell_std * rng.standard_normal(), p.half)
+        x = w.cells[j, 0] + p.cell_std * rng.standard_normal()
+        y = w.cells[j, 1] + p.cell_std * rng.standard_normal()
+        z = w.cells[j, 2] + p.cell_std * rng.standard_normal()
+        if p.walls:
+            x = _reflect(x, p.half)
+            y = _reflect(y, p.half)
+            z = _reflect(z, p.half)
         if not _inside_obstacle(w.obstacles, p.obstacle_radius, x, y, z):
             w.cells[j, 0] = x
             w.cells[j, 1] = y
@@ -379,13 +390,26 @@ def _move_cells(p: KernelParams, rng: np.random.Generator, w: World) -> None:
 
 
 @njit(cache=True, error_model="numpy")
+def _redraw_emitters(p: KernelParams, rng: np.random.Generator, w: World) -> None:
+    """The sampled Gaussian's emitters, drawn anew around their cells: uniform within
+    ``emitter_scatter`` on each axis (the authors' script redraws them every step)."""
+    for k in range(w.offsets.shape[0]):
+        for a in range(3):
+            w.offsets[k, a] = p.emitter_scatter * (2.0 * rng.random() - 1.0)
+
+
+@njit(cache=True, error_model="numpy")
 def _move_obstacles(p: KernelParams, rng: np.random.Generator, w: World, s: Swarm) -> None:
     """Obstacle drift (paper 2.6); a move that would engulf a robot or a cell is refused."""
     r = p.obstacle_radius
     for j in range(w.obstacles.shape[0]):
-        x = _reflect(w.obstacles[j, 0] + p.obstacle_std * rng.standard_normal(), p.half)
-        y = _reflect(w.obstacles[j, 1] + p.obstacle_std * rng.standard_normal(), p.half)
-        z = _reflect(w.obstacles[j, 2] + p.obstacle_std * rng.standard_normal(), p.half)
+        x = w.obstacles[j, 0] + p.obstacle_std * rng.standard_normal()
+        y = w.obstacles[j, 1] + p.obstacle_std * rng.standard_normal()
+        z = w.obstacles[j, 2] + p.obstacle_std * rng.standard_normal()
+        if p.walls:
+            x = _reflect(x, p.half)
+            y = _reflect(y, p.half)
+            z = _reflect(z, p.half)
         clear = True
         for i in range(s.pos.shape[0]):
             dx = s.pos[i, 0] - x
@@ -445,8 +469,8 @@ def observe(
 
 @njit(cache=True, error_model="numpy")
 def _begin_episode(
-    p: KernelParams, world_rng: np.random.Generator, w: World, s: Swarm, rec: Recording,
-    evaluating: bool, record: bool,
+    p: KernelParams, world_rng: np.random.Generator, rng: np.random.Generator, w: World,
+    s: Swarm, rec: Recording, evaluating: bool, record: bool,
 ) -> int:  # fmt: skip
     """Reset the swarm and draw a fresh world; returns ``draw_world``'s status."""
     s.active[:] = True
@@ -461,6 +485,8 @@ def _begin_episode(
     s.last_dist[:] = 0.0
     status = draw_world(p, world_rng, w, s)
     if status == 0:
+        if p.model == SAMPLED_GAUSSIAN:
+            _redraw_emitters(p, rng, w)
         place_sources(p.model, w.cells, w.offsets, w.sx, w.sy, w.sz)
         if record:
             rec.offsets[:] = w.offsets
@@ -528,9 +554,9 @@ def run(
         learn = p.learn and not evaluating
         if t == 0:
             if evaluating:
-                status = _begin_episode(p, evaluation_rng, w, s, rec, True, record)
+                status = _begin_episode(p, evaluation_rng, rng, w, s, rec, True, record)
             else:
-                status = _begin_episode(p, world_rng, w, s, rec, False, False)
+                status = _begin_episode(p, world_rng, rng, w, s, rec, False, False)
             if status != 0:
                 counters[LAYOUT_STATUS] = status
                 break
@@ -595,6 +621,8 @@ def _run_steps(
             _move_cells(p, rng, w)
         if p.obstacle_std > 0.0 and w.obstacles.shape[0] > 0:
             _move_obstacles(p, rng, w, s)
+        if p.model == SAMPLED_GAUSSIAN:
+            _redraw_emitters(p, rng, w)
         place_sources(p.model, w.cells, w.offsets, w.sx, w.sy, w.sz)
         _sense_all(p, w, s, s.active)
         for i in range(n):
@@ -619,6 +647,8 @@ def _run_steps(
                 continue
             c, gx, gy, gz = _sense(p, rng, s, i)
 
+            # one call site for the behaviours, whoever chooses them: the compiled loop stays small
+            behavior = -1
             if p.policy == Q_LEARNING:
                 gap = _nearest_obstacle(w.obstacles, p.obstacle_radius, px, py, pz)[1]
                 state = _state(p, c, s.prev_conc[i], gx, gy, gz, gap, cell_d)
@@ -628,9 +658,7 @@ def _run_steps(
                 action = _choose(epsilon, rng, lrn.q, table, state)
                 lrn.visits[table, state, action] += 1
                 if p.action_set == BEHAVIORS:
-                    dx, dy, dz, step = _behavior_direction(
-                        p, rng, w, s, i, action, px, py, pz, gx, gy, gz, cell, cell_d
-                    )
+                    behavior = action
                 else:
                     dx = lrn.directions[action, 0]
                     dy = lrn.directions[action, 1]
@@ -641,32 +669,32 @@ def _run_steps(
                 action = 0
                 step = p.speed
                 if p.policy == GRADIENT:
-                    dx, dy, dz = _climb(p, rng, w, s, i, px, py, pz, gx, gy, gz)
+                    behavior = AVOID_OBSTACLE  # up the gradient, round obstacles
                 elif p.policy == RULE:
-                    if cell_d <= p.cell_sensing_radius and cell_d > 0.0:
-                        dx, dy, dz, step = _behavior_direction(
-                            p, rng, w, s, i, APPROACH_CELL, px, py, pz, gx, gy, gz, cell, cell_d
-                        )
-                    else:
-                        dx, dy, dz = _climb(p, rng, w, s, i, px, py, pz, gx, gy, gz)
+                    sensed = cell_d <= p.cell_sensing_radius and cell_d > 0.0
+                    behavior = APPROACH_CELL if sensed else AVOID_OBSTACLE
                 elif p.policy == RUN_AND_TUMBLE and c > s.prev_conc[i]:
                     dx = s.heading[i, 0]
                     dy = s.heading[i, 1]
                     dz = s.heading[i, 2]
                 else:
                     dx, dy, dz = _random_unit(rng)
+            if behavior >= 0:
+                dx, dy, dz, step = _behavior_direction(
+                    p, rng, w, s, i, behavior, px, py, pz, gx, gy, gz, cell, cell_d
+                )
             s.prev_conc[i] = c
 
             nx = px + step * dx
             ny = py + step * dy
             nz = pz + step * dz
-            if abs(nx) > p.half:
+            if p.walls and abs(nx) > p.half:
                 nx = _reflect(nx, p.half)
                 dx = -dx
-            if abs(ny) > p.half:
+            if p.walls and abs(ny) > p.half:
                 ny = _reflect(ny, p.half)
                 dy = -dy
-            if abs(nz) > p.half:
+            if p.walls and abs(nz) > p.half:
                 nz = _reflect(nz, p.half)
                 dz = -dz
             reward = p.reward_step

@@ -94,6 +94,9 @@ def _params(scenario: Scenario, record_bytes: int = DEFAULT_RECORD_BYTES) -> Ker
         reward_step=scenario.rewards.step,
         alpha_schedule=state.ALPHA_SCHEDULE_CODES[scenario.learning.alpha_schedule],
         alpha_exponent=scenario.learning.alpha_exponent,
+        cell_extent=scenario.cells.start_extent,
+        walls=scenario.space.walls,
+        robot_corner=scenario.robots.start == "corner",
     )
 
 

@@ -60,6 +60,9 @@ class KernelParams(NamedTuple):
     reward_step: float
     alpha_schedule: int
     alpha_exponent: float
+    cell_extent: float  # cells start within this share of the half-width
+    walls: bool  # the cube's walls reflect robots, cells and obstacles
+    robot_corner: bool  # robots start in the (-,-,-) octant
 
 
 class Swarm(NamedTuple):

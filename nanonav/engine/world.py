@@ -16,8 +16,7 @@ from numpy.typing import NDArray
 from nanonav.engine.state import KernelParams, Swarm, World
 from nanonav.scenario import Scenario, ScenarioError
 
-# Cells start within this fraction of the half-width, robots within the next.
-CELL_EXTENT = 0.8
+# Robots start within this share of the half-width (unless in the corner octant).
 ROBOT_EXTENT = 0.95
 PLACEMENT_ATTEMPTS = 10_000
 NO_ROOM_FOR_ROBOTS = -1
@@ -58,12 +57,15 @@ def draw_world(p: KernelParams, rng: np.random.Generator, w: World, s: Swarm) ->
     place. Returns 0; ``NO_ROOM_FOR_ROBOTS``; or 1 + the index of an obstacle with no room."""
     half = p.half
     for j in range(w.cells.shape[0]):
-        _uniform(rng, w.cells[j], -CELL_EXTENT * half, CELL_EXTENT * half)
+        _uniform(rng, w.cells[j], -p.cell_extent * half, p.cell_extent * half)
     for i in range(s.pos.shape[0]):
         for attempt in range(PLACEMENT_ATTEMPTS + 1):
             if attempt == PLACEMENT_ATTEMPTS:
                 return NO_ROOM_FOR_ROBOTS
-            _uniform(rng, s.pos[i], -ROBOT_EXTENT * half, ROBOT_EXTENT * half)
+            if p.robot_corner:
+                _uniform(rng, s.pos[i], -half, -0.5 * half)
+            else:
+                _uniform(rng, s.pos[i], -ROBOT_EXTENT * half, ROBOT_EXTENT * half)
             if _clear(s.pos[i], w.cells, 2.0 * p.reach_distance):
                 break
         n = 0.0

@@ -27,7 +27,13 @@ def test_presets_give_the_papers_figures_and_fields_override_them() -> None:
     assert (single.robots.count, single.cells.count) == (1, 1)
     mixed = Scenario.model_validate({"preset": "paper-swarm", "robots": {"speed": 1.0}})
     assert mixed.robots.count == 15 and mixed.robots.speed == 1.0
-    assert set(PRESETS) == {"paper-single", "paper-swarm"}
+    assert set(PRESETS) == {
+        "paper-single",
+        "paper-swarm",
+        "authors-script",
+        "hard-single",
+        "hard-swarm",
+    }
 
 
 def test_a_resolved_scenario_round_trips() -> None:

@@ -1,0 +1,129 @@
+"""Honest sensing (noise floor, detection threshold, the cell sensor's own range), fair
+baselines (slide round obstacles, the rule policy), moves checked along their whole segment,
+starts clear of obstacles, the step cost and the presets' worlds."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import pytest
+
+from nanonav.engine import qlearning, simulate
+from nanonav.engine.result import without_timings
+from nanonav.engine.simulate import _params
+from nanonav.scenario import Scenario, preset_scenario
+
+
+def scenario(**fields: Any) -> Scenario:
+    return Scenario.model_validate(fields)
+
+
+def segment_clearance(a: np.ndarray, b: np.ndarray, centres: np.ndarray) -> float:  # type: ignore[type-arg]
+    """Least distance from the segment a-b to any of ``centres``."""
+    u = b - a
+    length2 = float(u @ u)
+    c = centres - a
+    f = np.clip((c @ u) / length2, 0.0, 1.0) if length2 > 0 else np.zeros(len(centres))
+    return float(np.linalg.norm(c - f[:, None] * u, axis=1).min())
+
+
+def test_the_gradient_is_sensed_through_the_noise_floor() -> None:
+    s = scenario(biomarker={"noise_floor": 0.02}, robots={"sensor_baseline": 0.25})
+    assert _params(s).gradient_noise == pytest.approx(0.02 / (math.sqrt(2) * 0.25))
+
+
+def test_below_the_detection_threshold_a_robot_senses_nothing_and_keeps_its_heading() -> None:
+    blind = scenario(
+        seed=1, space={"size": 200}, obstacles={"count": 0}, cells={"motion_std": 0.0},
+        biomarker={"detection_threshold": 2.0},  # above the field's peak: never sensed
+        robots={"policy": "gradient", "count": 2},
+        learning={"episodes": 0, "max_steps": 20}, evaluation={"worlds": 1},
+    )  # fmt: skip
+    t = simulate(blind).trajectory
+    assert t is not None
+    moves = np.diff(t.robots, axis=0)
+    for robot in range(2):
+        directions = moves[:, robot] / np.linalg.norm(moves[:, robot], axis=1, keepdims=True)
+        assert np.allclose(directions, directions[0], atol=1e-12)  # straight on: nothing to climb
+
+
+def test_the_rule_is_gradient_climbing_when_cells_cannot_be_sensed() -> None:
+    world = {"preset": "paper-swarm", "seed": 3, "learning": {"episodes": 0, "max_steps": 200},
+             "evaluation": {"worlds": 2}}  # fmt: skip
+    rule = simulate(scenario(**world, robots={"policy": "rule", "cell_sensing_radius": 0.0}))
+    gradient = simulate(scenario(**world, robots={"policy": "gradient"}))
+    assert without_timings(rule.worlds) == without_timings(gradient.worlds)
+    sensing = simulate(scenario(**world, robots={"policy": "rule"}))
+    assert sensing.summary["success_rate"] > gradient.summary["success_rate"]
+
+
+def test_moves_never_pass_through_an_obstacle_and_start_a_step_clear() -> None:
+    # fast robots among small obstacles: an end-point check alone would let them tunnel
+    s = scenario(
+        seed=5, obstacles={"count": 60, "radius": 0.6}, robots={"count": 20, "speed": 2.0,
+        "policy": "random"}, learning={"episodes": 0, "max_steps": 150},
+        evaluation={"worlds": 1},
+    )  # fmt: skip
+    t = simulate(s).trajectory
+    assert t is not None
+    centres = t.obstacles[0]
+    starts = np.linalg.norm(t.robots[0][:, None] - centres[None], axis=2)
+    assert starts.min() >= s.obstacles.radius + s.robots.speed
+    for row in range(len(t.step) - 1):
+        for robot in range(s.robots.count):
+            a, b = t.robots[row, robot], t.robots[row + 1, robot]
+            if np.array_equal(a, b):
+                continue
+            assert segment_clearance(a, b, centres) >= s.obstacles.radius - 1e-9
+
+
+def test_gradient_slides_round_obstacles_instead_of_pushing_into_them() -> None:
+    crowded = {"preset": "paper-swarm", "obstacles": {"count": 80}, "robots":
+               {"policy": "gradient"}, "learning": {"episodes": 0}, "evaluation":
+               {"worlds": 5}}  # fmt: skip
+    climbers = simulate(scenario(**crowded, seed=2)).summary
+    walkers = simulate(scenario(**{**crowded, "robots": {"policy": "random"}}, seed=2)).summary
+    # a blocked move is rare for a robot that slides (only when a second obstacle is in the way)
+    assert climbers["collisions"] < 0.1 * walkers["collisions"]
+
+
+def test_a_return_is_the_distance_closed_the_arrival_and_the_steps_it_took() -> None:
+    s = scenario(
+        seed=6, obstacles={"count": 0}, cells={"motion_std": 0.0},
+        robots={"policy": "gradient", "count": 4}, rewards={"step": -0.25},
+        learning={"episodes": 0, "max_steps": 400}, evaluation={"worlds": 1},
+    )  # fmt: skip
+    result = simulate(s)
+    t = result.trajectory
+    assert t is not None
+    for row in result.robots:
+        i = row["robot"]
+        closed = t.distance[0, i] - row["final_distance"]
+        expected = closed + 10.0 * row["reached"] - 0.25 * int(t.steps[i])
+        assert row["return"] == pytest.approx(expected, abs=1e-9)
+
+
+def test_epsilon_reaches_its_floor_after_most_of_the_training() -> None:
+    learning = scenario(learning={"episodes": 100, "epsilon_end": 0.05}).learning
+    assert qlearning.epsilon(learning, 79) > 0.05
+    assert qlearning.epsilon(learning, 80) == pytest.approx(0.05)
+    assert qlearning.epsilon(learning, 99) == 0.05
+    given = scenario(learning={"episodes": 100, "epsilon_decay": 0.99}).learning
+    assert qlearning.epsilon(given, 99) == pytest.approx(0.99**99)  # may stay above the floor
+
+
+def test_the_authors_script_world() -> None:
+    s = preset_scenario("authors-script", seed=2, learning={"episodes": 5},
+                        evaluation={"worlds": 3})  # fmt: skip
+    result = simulate(s)
+    t = result.trajectory
+    assert t is not None
+    start = t.robots[0, 0]
+    assert ((start >= -50.0) & (start <= -25.0)).all()  # the corner octant
+    assert t.obstacles.shape[1] == 0
+    # the sampled field: the mean of exp(-d^2/40^2) over points redrawn near the cell
+    d = t.distance[0, 0]
+    assert t.concentration[0, 0] == pytest.approx(math.exp(-(d**2) / 1600), rel=0.25)
+    assert all(w["final_distance"] <= 0.5 for w in result.worlds)
