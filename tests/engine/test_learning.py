@@ -49,3 +49,12 @@ def test_with_honest_sensing_learned_behaviours_beat_the_chemotaxis_baselines() 
     for baseline in ("gradient", "run_and_tumble"):
         fixed = success(runs("hard-swarm", robots={"policy": baseline}, learning={"episodes": 0}))
         assert all(a > b for a, b in zip(learned, fixed, strict=True)), baseline
+
+
+def test_the_authors_script_world_gives_the_scripts_distances_and_concentrations() -> None:
+    results = runs("authors-script", learning={"episodes": 20})
+    distance = statistics.fmean(r.summary["average_distance"] for r in results)
+    concentration = statistics.fmean(r.summary["average_concentration"] for r in results)
+    assert 26.1 <= distance <= 45.6  # the script's 95% interval over seeds 0-19
+    assert 0.46 <= concentration <= 0.64
+    assert all(w["final_distance"] < 0.5 for r in results for w in r.worlds)
