@@ -4,8 +4,10 @@ from __future__ import annotations
 
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
+from pathlib import Path
 
 from fastapi import FastAPI
+from fastapi.staticfiles import StaticFiles
 
 import nanonav
 from nanonav.settings import Settings
@@ -13,13 +15,14 @@ from nanonav.store import JobStore, StudyStore
 from service import problems
 from service.drawing import Drawer
 from service.limits import BodySizeLimit
-from service.routes import jobs, meta, studies
+from service.routes import jobs, meta, pages, studies
 
+STATIC = Path(__file__).resolve().parent / "static"
 DESCRIPTION = """Submit nanorobot scenarios, watch them run, and fetch their results.
 
-`POST /jobs` queues a scenario (`{}` is all defaults); worker processes run it. `POST /studies`
-queues a grid of scenarios x seeds and answers with means, confidence intervals and paired
-comparisons as its jobs finish. Errors are
+A dashboard for people is at `/`. `POST /jobs` queues a scenario (`{}` is all defaults); worker
+processes run it. `POST /studies` queues a grid of scenarios x seeds and answers with means,
+confidence intervals and paired comparisons as its jobs finish. Errors are
 `application/problem+json` (RFC 9457); a 422 names the offending fields.
 """
 
@@ -41,6 +44,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         version=nanonav.__version__,
         description=DESCRIPTION,
         lifespan=lifespan,
+        docs_url=None,  # served by the dashboard, with its assets local
+        redoc_url=None,
     )
     app.state.settings = settings
     app.state.store = store
@@ -51,4 +56,6 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.include_router(jobs.router)
     app.include_router(studies.router)
     app.include_router(meta.router)
+    app.include_router(pages.router)
+    app.mount("/static", StaticFiles(directory=STATIC), name="static")
     return app

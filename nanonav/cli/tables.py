@@ -9,7 +9,9 @@ from collections.abc import Mapping, Sequence
 from datetime import datetime
 from typing import Any
 
+from nanonav import table1
 from nanonav.client import Job, Study
+from nanonav.table1 import number
 
 MAX_ROBOT_ROWS = 20
 WIDTH = 100  # where notes under a table wrap
@@ -34,27 +36,6 @@ def text_table(
 # ---------------------------------------------------------------- Table 1
 
 
-def _number(value: Any, digits: int = 2, suffix: str = "") -> str:
-    if value is None:
-        return "n/a"
-    if isinstance(value, bool):
-        return "yes" if value else "no"
-    if isinstance(value, int):
-        return f"{value}{suffix}"
-    return f"{float(value):.{digits}f}{suffix}"
-
-
-def _seconds(value: Any) -> str:
-    if value is None:
-        return "n/a"
-    seconds = float(value)
-    return f"{seconds:.2f} seconds" if seconds >= 1 else f"{seconds:.3g} seconds"
-
-
-def _percent(value: Any) -> str:
-    return "n/a" if value is None else f"{100 * float(value):.1f}%"
-
-
 def plural(count: int, word: str) -> str:
     return f"{count} {word}{'s' if count != 1 else ''}"
 
@@ -66,23 +47,7 @@ def format_table(document: Mapping[str, Any]) -> str:
     scenario = document["scenario"]
     summary = document.get("summary") or {}
     robots_rows = document.get("robots") or []
-    uncertainty = document.get("uncertainty") or {}
-    metrics = [
-        ("Total Steps", "total_steps", _number),
-        ("Final Distance", "final_distance", _number),
-        ("Average Distance", "average_distance", _number),
-        ("Average Biomarker Concentration", "average_concentration", _number),
-        ("Simulation Duration", "duration_s", _seconds),
-        ("Success Rate", "success_rate", _percent),
-        ("Collisions", "collisions", _number),
-        ("Path Efficiency", "path_efficiency", _number),
-    ]
-    rows = []
-    for label, key, show in metrics:
-        spread = uncertainty.get(key) or {}
-        low, high = spread.get("ci_low"), spread.get("ci_high")
-        interval = "" if low is None or high is None else f"[{show(low)}, {show(high)}]"
-        rows.append((label, show(summary.get(key)), interval))
+    rows = table1.rows(document)
     robots = int(scenario["robots"]["count"])
     worlds = summary.get("worlds")
     header = (
@@ -100,13 +65,13 @@ def format_table(document: Mapping[str, Any]) -> str:
         robot_rows = [
             (
                 str(row.get("robot")),
-                _number(row.get("reached")),
-                _number(row.get("total_steps")),
-                _number(row.get("final_distance")),
-                _number(row.get("average_distance")),
-                _number(row.get("average_concentration")),
-                _number(row.get("collisions")),
-                _number(row.get("path_efficiency")),
+                number(row.get("reached")),
+                number(row.get("total_steps")),
+                number(row.get("final_distance")),
+                number(row.get("average_distance")),
+                number(row.get("average_concentration")),
+                number(row.get("collisions")),
+                number(row.get("path_efficiency")),
             )
             for row in shown
         ]

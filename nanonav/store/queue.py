@@ -172,13 +172,17 @@ class JobStore:
         limit: int,
         before_id: int | None,
         study_id: int | None = None,
+        policy: str | None = None,
     ) -> Page:
-        """Up to ``limit`` jobs, newest first, older than ``before_id`` when given."""
+        """Up to ``limit`` jobs, newest first, older than ``before_id`` when given; only those
+        in ``status``, of ``study_id``, or whose robots follow ``policy``, when given."""
         query = select(Job).order_by(Job.id.desc()).limit(limit + 1)
         if status is not None:
             query = query.where(Job.status == status)
         if study_id is not None:
             query = query.where(Job.study_id == study_id)
+        if policy is not None:
+            query = query.where(Job.scenario[("robots", "policy")].as_string() == policy)
         if before_id is not None:
             query = query.where(Job.id < before_id)
         with unit_of_work(self._sessions) as session:

@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 from nanonav import plots
 from nanonav.engine import SimulationResult
 from nanonav.policy import greedy_table
-from nanonav.scenario import Scenario
+from nanonav.scenario import Policy, Scenario
 from nanonav.store import JobStatus, JobStore
 from nanonav.store.arrays import pack
 from service.budget import check_budget
@@ -82,18 +82,21 @@ def list_jobs(
     study: Annotated[
         int | None, Query(ge=1, le=2**63 - 1, description="Only the jobs of this study.")
     ] = None,
+    policy: Annotated[Policy | None, Query(description="Only jobs of this policy.")] = None,
     limit: Annotated[int, Query(ge=1, le=100, description="Jobs per page.")] = 20,
     cursor: Annotated[str | None, Query(max_length=64, description="From `next_cursor`.")] = None,
 ) -> JobPage:
     """A page of jobs, newest first."""
     before = None if cursor is None else decode_cursor(cursor)
-    page = store.page(status=status, limit=limit, before_id=before, study_id=study)
+    page = store.page(status=status, limit=limit, before_id=before, study_id=study, policy=policy)
     next_cursor = None if page.next_before_id is None else encode_cursor(page.next_before_id)
     next_url = None
     if next_cursor is not None:
         query = f"limit={limit}&cursor={next_cursor}"
         if study is not None:
             query = f"study={study}&{query}"
+        if policy is not None:
+            query = f"policy={policy}&{query}"
         if status is not None:
             query = f"status={status.value}&{query}"
         next_url = f"/jobs?{query}"

@@ -114,7 +114,7 @@ def submit_study(
         idempotency_key=idempotency_key,
     )
     response.headers["Location"] = f"/studies/{record.id}"
-    return _study(studies, record)
+    return study_answer(studies, record)
 
 
 @router.get("", response_model=StudyPage, responses=problems(422))
@@ -153,16 +153,16 @@ def list_studies(
 def get_study(study_id: StudyId, studies: StudiesDep) -> Study:
     """A study's jobs per status and, per grid point and metric, mean and 95% CI; with
     `compare`, paired differences seed by seed."""
-    return _study(studies, studies.get(study_id))
+    return study_answer(studies, studies.get(study_id))
 
 
 @router.post("/{study_id}/cancel", response_model=Study, responses=problems(404, 409, 422))
 def cancel_study(study_id: StudyId, studies: StudiesDep) -> Study:
     """Cancel a study's unfinished jobs: queued ones at once, running ones within a second."""
-    view = _study(studies, studies.get(study_id))
+    view = study_answer(studies, studies.get(study_id))
     if view.status in FINISHED and not view.cancel_requested:
         raise StudyFinished(f"study {study_id} has already finished: it is {view.status}")
-    return _study(studies, studies.cancel(study_id))
+    return study_answer(studies, studies.cancel(study_id))
 
 
 @router.get(
@@ -271,7 +271,7 @@ class _Loaded:
         return found
 
 
-def _study(studies: StudyStore, record: StudyRecord) -> Study:
+def study_answer(studies: StudyStore, record: StudyRecord) -> Study:
     loaded = _Loaded.of(studies, record)
     states = loaded.states
     progress = sum(1.0 if s.status.finished else s.fraction for s in states) / max(len(states), 1)

@@ -309,3 +309,11 @@ def test_the_census_counts_waiting_and_running_jobs_and_recent_workers(store: Jo
     assert store.census(seen_within_s=30, now=now).workers == 2
     store.worker_gone("host:2")
     assert store.census(seen_within_s=30, now=now).workers == 1
+
+
+def test_jobs_are_listed_by_policy(store: JobStore) -> None:
+    for policy in ("gradient", "q_learning", "gradient"):
+        store.enqueue({"robots": {"policy": policy}}, robot_steps=1, episodes=1)
+    found = store.page(status=None, limit=10, before_id=None, policy="gradient").jobs
+    assert [j.scenario["robots"]["policy"] for j in found] == ["gradient", "gradient"]
+    assert store.page(status=None, limit=10, before_id=None, policy="rule").jobs == []

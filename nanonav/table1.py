@@ -1,0 +1,54 @@
+"""The paper's Table 1 as rows of text, from a run's metrics document: the one layout the
+command line and the dashboard both show."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from typing import Any
+
+
+def number(value: Any, digits: int = 2, suffix: str = "") -> str:
+    if value is None:
+        return "n/a"
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, int):
+        return f"{value}{suffix}"
+    return f"{float(value):.{digits}f}{suffix}"
+
+
+def seconds(value: Any) -> str:
+    if value is None:
+        return "n/a"
+    given = float(value)
+    return f"{given:.2f} seconds" if given >= 1 else f"{given:.3g} seconds"
+
+
+def percent(value: Any) -> str:
+    return "n/a" if value is None else f"{100 * float(value):.1f}%"
+
+
+METRICS: tuple[tuple[str, str, Callable[[Any], str]], ...] = (
+    ("Total Steps", "total_steps", number),
+    ("Final Distance", "final_distance", number),
+    ("Average Distance", "average_distance", number),
+    ("Average Biomarker Concentration", "average_concentration", number),
+    ("Simulation Duration", "duration_s", seconds),
+    ("Success Rate", "success_rate", percent),
+    ("Collisions", "collisions", number),
+    ("Path Efficiency", "path_efficiency", number),
+)
+
+
+def rows(document: Mapping[str, Any]) -> list[tuple[str, str, str]]:
+    """(parameter, result, 95% interval over the evaluation worlds) for each Table 1 metric;
+    the interval is empty when there is none (one world, or a metric without spread)."""
+    summary = document.get("summary") or {}
+    uncertainty = document.get("uncertainty") or {}
+    found = []
+    for label, key, show in METRICS:
+        spread = uncertainty.get(key) or {}
+        low, high = spread.get("ci_low"), spread.get("ci_high")
+        interval = "" if low is None or high is None else f"[{show(low)}, {show(high)}]"
+        found.append((label, show(summary.get(key)), interval))
+    return found

@@ -1,0 +1,222 @@
+"""The dashboard: server-rendered pages over the same store as the JSON API.
+
+Pages that only show results read without JavaScript; forms and live progress use a little of
+it (``service/static``), talking to the JSON API like any client. Third-party browser code (the
+3-D plotting library, the OpenAPI page's assets) comes from installed Python packages, served
+here, so the dashboard works offline.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from importlib import resources
+from pathlib import Path
+from typing import Annotated, Any, get_args
+
+from fastapi import APIRouter, Query, Request
+from fastapi import Path as PathParam
+from fastapi.openapi.docs import get_swagger_ui_html
+from fastapi.responses import FileResponse, HTMLResponse, Response
+from fastapi.templating import Jinja2Templates
+
+from nanonav import table1
+from nanonav.scenario import PRESETS, ActionSet, FieldModel, Policy
+from nanonav.store import JobNotFound, JobStatus, StudyNotFound
+from nanonav.store.queue import PRESENCE_WINDOW_S
+from nanonav.studies.report import METRICS
+from nanonav.studies.spec import GRID_KEYS
+from service.deps import SettingsDep, StoreDep, StudiesDep
+from service.paging import decode_cursor, encode_cursor
+from service.routes.studies import list_studies, study_answer
+from service.schemas import Job
+
+router = APIRouter(include_in_schema=False)
+templates = Jinja2Templates(directory=Path(__file__).resolve().parents[1] / "templates")
+
+# Browser code shipped inside installed packages: the name it is served under, and where it is.
+VENDOR: dict[str, tuple[str, str]] = {
+    "plotly.min.js": ("plotly", "package_data/plotly.min.js"),
+    "swagger-ui-bundle.js": ("fastapi_offline", "static/swagger-ui-bundle.js"),
+    "swagger-ui.css": ("fastapi_offline", "static/swagger-ui.css"),
+    "swagger-favicon.png": ("fastapi_offline", "static/favicon.png"),
+}
+# The interactive 3-D view draws at most this many rows of the trajectory.
+VIEW_ROWS = 400
+# A study's table shows these metrics (its CSV has them all).
+STUDY_COLUMNS = ("success_rate", "total_steps", "final_distance", "average_distance",
+                 "average_concentration", "collisions", "path_efficiency")  # fmt: skip
+PageId = Annotated[int, PathParam(ge=1, le=2**63 - 1)]
+
+
+def _page(request: Request, name: str, status: int = 200, **context: Any) -> HTMLResponse:
+    store = request.app.state.store
+    census = store.census(seen_within_s=PRESENCE_WINDOW_S)
+    note = None
+    if census.queued and not census.workers:
+        note = (
+            f"{census.queued} jobs are queued but no worker is running: start one with "
+            "`nanonav worker`."
+        )
+    health = {"queued": census.queued, "running": census.running, "workers": census.workers,
+              "window_s": PRESENCE_WINDOW_S, "note": note}  # fmt: skip
+    return templates.TemplateResponse(
+        request, name, {"health": health, **context}, status_code=status
+    )
+
+
+def _missing(request: Request, what: str) -> HTMLResponse:
+    return _page(request, "missing.html", status=404, what=what)
+
+
+def _form_choices() -> dict[str, Any]:
+    return {
+        "presets": sorted(PRESETS),
+        "policies": get_args(Policy),
+        "action_sets": get_args(ActionSet),
+        "field_models": get_args(FieldModel),
+    }
+
+
+@router.get("/", response_class=HTMLResponse)
+def index(request: Request, store: StoreDep, studies: StudiesDep) -> HTMLResponse:
+    jobs = [Job.of(j) for j in store.page(status=None, limit=10, before_id=None).jobs]
+    recent = list_studies(studies, limit=5).studies
+    return _page(request, "index.html", nav="new", jobs=jobs, studies=recent, **_form_choices())
+
+
+@router.get("/ui/jobs", response_class=HTMLResponse)
+def jobs_page(
+    request: Request,
+    store: StoreDep,
+    status: Annotated[str, Query(max_length=16)] = "",
+    policy: Annotated[str, Query(max_length=32)] = "",
+    study: Annotated[str, Query(max_length=20)] = "",
+    cursor: Annotated[str | None, Query(max_length=64)] = None,
+) -> HTMLResponse:
+    """Jobs, newest first, filtered by status, policy and study (unknown values are ignored)."""
+    wanted_status = JobStatus(status) if status in {s.value for s in JobStatus} else None
+    wanted_policy = policy if policy in get_args(Policy) else None
+    wanted_study = int(study) if study.isdigit() and 0 < int(study) < 2**63 else None
+    before = None if cursor is None else decode_cursor(cursor)
+    page = store.page(
+        status=wanted_status, limit=25, before_id=before, study_id=wanted_study,
+        policy=wanted_policy,
+    )  # fmt: skip
+    filters = {"status": wanted_status.value if wanted_status else "",
+               "policy": wanted_policy or "", "study": wanted_study}  # fmt: skip
+    query = "&".join(f"{k}={v}" for k, v in filters.items() if v)
+    next_url = None
+    if page.next_before_id is not None:
+        next_url = (
+            f"/ui/jobs?{query}{'&' if query else ''}cursor={encode_cursor(page.next_before_id)}"
+        )
+    return _page(
+        request, "jobs.html", nav="jobs", jobs=[Job.of(j) for j in page.jobs],
+        filters=filters, statuses=[s.value for s in JobStatus], policies=get_args(Policy),
+        next=next_url, first=f"/ui/jobs?{query}" if cursor else None,
+    )  # fmt: skip
+
+
+@router.get("/ui/jobs/{job_id}", response_class=HTMLResponse)
+def job_page(request: Request, job_id: PageId, store: StoreDep) -> HTMLResponse:
+    """A job: its progress live, then its Table 1, pictures and 3-D paths."""
+    try:
+        job = Job.of(store.get(job_id))
+    except JobNotFound:
+        return _missing(request, f"job {job_id}")
+    metrics = store.metrics(job_id) if job.status == "succeeded" else None
+    stride = 1
+    if metrics is not None and metrics.get("worlds"):
+        length = int(metrics["worlds"][0].get("episode_steps") or 1)
+        stride = max(1, math.ceil(length / VIEW_ROWS))
+    return _page(
+        request, "job.html", nav="jobs", job=job, metrics=metrics,
+        finished=job.status in {"succeeded", "failed", "cancelled"},
+        table=[{"label": a, "value": b, "interval": c} for a, b, c in table1.rows(metrics)]
+        if metrics else [],
+        stride=stride, scenario_json=json.dumps(job.scenario, indent=2),
+    )  # fmt: skip
+
+
+@router.get("/ui/studies", response_class=HTMLResponse)
+def studies_page(
+    request: Request,
+    studies: StudiesDep,
+    cursor: Annotated[str | None, Query(max_length=64)] = None,
+) -> HTMLResponse:
+    page = list_studies(studies, limit=25, cursor=cursor)
+    next_url = None if page.next_cursor is None else f"/ui/studies?cursor={page.next_cursor}"
+    return _page(
+        request, "studies.html", nav="studies", studies=page.studies, next=next_url,
+        first="/ui/studies" if cursor else None,
+    )  # fmt: skip
+
+
+@router.get("/ui/studies/new", response_class=HTMLResponse)
+def new_study_page(request: Request, settings: SettingsDep) -> HTMLResponse:
+    return _page(
+        request, "study_new.html", nav="new-study", grid_keys=list(GRID_KEYS),
+        max_jobs=settings.study_max_jobs, **_form_choices(),
+    )  # fmt: skip
+
+
+def _study_context(studies: StudiesDep, study_id: int) -> dict[str, Any]:
+    study = study_answer(studies, studies.get(study_id))
+    keys = list(study.spec.get("grid", {}))
+    compare = study.spec.get("compare")
+    done = study.jobs.succeeded + study.jobs.failed + study.jobs.cancelled
+    return {
+        "study": study,
+        "finished": study.status in {"succeeded", "failed", "cancelled"},
+        "points": [p.model_dump() for p in study.points],
+        "comparisons": [c.model_dump() for c in study.comparisons],
+        "keys": keys,
+        "other_keys": [k for k in keys if k != compare],
+        "compare": compare,
+        "shown_metrics": [m for m in STUDY_COLUMNS if m in METRICS],
+        "fmt": lambda v: f"{v:.3g}" if abs(v) < 1000 else f"{v:,.0f}",
+        "version": done,  # pictures change as jobs finish
+    }
+
+
+@router.get("/ui/studies/{study_id}", response_class=HTMLResponse)
+def study_page(request: Request, study_id: PageId, studies: StudiesDep) -> HTMLResponse:
+    """A study: its jobs filling in live, its table with intervals and paired comparisons."""
+    try:
+        context = _study_context(studies, study_id)
+    except StudyNotFound:
+        return _missing(request, f"study {study_id}")
+    return _page(request, "study.html", nav="studies", **context)
+
+
+@router.get("/ui/studies/{study_id}/results", response_class=HTMLResponse)
+def study_results(request: Request, study_id: PageId, studies: StudiesDep) -> HTMLResponse:
+    """The study page's results and counts alone, for the page to refresh as jobs finish."""
+    try:
+        context = _study_context(studies, study_id)
+    except StudyNotFound:
+        return _missing(request, f"study {study_id}")
+    return templates.TemplateResponse(request, "_study_fragment.html", context)
+
+
+@router.get("/static/vendor/{name}")
+def vendor(name: str) -> Response:
+    """Third-party browser code from an installed package, cached for a day."""
+    if name not in VENDOR:
+        return Response(status_code=404)
+    package, inside = VENDOR[name]
+    path = Path(str(resources.files(package).joinpath(inside)))
+    return FileResponse(path, headers={"Cache-Control": "public, max-age=86400"})
+
+
+@router.get("/docs", response_class=HTMLResponse)
+def docs(request: Request) -> HTMLResponse:
+    """The OpenAPI page, with its assets served here rather than from a CDN."""
+    return get_swagger_ui_html(
+        openapi_url=request.app.openapi_url or "/openapi.json",
+        title="NanoNav API",
+        swagger_js_url="/static/vendor/swagger-ui-bundle.js",
+        swagger_css_url="/static/vendor/swagger-ui.css",
+        swagger_favicon_url="/static/vendor/swagger-favicon.png",
+    )

@@ -1,0 +1,72 @@
+// Shared by every page: talk to the JSON API and show its problems next to the fields at fault.
+"use strict";
+
+const nanonav = {
+  async send(method, url, body) {
+    const response = await fetch(url, {
+      method,
+      headers: { "Content-Type": "application/json", Accept: "application/json" },
+      body: body === undefined ? undefined : JSON.stringify(body),
+    });
+    let document = null;
+    try { document = await response.json(); } catch (error) { document = null; }
+    return { ok: response.ok, status: response.status, document };
+  },
+
+  // Put each problem's field errors next to the input whose data-pointer matches; the rest,
+  // and the problem's detail, go to the form's error list.
+  showProblem(form, problem, pointerFor) {
+    const list = form.querySelector("#form-errors");
+    form.querySelectorAll(".field-error").forEach((node) => node.remove());
+    form.querySelectorAll("[aria-invalid]").forEach((node) => node.removeAttribute("aria-invalid"));
+    list.innerHTML = "";
+    const errors = (problem && problem.errors) || [];
+    const unplaced = [];
+    for (const error of errors) {
+      const pointer = error.pointer || (error.parameter ? `?${error.parameter}` : "");
+      const input = pointerFor ? pointerFor(pointer) : form.querySelector(`[data-pointer="${pointer}"]`);
+      if (input) {
+        input.setAttribute("aria-invalid", "true");
+        const note = document.createElement("span");
+        note.className = "field-error";
+        note.textContent = error.detail;
+        input.insertAdjacentElement("afterend", note);
+      } else {
+        unplaced.push(`${pointer || "request"}: ${error.detail}`);
+      }
+    }
+    if (!errors.length && problem) unplaced.push(problem.detail || problem.title || "the request failed");
+    for (const text of unplaced) {
+      const item = document.createElement("li");
+      item.textContent = text;
+      list.appendChild(item);
+    }
+    list.hidden = unplaced.length === 0;
+  },
+
+  // Follow an event stream; `onState` receives each state, `onEnd` when the stream ends.
+  follow(url, onState, onEnd) {
+    if (!window.EventSource) return null;
+    const source = new EventSource(url);
+    const handle = (event) => {
+      const state = JSON.parse(event.data);
+      onState(state);
+      if (["succeeded", "failed", "cancelled"].includes(state.status)) {
+        source.close();
+        if (onEnd) onEnd(state);
+      }
+    };
+    source.addEventListener("progress", handle);
+    source.addEventListener("status", handle);
+    source.addEventListener("message", handle);
+    return source;
+  },
+
+  duration(seconds) {
+    if (!isFinite(seconds) || seconds < 0) return "";
+    if (seconds < 60) return `${Math.round(seconds)} s`;
+    const minutes = Math.floor(seconds / 60);
+    if (minutes < 60) return `${minutes} min ${Math.round(seconds % 60)} s`;
+    return `${Math.floor(minutes / 60)} h ${minutes % 60} min`;
+  },
+};
