@@ -21,7 +21,7 @@ from fastapi.responses import FileResponse, HTMLResponse, Response
 from fastapi.templating import Jinja2Templates
 
 from nanonav import table1
-from nanonav.scenario import PRESETS, ActionSet, FieldModel, Policy
+from nanonav.scenario import PRESETS, ActionSet, FieldModel, Policy, Scenario
 from nanonav.store import JobNotFound, JobStatus, StudyNotFound
 from nanonav.store.queue import PRESENCE_WINDOW_S
 from nanonav.studies.report import METRICS
@@ -132,6 +132,7 @@ def job_page(request: Request, job_id: PageId, store: StoreDep) -> HTMLResponse:
         stride = max(1, math.ceil(length / VIEW_ROWS))
     return _page(
         request, "job.html", nav="jobs", job=job, metrics=metrics,
+        scenario=Scenario.model_validate(job.scenario),
         finished=job.status in {"succeeded", "failed", "cancelled"},
         table=[{"label": a, "value": b, "interval": c} for a, b, c in table1.rows(metrics)]
         if metrics else [],

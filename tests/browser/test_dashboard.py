@@ -1,0 +1,143 @@
+"""What a person does at the dashboard, in a real browser: run a job and watch it, read its
+results, turn its paths in 3-D, fix a field the server refused, cancel, launch a study and read
+its table, browse jobs, and read the API page, all with no request leaving the machine."""
+
+from __future__ import annotations
+
+import re
+import time
+
+import httpx
+import pytest
+from playwright.sync_api import Page, expect
+
+from tests.browser.conftest import Site, screenshot
+
+pytestmark = pytest.mark.timeout(180)
+
+LONG = {"space": {"size": 1000}, "robots": {"count": 50, "policy": "random"},
+        "learning": {"episodes": 900, "max_steps": 20_000}}  # fmt: skip
+
+
+def wait_for_images(page: Page) -> list[dict[str, object]]:
+    """Load every picture on the page (they load lazily) and report each one's size."""
+    page.evaluate("document.querySelectorAll('img').forEach((img) => { img.loading = 'eager'; })")
+    page.wait_for_function(
+        "Array.from(document.images).every((img) => img.complete)", timeout=60_000
+    )
+    found: list[dict[str, object]] = page.evaluate(
+        "Array.from(document.images).map((img) => ({src: img.src, width: img.naturalWidth}))"
+    )
+    return found
+
+
+def test_a_job_submitted_through_the_form_runs_live_and_shows_its_results(
+    page: Page, site: Site
+) -> None:
+    page.goto(site.url + "/")
+    page.select_option("select[name=preset]", "paper-swarm")
+    page.fill("input[name='learning.episodes']", "5000")
+    page.fill("input[name='learning.max_steps']", "400")
+    page.fill("input[name='evaluation.worlds']", "3")
+    page.fill("input[name=seed]", "5")
+    screenshot(page, "new-job")
+    page.click("button[type=submit]")
+    page.wait_for_url(re.compile(r"/ui/jobs/\d+$"))
+    job_id = page.url.rsplit("/", 1)[1]
+    scenario = httpx.get(f"{site.url}/jobs/{job_id}").json()["scenario"]
+    assert scenario["seed"] == 5 and scenario["robots"]["count"] == 15
+    assert scenario["learning"]["episodes"] == 5000
+
+    seen: set[str] = set()
+    deadline = time.monotonic() + 120
+    while page.locator("#table-1").count() == 0:
+        assert time.monotonic() < deadline, "the job did not finish"
+        text = page.locator("#progress-text")
+        if text.count():
+            seen.add(text.inner_text())
+        page.wait_for_timeout(100)
+    moving = [s for s in seen if not s.startswith(("0%", "100%"))]
+    assert moving, f"progress never moved between 0 and 100%: {seen}"
+    expect(page.locator("#job-status")).to_have_text("succeeded")
+    rows = page.locator("#table-1 tbody tr")
+    expect(rows).to_have_count(8)
+    expect(rows.first).to_contain_text("Total Steps")
+    images = wait_for_images(page)
+    assert len(images) >= 7
+    assert all(int(str(image["width"])) > 0 for image in images), images
+    screenshot(page, "job")
+
+    page.click("#open-3d")
+    page.wait_for_selector("#view3d .main-svg", timeout=30_000)
+    page.locator("#step").fill("40")
+    page.dispatch_event("#step", "input")
+    assert page.locator("#step-value").inner_text() != "0"
+    screenshot(page, "job-3d")
+
+
+def test_a_refused_field_is_shown_next_to_it(page: Page, site: Site) -> None:
+    page.goto(site.url + "/")
+    page.fill("input[name='robots.count']", "0")
+    page.click("button[type=submit]")
+    error = page.locator("input[name='robots.count'] + .field-error")
+    expect(error).to_contain_text("greater than or equal to 1")
+    expect(page.locator("input[name='robots.count']")).to_have_attribute("aria-invalid", "true")
+    assert page.url.rstrip("/") == site.url
+    page.click("#json-details summary")
+    page.fill("#scenario-json", '{"robots": {"count": 2, "speed": -1}}')
+    page.click("button[type=submit]")
+    expect(page.locator("#form-errors")).to_contain_text("#/robots/speed")
+    screenshot(page, "new-job-refused")
+
+
+def test_a_running_job_is_cancelled_from_its_page(page: Page, site: Site) -> None:
+    job = httpx.post(f"{site.url}/jobs", json=LONG).json()
+    page.goto(f"{site.url}/ui/jobs/{job['id']}")
+    expect(page.locator("#job-status")).to_have_text("running", timeout=60_000)
+    page.click("#cancel")
+    expect(page.locator("#job-status")).to_have_text("cancelled", timeout=30_000)
+    assert httpx.get(f"{site.url}/jobs/{job['id']}").json()["status"] == "cancelled"
+
+
+def test_a_study_launched_from_the_form_fills_in_its_table(page: Page, site: Site) -> None:
+    page.goto(site.url + "/ui/studies/new")
+    page.fill("input[name=name]", "browser study")
+    page.fill("input[name='base.learning.episodes']", "3")
+    page.fill("input[name=replicates]", "3")
+    page.fill("input[name=values2]", "0, 20")
+    screenshot(page, "new-study")
+    page.click("button[type=submit]")
+    page.wait_for_url(re.compile(r"/ui/studies/\d+$"))
+    expect(page.locator("#study-status")).to_have_text("succeeded", timeout=120_000)
+    expect(page.locator("#points-table tbody tr")).to_have_count(4)
+    expect(page.locator("#comparisons-table tbody tr")).to_have_count(2)
+    first_row = page.locator("#points-table tbody tr").first
+    expect(first_row).to_contain_text("q_learning")
+    expect(first_row).to_contain_text("3/3")
+    images = wait_for_images(page)
+    assert len(images) == 4 and all(int(str(i["width"])) > 0 for i in images), images
+    study_id = page.url.rsplit("/", 1)[1]
+    table = httpx.get(f"{site.url}/studies/{study_id}/results.csv").text
+    assert len(table.splitlines()) == 1 + 12
+    screenshot(page, "study")
+
+
+def test_jobs_are_browsed_and_filtered(page: Page, site: Site) -> None:
+    for policy in ("gradient", "rule"):
+        httpx.post(f"{site.url}/jobs", json={"robots": {"policy": policy},
+                                             "learning": {"episodes": 0, "max_steps": 50},
+                                             "evaluation": {"worlds": 1}})  # fmt: skip
+    page.goto(site.url + "/ui/jobs")
+    page.select_option("select[name=policy]", "gradient")
+    page.click(".filters button")
+    page.wait_for_url(re.compile(r"policy=gradient"))
+    policies = page.locator("table.list tbody tr td:nth-child(5)").all_inner_texts()
+    assert policies and set(policies) == {"gradient"}
+    screenshot(page, "jobs")
+
+
+def test_the_api_page_works_offline(page: Page, site: Site) -> None:
+    page.goto(site.url + "/docs")
+    expect(page.locator(".swagger-ui .opblock").first).to_be_visible(timeout=30_000)
+    assert page.locator(".swagger-ui .opblock").count() >= 15
+    screenshot(page, "docs")
