@@ -155,8 +155,15 @@
     });
   }
 
+  // The plotting library is large: it is fetched only when the view is opened.
   open.addEventListener("click", () => {
-    if (window.Plotly) draw();
-    else window.addEventListener("load", draw, { once: true });
+    if (window.Plotly) { draw(); return; }
+    open.disabled = true;
+    open.textContent = "Loading the 3-D view…";
+    const script = document.createElement("script");
+    script.src = "/static/vendor/plotly.min.js";
+    script.onload = draw;
+    script.onerror = () => { open.textContent = "Could not load the 3-D view"; };
+    document.head.appendChild(script);
   });
 })();
