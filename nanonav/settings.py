@@ -80,11 +80,20 @@ class Settings(BaseSettings):
         description="How long an idle worker sleeps between two looks at the queue.",
     )
     lease_s: float = Field(
-        120.0,
+        15.0,
         gt=0,
         validation_alias=_aliases("lease_s"),
-        description="How long a claim holds without a progress write; a running job whose lease "
-        "expired (its worker died) is queued again.",
+        description="How long a claim holds without being renewed: a running worker renews it "
+        "from a thread every third of it; a job whose lease ran out (its worker died) is "
+        "queued again by the next sweep (every 3 s), so within about lease_s + 5 s.",
+    )
+    store_busy_timeout_s: float = Field(
+        30.0,
+        gt=0,
+        le=3600,
+        validation_alias=_aliases("store_busy_timeout_s"),
+        description="How long a SQLite write waits for another's lock before it fails; a "
+        "worker then retries it with backoff, and the job goes on.",
     )
     max_attempts: int = Field(
         3,

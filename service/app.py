@@ -30,7 +30,7 @@ confidence intervals and paired comparisons as its jobs finish. Errors are
 def create_app(settings: Settings | None = None) -> FastAPI:
     """The API over the store that ``settings`` (by default the environment's) names."""
     settings = settings or Settings()
-    store = JobStore.from_url(settings.database_url)
+    store = JobStore.from_url(settings.database_url, busy_timeout_s=settings.store_busy_timeout_s)
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:

@@ -11,18 +11,20 @@ import logging
 import math
 import threading
 import time
-from collections.abc import Callable
-from typing import Any
+from collections.abc import Callable, Iterator
+from typing import Any, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
 from pydantic import ValidationError
+from sqlalchemy.exc import SQLAlchemyError
 
 from nanonav.engine import Progress, SimulationResult, simulate
 from nanonav.policy import UnusablePolicy, learned_table
 from nanonav.scenario import Scenario
 from nanonav.settings import Settings
 from nanonav.store import Claim, JobRecord, JobStore, LeaseLost, Outcome
+from nanonav.store.faults import is_permanent, is_transient, reason
 from nanonav.studies.report import learning_curve, study_metrics
 
 logger = logging.getLogger(__name__)
@@ -90,6 +92,15 @@ class Watch:
                     self.stop = Stop.CANCELLED
             except LeaseLost:
                 self.stop = Stop.LEASE_LOST
+            except SQLAlchemyError as error:
+                if not is_transient(error):
+                    raise
+                # the store is busy or away for a moment: the run goes on, and the next
+                # write (or the heartbeat) brings the progress and the lease up to date
+                logger.warning(
+                    "job %d: progress not written (%s); the run goes on",
+                    self.claim.job.id, reason(error),
+                )  # fmt: skip
         return self.stop is None
 
 
@@ -113,7 +124,11 @@ def run_job(
     watch = Watch(store, claim, settings, shutdown)
     started = time.perf_counter()
     try:
-        result = simulate(scenario, watch, policy=policy)
+        with heartbeat(store, claim, settings):
+            result = simulate(scenario, watch, policy=policy)
+    except SQLAlchemyError as error:
+        logger.error("job %d: the store refused its progress: %s", job_id, reason(error))
+        return _fail(store, claim, f"the store refused the job's progress: {reason(error)}")
     except Exception as error:
         logger.exception("job %d failed", job_id)
         return _fail(store, claim, f"the simulation failed: {type(error).__name__}: {error}")
@@ -130,9 +145,16 @@ def run_job(
         return None
     stored = time.perf_counter()
     try:
-        record = store.finish(claim, outcome(result))
+        with heartbeat(store, claim, settings):
+            record = retrying(lambda: store.finish(claim, outcome(result)), settings)
     except LeaseLost:
         logger.warning("job %d: lease lost before its result was stored", job_id)
+        return None
+    except SQLAlchemyError as error:
+        if is_permanent(error):
+            return _fail(store, claim, f"its result could not be stored: {reason(error)}")
+        logger.error("job %d: the store stayed away (%s); the job will run again once its "
+                     "lease runs out", job_id, reason(error))  # fmt: skip
         return None
     logger.info(
         "job %d: simulated in %.3f s, stored in %.3f s",
@@ -179,6 +201,57 @@ def finite(document: Any) -> Any:
 
 def _fail(store: JobStore, claim: Claim, error: str) -> JobRecord | None:
     try:
-        return store.fail(claim, error)
+        return retrying(lambda: store.fail(claim, error), None)
     except LeaseLost:
         return None
+    except SQLAlchemyError as fault:
+        logger.error("job %d: could not record its failure: %s", claim.job.id, reason(fault))
+        return None
+
+
+T = TypeVar("T")
+# Backoff between tries of a write the store refused for a moment: doubling, capped.
+FIRST_RETRY_S = 0.2
+LAST_RETRY_S = 3.0
+
+
+def retrying(write: Callable[[], T], settings: Settings | None) -> T:
+    """``write()``, tried again with backoff while the store refuses it for a moment (for about
+    a lease: after that another worker may own the job); permanent faults are raised at once."""
+    patience = settings.lease_s if settings is not None else 15.0
+    deadline = time.monotonic() + patience
+    delay = FIRST_RETRY_S
+    while True:
+        try:
+            return write()
+        except SQLAlchemyError as error:
+            if not is_transient(error) or time.monotonic() + delay > deadline:
+                raise
+            logger.warning("the store refused a write for now (%s); trying again", reason(error))
+            time.sleep(delay)
+            delay = min(2 * delay, LAST_RETRY_S)
+
+
+@contextlib.contextmanager
+def heartbeat(store: JobStore, claim: Claim, settings: Settings) -> Iterator[None]:
+    """Renew the job's lease from a thread every third of a lease while the block runs, so a
+    long compiled step or a slow write never lets it lapse, and a dead worker's lease does
+    soon (its job runs again once the sweeper sees it)."""
+    done = threading.Event()
+
+    def beat() -> None:
+        while not done.wait(settings.lease_s / 3):
+            try:
+                store.renew(claim, lease_s=settings.lease_s)
+            except LeaseLost:
+                return
+            except SQLAlchemyError as error:
+                logger.warning("job %d: heartbeat missed (%s)", claim.job.id, reason(error))
+
+    thread = threading.Thread(target=beat, name=f"heartbeat-{claim.job.id}", daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        done.set()
+        thread.join()

@@ -13,7 +13,6 @@ import os
 import signal
 import socket
 import threading
-import time
 from datetime import UTC, datetime
 from types import FrameType
 from typing import Any
@@ -24,13 +23,16 @@ from nanonav.engine import simulate
 from nanonav.scenario import Scenario
 from nanonav.settings import Settings
 from nanonav.store import JobStore
+from nanonav.store.faults import reason
 from nanonav.store.queue import PRESENCE_INTERVAL_S
 from worker.job import run_job
 
 logger = logging.getLogger(__name__)
 
 LOG_FORMAT = "%(asctime)s %(levelname)s [%(process)d] %(name)s: %(message)s"
-RECOVERY_INTERVAL_S = 5.0
+# How often a worker looks for jobs whose lease ran out (their worker died), whether it is busy
+# or not: with the default 15 s lease a killed worker's job runs again within about 20 s.
+RECOVERY_INTERVAL_S = 3.0
 
 WARM_UP = {
     "robots": {"count": 1},
@@ -47,21 +49,20 @@ def warm_up() -> None:
 def work(settings: Settings, shutdown: threading.Event, *, max_jobs: int | None = None) -> int:
     """Claim and run jobs until ``shutdown`` is set (or ``max_jobs`` ran); returns jobs run."""
     owner = f"{socket.gethostname()}:{os.getpid()}"
-    store = JobStore.from_url(settings.database_url)
+    store = JobStore.from_url(settings.database_url, busy_timeout_s=settings.store_busy_timeout_s)
     ran = 0
-    last_recovery = -RECOVERY_INTERVAL_S
     stopped = threading.Event()
-    presence = threading.Thread(
-        target=_announce, args=(store, owner, stopped), name="presence", daemon=True
-    )
-    presence.start()
+    housekeeping = [
+        threading.Thread(target=_announce, args=(store, owner, stopped), name="presence",
+                         daemon=True),
+        threading.Thread(target=_sweep, args=(store, settings, stopped), name="sweeper",
+                         daemon=True),
+    ]  # fmt: skip
+    for thread in housekeeping:
+        thread.start()
     try:
         while not shutdown.is_set() and (max_jobs is None or ran < max_jobs):
             try:
-                if time.monotonic() - last_recovery >= RECOVERY_INTERVAL_S:
-                    last_recovery = time.monotonic()
-                    if recovered := store.recover_expired(max_attempts=settings.max_attempts):
-                        logger.info("recovered %d job(s) whose worker stopped answering", recovered)
                 claim = store.claim(owner, lease_s=settings.lease_s)
             except SQLAlchemyError:
                 logger.exception("the store is unavailable; retrying")
@@ -81,7 +82,8 @@ def work(settings: Settings, shutdown: threading.Event, *, max_jobs: int | None 
                 logger.info("job %d: %s", record.id, record.status.value)
     finally:
         stopped.set()
-        presence.join()
+        for thread in housekeeping:
+            thread.join()
         with contextlib.suppress(SQLAlchemyError):
             store.worker_gone(owner)
         store.close()
@@ -100,6 +102,17 @@ def _announce(store: JobStore, owner: str, stopped: threading.Event) -> None:
             return
 
 
+def _sweep(store: JobStore, settings: Settings, stopped: threading.Event) -> None:
+    """Queue again the jobs of workers that stopped answering, on a timer of its own: a busy
+    worker sweeps as often as an idle one."""
+    while not stopped.wait(RECOVERY_INTERVAL_S):
+        try:
+            if recovered := store.recover_expired(max_attempts=settings.max_attempts):
+                logger.info("recovered %d job(s) whose worker stopped answering", recovered)
+        except SQLAlchemyError as error:
+            logger.warning("could not look for stalled jobs (%s); retrying", reason(error))
+
+
 def _on_signals(shutdown: threading.Event) -> None:
     def stop(signum: int, frame: FrameType | None) -> None:
         logger.info("signal %d: stopping after the current step", signum)
@@ -109,10 +122,13 @@ def _on_signals(shutdown: threading.Event) -> None:
     signal.signal(signal.SIGINT, stop)
 
 
-def run_worker(settings: Settings) -> None:
-    """One worker in this process, until SIGTERM or SIGINT."""
+def run_worker(settings: Settings, *, orphan_check: bool = False) -> None:
+    """One worker in this process, until SIGTERM or SIGINT (or, under a supervisor, until the
+    supervisor is gone)."""
     shutdown = threading.Event()
     _on_signals(shutdown)
+    if orphan_check:
+        _stop_when_orphaned(shutdown)
     if settings.worker_nice:
         os.nice(settings.worker_nice)
     warm_up()
@@ -122,7 +138,24 @@ def run_worker(settings: Settings) -> None:
 
 def _child(settings_data: dict[str, Any]) -> None:
     logging.basicConfig(level=logging.INFO, format=LOG_FORMAT)
-    run_worker(Settings(**settings_data))
+    run_worker(Settings(**settings_data), orphan_check=True)
+
+
+ORPHAN_CHECK_S = 1.0
+
+
+def _stop_when_orphaned(shutdown: threading.Event) -> None:
+    """A supervised worker stops (giving its job back) when its supervisor dies: nobody would
+    replace it or stop it otherwise."""
+    parent = os.getppid()
+
+    def watch() -> None:
+        while not shutdown.wait(ORPHAN_CHECK_S):
+            if os.getppid() != parent:
+                logger.warning("the supervisor (%d) is gone; stopping", parent)
+                shutdown.set()
+
+    threading.Thread(target=watch, name="orphan-check", daemon=True).start()
 
 
 def supervise(settings: Settings, concurrency: int) -> None:

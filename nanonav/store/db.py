@@ -11,42 +11,59 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from contextlib import contextmanager
+from functools import partial
 from pathlib import Path
 from typing import Any
 
 from sqlalchemy import Engine, create_engine, event, inspect
-from sqlalchemy.engine import Connection, make_url
+from sqlalchemy.engine import Connection, ExceptionContext, make_url
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session, sessionmaker
 from sqlalchemy.pool import ConnectionPoolEntry
 
-BUSY_TIMEOUT_MS = 30_000
+BUSY_TIMEOUT_S = 30.0
 WRITE_LOCK = "nanonav_write_lock"
+# Errors after which a connection is thrown away rather than reused: one opened while the
+# database was read-only stays read-only after the database is writable again.
+STALE_CONNECTION_WORDS = ("readonly database", "read-only transaction")
 
 
-def make_engine(url: str, **kwargs: Any) -> Engine:
-    """An engine for ``url``; for a SQLite file, its directory is created if missing."""
+def make_engine(url: str, *, busy_timeout_s: float = BUSY_TIMEOUT_S, **kwargs: Any) -> Engine:
+    """An engine for ``url``; for a SQLite file, its directory is created if missing, and a
+    write waits up to ``busy_timeout_s`` for another's lock before it fails (transiently)."""
     parsed = make_url(url)
     if parsed.get_backend_name() != "sqlite":
-        return create_engine(parsed, pool_pre_ping=True, **kwargs)
+        engine = create_engine(parsed, pool_pre_ping=True, **kwargs)
+        event.listen(engine, "handle_error", _recycle_stale)
+        return engine
     if parsed.database and parsed.database != ":memory:":
         Path(parsed.database).parent.mkdir(parents=True, exist_ok=True)
     engine = create_engine(
         parsed,
-        connect_args={"timeout": BUSY_TIMEOUT_MS / 1000, "check_same_thread": False},
+        connect_args={"timeout": busy_timeout_s, "check_same_thread": False},
         **kwargs,
     )
-    event.listen(engine, "connect", _sqlite_on_connect)
+    event.listen(engine, "connect", partial(_sqlite_on_connect, busy_timeout_s))
     event.listen(engine, "begin", _sqlite_on_begin)
+    event.listen(engine, "handle_error", _recycle_stale)
     return engine
 
 
-def _sqlite_on_connect(dbapi_connection: Any, record: ConnectionPoolEntry) -> None:
+def _recycle_stale(context: ExceptionContext) -> None:
+    """Have the pool discard a connection whose error it would otherwise keep repeating."""
+    message = str(context.original_exception).lower()
+    if any(words in message for words in STALE_CONNECTION_WORDS):
+        context.is_disconnect = True
+
+
+def _sqlite_on_connect(
+    busy_timeout_s: float, dbapi_connection: Any, record: ConnectionPoolEntry
+) -> None:
     dbapi_connection.isolation_level = None
     cursor = dbapi_connection.cursor()
     try:
         cursor.execute("PRAGMA journal_mode=WAL")
-        cursor.execute(f"PRAGMA busy_timeout={BUSY_TIMEOUT_MS}")
+        cursor.execute(f"PRAGMA busy_timeout={round(busy_timeout_s * 1000)}")
         cursor.execute("PRAGMA foreign_keys=ON")
         cursor.execute("PRAGMA synchronous=NORMAL")
     finally:

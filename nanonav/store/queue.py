@@ -14,12 +14,19 @@ from datetime import UTC, datetime, timedelta
 from typing import Any
 
 from numpy.typing import NDArray
-from sqlalchemy import Engine, case, delete, func, literal, select, update
-from sqlalchemy.exc import IntegrityError
+from sqlalchemy import Engine, case, delete, func, literal, select, text, update
+from sqlalchemy.exc import IntegrityError, SQLAlchemyError
 from sqlalchemy.orm import Session
 
 from nanonav.store.arrays import pack, unpack
-from nanonav.store.db import add_once, make_engine, make_sessionmaker, unit_of_work
+from nanonav.store.db import (
+    BUSY_TIMEOUT_S,
+    WRITE_LOCK,
+    add_once,
+    make_engine,
+    make_sessionmaker,
+    unit_of_work,
+)
 from nanonav.store.errors import JobAlreadyFinished, JobNotFound, LeaseLost, ResultsUnavailable
 from nanonav.store.models import Job, JobPlot, JobResult, JobStatus, UTCDateTime, Worker
 
@@ -118,8 +125,8 @@ class JobStore:
         self._sessions = make_sessionmaker(engine)
 
     @classmethod
-    def from_url(cls, url: str) -> JobStore:
-        return cls(make_engine(url))
+    def from_url(cls, url: str, *, busy_timeout_s: float = BUSY_TIMEOUT_S) -> JobStore:
+        return cls(make_engine(url, busy_timeout_s=busy_timeout_s))
 
     def close(self) -> None:
         self.engine.dispose()
@@ -246,6 +253,17 @@ class JobStore:
                 select(JobResult.metrics).where(JobResult.job_id == job_id)
             ).one_or_none()
             return metrics
+
+    def writable(self) -> bool:
+        """Whether the store takes a write now: a no-op update, rolled back."""
+        try:
+            connection = self.engine.connect().execution_options(**{WRITE_LOCK: True})
+            with connection, connection.begin() as transaction:
+                connection.execute(text("UPDATE alembic_version SET version_num = version_num"))
+                transaction.rollback()
+        except SQLAlchemyError:
+            return False
+        return True
 
     def census(self, *, seen_within_s: float, now: datetime | None = None) -> Census:
         """Jobs waiting and running, and the workers seen in the last ``seen_within_s``."""

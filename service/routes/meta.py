@@ -25,15 +25,15 @@ def list_presets() -> dict[str, dict[str, Any]]:
 
 @router.get("/healthz", response_model=Health, responses={503: {"model": Health}})
 def healthz(store: StoreDep, response: Response) -> Health:
-    """Whether the database answers and its schema is at the newest migration; how many jobs
-    wait and how many workers were seen lately."""
+    """Whether the database answers, takes writes and has its schema at the newest migration;
+    how many jobs wait and how many workers were seen lately."""
     head = head_revision()
     try:
         revision = current_revision(store.engine)
     except SQLAlchemyError:
         response.status_code = 503
         return Health(status="unavailable", database=False, revision=None, head=head)
-    if revision != head:
+    if revision != head or not store.writable():
         response.status_code = 503
         return Health(status="unavailable", database=True, revision=revision, head=head)
     census = store.census(seen_within_s=PRESENCE_WINDOW_S)

@@ -22,5 +22,4 @@ def start_worker(api: Api, tmp_path: Path) -> Iterator[Callable[..., Worker]]:
 
     yield start
     for worker in workers:
-        if worker.process.poll() is None:
-            worker.terminate()
+        worker.terminate()  # also closes the log of one that has already exited
