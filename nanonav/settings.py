@@ -123,6 +123,16 @@ class Settings(BaseSettings):
         "time, the first time each is asked for); a request beyond them gets 503.",
     )
 
+    events_poll_s: float = Field(
+        0.25,
+        gt=0,
+        le=60,
+        validation_alias=_aliases("events_poll_s"),
+        description="How often an API process reads the state of the jobs and studies its open "
+        "event streams watch (one query for all watched jobs, one for all watched studies), "
+        "seconds; nothing is read while no stream is open.",
+    )
+
     trajectory_json_values: int = Field(
         2_000_000,
         ge=1000,

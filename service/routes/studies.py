@@ -129,7 +129,7 @@ def list_studies(
     summaries = []
     for record in page.studies:
         found = {status.value: n for status, n in counts[record.id].items()}
-        jobs = _counts(found)
+        jobs = JobCounts.of(found)
         summaries.append(
             StudySummary(
                 id=record.id,
@@ -283,7 +283,7 @@ def _study(studies: StudyStore, record: StudyRecord) -> Study:
         created_at=record.created_at,
         finished_at=max(ends) if loaded.done and ends else None,
         cancel_requested=record.cancel_requested,
-        jobs=_counts(status_counts(loaded.outcomes)),
+        jobs=JobCounts.of(status_counts(loaded.outcomes)),
         progress=progress,
         spec=record.spec,
         links=_links(record.id),
@@ -303,17 +303,6 @@ def _policy_blame(spec: StudySpec, values: Mapping[str, Any]) -> tuple[tuple[str
     others = {k: v for k, v in values.items() if k != "policy_from"}
     where = f"at the grid point {others}: " if others else ""
     return loc, where
-
-
-def _counts(found: Mapping[str, int]) -> JobCounts:
-    return JobCounts(
-        total=sum(found.values()),
-        queued=found.get("queued", 0),
-        running=found.get("running", 0),
-        succeeded=found.get("succeeded", 0),
-        failed=found.get("failed", 0),
-        cancelled=found.get("cancelled", 0),
-    )
 
 
 def _links(study_id: int) -> StudyLinks:
