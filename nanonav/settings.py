@@ -133,6 +133,16 @@ class Settings(BaseSettings):
         "seconds; nothing is read while no stream is open.",
     )
 
+    shutdown_grace_s: int = Field(
+        5,
+        ge=1,
+        le=3600,
+        validation_alias=_aliases("shutdown_grace_s"),
+        description="Seconds a stopping API process gives open requests to finish before it "
+        "cancels them. An event stream lasts until its job or study finishes, so without this "
+        "limit the server would wait for every watching client to leave.",
+    )
+
     trajectory_json_values: int = Field(
         2_000_000,
         ge=1000,

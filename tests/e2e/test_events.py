@@ -3,9 +3,14 @@
 from __future__ import annotations
 
 import asyncio
+import contextlib
+import signal
+import subprocess
+import sys
 import threading
 import time
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import httpx
@@ -16,7 +21,7 @@ from nanonav.settings import Settings
 from service.app import create_app
 from tests.conftest import Api, serve
 from tests.e2e.test_jobs import LONG, TINY, submit
-from tests.processes import FIRST_JOB_S, Worker
+from tests.processes import FIRST_JOB_S, Worker, clean_environment, free_port
 from tests.sse import Message, amessages, events
 
 # About a second of work: 6 training episodes and an evaluation world of 50 random walkers
@@ -160,3 +165,48 @@ def test_a_hundred_streams_cost_one_store_query_per_tick(
     for stream in seen:
         assert stream[-1].event == "status" and stream[-1].json()["status"] == "cancelled"
         assert sum(m.event == "progress" for m in stream) >= WINDOW_S / 0.25 / 2
+
+
+def test_the_api_stops_within_its_grace_while_a_stream_is_open(api: Api, tmp_path: Path) -> None:
+    """An open stream would hold a stopping uvicorn for as long as its client stays; `nanonav
+    api` cancels it after NANONAV_SHUTDOWN_GRACE_S."""
+    url = f"http://127.0.0.1:{free_port()}"
+    env = clean_environment(NANONAV_DATABASE_URL=api.database_url, NANONAV_SHUTDOWN_GRACE_S="1")
+    command = [sys.executable, "-m", "nanonav.cli", "api", "--port", url.rsplit(":", 1)[1]]
+    with (tmp_path / "api.log").open("wb") as log:
+        server = subprocess.Popen(command, env=env, stdout=log, stderr=subprocess.STDOUT)
+    try:
+        deadline = time.monotonic() + 60
+        while True:
+            assert server.poll() is None and time.monotonic() < deadline
+            try:
+                if httpx.get(f"{url}/healthz").status_code == 200:
+                    break
+            except httpx.TransportError:
+                time.sleep(0.05)
+        job_id = httpx.post(f"{url}/jobs", json=TINY).json()["id"]  # no worker: stays queued
+        opened = threading.Event()
+        ended = threading.Event()
+
+        def hold() -> None:
+            with (
+                contextlib.suppress(httpx.TransportError),
+                httpx.stream("GET", f"{url}/jobs/{job_id}/events", timeout=30) as response,
+            ):
+                for _ in events(response):
+                    opened.set()
+            ended.set()
+
+        threading.Thread(target=hold, daemon=True).start()
+        assert opened.wait(10)
+        stopping = time.monotonic()
+        server.send_signal(signal.SIGTERM)
+        # uvicorn stops gracefully, then re-raises the signal it caught
+        assert server.wait(timeout=10) in (0, -signal.SIGTERM)
+        elapsed = time.monotonic() - stopping
+        assert 1 <= elapsed < 1 + 3, elapsed
+        assert ended.wait(5)
+    finally:
+        if server.poll() is None:
+            server.kill()
+            server.wait()
