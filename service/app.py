@@ -12,6 +12,7 @@ import nanonav
 from nanonav.settings import Settings
 from nanonav.store import JobStore, StudyStore
 from service import problems
+from service.caching import ETags
 from service.drawing import Drawer
 from service.events import Poller
 from service.limits import BodySizeLimit
@@ -56,6 +57,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.state.study_events = poller.channel(partial(events.study_snapshots, study_store))
     app.state.drawer = Drawer(settings.drawing_queue)
     app.add_middleware(BodySizeLimit, max_bytes=settings.max_body_bytes)
+    app.add_middleware(ETags)
     problems.install(app)
     app.add_exception_handler(events.NothingNew, events.nothing_new)
     app.include_router(jobs.router)

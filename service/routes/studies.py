@@ -24,12 +24,13 @@ from nanonav.studies.report import (
 )
 from nanonav.studies.spec import StudySpec, point_values, points
 from service.budget import check_budget
+from service.caching import IMMUTABLE
 from service.deps import DrawerDep, JsonBody, SettingsDep, StoreDep, StudiesDep
 from service.drawing import Drawer
 from service.paging import decode_cursor, encode_cursor
 from service.policy_from import check_policy_from
 from service.problems import InvalidInput, StudyFinished, field_error, invalid_body, problems
-from service.routes.jobs import IMMUTABLE, PNG
+from service.routes.jobs import PNG
 from service.schemas import JobCounts, Study, StudyLinks, StudyPage, StudySummary
 
 router = APIRouter(prefix="/studies", tags=["studies"])
@@ -186,16 +187,18 @@ def get_results(
     rows = table(point_values(loaded.spec), loaded.outcomes)
     columns = table_columns(loaded.spec)
     name = f"nanonav-study-{study_id}"
+    # A finished study's table never changes; an unfinished one's is asked for again.
+    caching = IMMUTABLE if loaded.done else {}
     if format == "parquet":
         return Response(
             export.to_parquet(columns, rows),
             media_type=export.PARQUET_MEDIA_TYPE,
-            headers={"Content-Disposition": f'attachment; filename="{name}.parquet"'},
+            headers={"Content-Disposition": f'attachment; filename="{name}.parquet"', **caching},
         )
     return Response(
         export.to_csv(columns, rows),
         media_type="text/csv; charset=utf-8",
-        headers={"Content-Disposition": f'attachment; filename="{name}.csv"'},
+        headers={"Content-Disposition": f'attachment; filename="{name}.csv"', **caching},
     )
 
 
