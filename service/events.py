@@ -108,6 +108,10 @@ class Channel:
     def listeners(self) -> int:
         return self._count
 
+    @property
+    def running(self) -> bool:
+        return self._poller.running
+
     def watched(self) -> dict[int, list[Listener]]:
         """Who watches what, now: a tick offers its states only to those who were listening
         before it read them, so no one is offered a state older than the one they started from."""

@@ -24,7 +24,7 @@ from nanonav.store import JobRecord, JobStore, StudyNotFound, StudyProgress, Stu
 from nanonav.studies.report import status_of
 from service.deps import JobEventsDep, StoreDep, StudiesDep, StudyEventsDep
 from service.events import Channel, Snapshot
-from service.problems import problems
+from service.problems import PROBLEM_JSON, ProblemError
 from service.routes.jobs import JobId
 from service.routes.studies import FINISHED, StudyId
 from service.schemas import Job, JobCounts, StudyState
@@ -37,11 +37,22 @@ LastEventId = Annotated[
     str | None,
     Header(max_length=200, description="The id of the last event received, to resume from."),
 ]
+# Problems spelled out: `problems()` would also list them under the stream's media type.
+_PROBLEM = {PROBLEM_JSON: {"schema": {"$ref": "#/components/schemas/Problem"}}}
 STREAM: dict[int | str, dict[str, Any]] = {
     200: {"description": "A text/event-stream: `status` and `progress` events."},
     204: {"description": "The client already has the final state (Last-Event-ID): nothing new."},
-    **problems(404, 422),
+    **{status: {"description": "A problem", "content": _PROBLEM} for status in (404, 422, 503)},
 }
+
+
+class EventsUnavailable(ProblemError):
+    """The poller has stopped (the server is stopping, or it failed and logged why)."""
+
+    status = 503
+    slug = "events-unavailable"
+    title = "Event streams unavailable"
+    headers = {"Retry-After": "1"}  # noqa: RUF012  (read-only, as in ProblemError)
 
 
 class NothingNew(Exception):
@@ -100,19 +111,33 @@ def _start(thing_id: int, current: Snapshot, last_event_id: str | None) -> Start
     return Start(thing_id, current, seen_status, send_current=True)
 
 
-def _job_start(job_id: JobId, store: StoreDep, last_event_id: LastEventId = None) -> Start:
+def _job_start(
+    job_id: JobId, store: StoreDep, channel: JobEventsDep, last_event_id: LastEventId = None
+) -> Start:
     """Read before the stream starts, so that an unknown job is a 404, not an empty stream."""
+    _check(channel)
     return _start(job_id, job_snapshot(store.get(job_id)), last_event_id)
 
 
 def _study_start(
-    study_id: StudyId, studies: StudiesDep, last_event_id: LastEventId = None
+    study_id: StudyId,
+    studies: StudiesDep,
+    channel: StudyEventsDep,
+    last_event_id: LastEventId = None,
 ) -> Start:
     """Read before the stream starts, so that an unknown study is a 404."""
+    _check(channel)
     found = studies.progress([study_id])
     if study_id not in found:
         raise StudyNotFound(study_id)
     return _start(study_id, study_snapshot(found[study_id]), last_event_id)
+
+
+def _check(channel: Channel) -> None:
+    if not channel.running:
+        raise EventsUnavailable(
+            "this server is not following changes now; poll GET /jobs/{id} or try again"
+        )
 
 
 @router.get("/jobs/{job_id}/events", response_class=EventSourceResponse, responses=STREAM)

@@ -3,6 +3,7 @@ that every state change is one the test chose and waits for."""
 
 from __future__ import annotations
 
+import asyncio
 import queue
 import threading
 import time
@@ -283,3 +284,25 @@ def test_a_study_stream_follows_its_jobs_and_ends_when_it_is_done(api: Api) -> N
     assert state["progress"] == whole["progress"] == 1.0
     assert state["finished_at"] == whole["finished_at"] is not None
     assert stream.event() is None and stream.ended()
+
+
+def test_streams_are_503_while_the_poller_is_not_running(sqlite_url: str) -> None:
+    upgrade(sqlite_url)
+    app = create_app(Settings(database_url=sqlite_url))  # served without its lifespan
+
+    async def ask() -> list[httpx.Response]:
+        transport = httpx.ASGITransport(app=app)
+        async with httpx.AsyncClient(transport=transport, base_url="http://api") as client:
+            job_id = (await client.post("/jobs", json={})).json()["id"]
+            study_id = (await client.post("/studies", json=STUDY)).json()["id"]
+            return [
+                await client.get(f"/jobs/{job_id}/events"),
+                await client.get(f"/studies/{study_id}/events"),
+            ]
+
+    try:
+        for response in asyncio.run(ask()):
+            assert_problem(response, 503)
+            assert response.headers["retry-after"] == "1"
+    finally:
+        app.state.store.close()
