@@ -24,7 +24,7 @@ from nanonav.store import JobRecord, JobStore, StudyNotFound, StudyProgress, Stu
 from nanonav.studies.report import status_of
 from service.deps import JobEventsDep, StoreDep, StudiesDep, StudyEventsDep
 from service.events import Channel, Snapshot
-from service.problems import PROBLEM_JSON, ProblemError
+from service.problems import PROBLEM_JSON, EventsUnavailable
 from service.routes.jobs import JobId
 from service.routes.studies import FINISHED, StudyId
 from service.schemas import Job, JobCounts, StudyState
@@ -44,15 +44,6 @@ STREAM: dict[int | str, dict[str, Any]] = {
     204: {"description": "The client already has the final state (Last-Event-ID): nothing new."},
     **{status: {"description": "A problem", "content": _PROBLEM} for status in (404, 422, 503)},
 }
-
-
-class EventsUnavailable(ProblemError):
-    """The poller has stopped (the server is stopping, or it failed and logged why)."""
-
-    status = 503
-    slug = "events-unavailable"
-    title = "Event streams unavailable"
-    headers = {"Retry-After": "1"}  # noqa: RUF012  (read-only, as in ProblemError)
 
 
 class NothingNew(Exception):
