@@ -76,6 +76,8 @@ def main() -> int:
             settings.host,
             "--port",
             str(settings.port),
+            "--timeout-graceful-shutdown",
+            str(settings.shutdown_grace_s),
         ],
         start_new_session=True,
     )

@@ -132,6 +132,26 @@ class Settings(BaseSettings):
         "time, the first time each is asked for); a request beyond them gets 503.",
     )
 
+    events_poll_s: float = Field(
+        0.25,
+        gt=0,
+        le=60,
+        validation_alias=_aliases("events_poll_s"),
+        description="How often an API process reads the state of the jobs and studies its open "
+        "event streams watch (one query for all watched jobs, one for all watched studies), "
+        "seconds; nothing is read while no stream is open.",
+    )
+
+    shutdown_grace_s: int = Field(
+        5,
+        ge=1,
+        le=3600,
+        validation_alias=_aliases("shutdown_grace_s"),
+        description="Seconds a stopping API process gives open requests to finish before it "
+        "cancels them. An event stream lasts until its job or study finishes, so without this "
+        "limit the server would wait for every watching client to leave.",
+    )
+
     trajectory_json_values: int = Field(
         2_000_000,
         ge=1000,

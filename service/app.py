@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
+from functools import partial
 from pathlib import Path
 
 from fastapi import FastAPI
@@ -13,9 +14,11 @@ import nanonav
 from nanonav.settings import Settings
 from nanonav.store import JobStore, StudyStore
 from service import problems
+from service.caching import ETags
 from service.drawing import Drawer
+from service.events import Poller
 from service.limits import BodySizeLimit
-from service.routes import jobs, meta, pages, studies
+from service.routes import events, jobs, meta, pages, studies
 
 STATIC = Path(__file__).resolve().parent / "static"
 DESCRIPTION = """Submit nanorobot scenarios, watch them run, and fetch their results.
@@ -31,12 +34,16 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     """The API over the store that ``settings`` (by default the environment's) names."""
     settings = settings or Settings()
     store = JobStore.from_url(settings.database_url, busy_timeout_s=settings.store_busy_timeout_s)
+    study_store = StudyStore(store.engine)
+    poller = Poller(settings.events_poll_s)
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        poller.start()
         try:
             yield
         finally:
+            await poller.stop()
             store.close()
 
     app = FastAPI(
@@ -49,12 +56,18 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     )
     app.state.settings = settings
     app.state.store = store
-    app.state.studies = StudyStore(store.engine)
+    app.state.studies = study_store
+    app.state.poller = poller
+    app.state.job_events = poller.channel(partial(events.job_snapshots, store))
+    app.state.study_events = poller.channel(partial(events.study_snapshots, study_store))
     app.state.drawer = Drawer(settings.drawing_queue)
     app.add_middleware(BodySizeLimit, max_bytes=settings.max_body_bytes)
+    app.add_middleware(ETags)
     problems.install(app)
+    app.add_exception_handler(events.NothingNew, events.nothing_new)
     app.include_router(jobs.router)
     app.include_router(studies.router)
+    app.include_router(events.router)
     app.include_router(meta.router)
     app.include_router(pages.router)
     app.mount("/static", StaticFiles(directory=STATIC), name="static")

@@ -9,6 +9,7 @@ from fastapi import Depends, Request
 from nanonav.settings import Settings
 from nanonav.store import JobStore, StudyStore
 from service.drawing import Drawer
+from service.events import Channel
 from service.problems import UnsupportedMediaType
 
 
@@ -32,6 +33,16 @@ def _drawer(request: Request) -> Drawer:
     return drawer
 
 
+def _job_events(request: Request) -> Channel:
+    channel: Channel = request.app.state.job_events
+    return channel
+
+
+def _study_events(request: Request) -> Channel:
+    channel: Channel = request.app.state.study_events
+    return channel
+
+
 async def require_json(request: Request) -> None:
     """A request body, if there is one, must be declared as JSON."""
     if not await request.body():
@@ -48,4 +59,6 @@ StoreDep = Annotated[JobStore, Depends(_store)]
 SettingsDep = Annotated[Settings, Depends(_settings)]
 DrawerDep = Annotated[Drawer, Depends(_drawer)]
 StudiesDep = Annotated[StudyStore, Depends(_studies)]
+JobEventsDep = Annotated[Channel, Depends(_job_events)]
+StudyEventsDep = Annotated[Channel, Depends(_study_events)]
 JsonBody = Depends(require_json)

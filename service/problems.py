@@ -103,6 +103,15 @@ class NoQTable(ProblemError):
     title = "No Q-table"
 
 
+class EventsUnavailable(ProblemError):
+    """The event poller is not running (the server is stopping, or it failed and logged why)."""
+
+    status = 503
+    slug = "events-unavailable"
+    title = "Event streams unavailable"
+    headers = {"Retry-After": "1"}  # noqa: RUF012  (read-only, per subclass)
+
+
 class InvalidInput(ProblemError):
     status = 422
     slug = "invalid-input"

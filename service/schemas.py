@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from datetime import datetime
 from typing import Any, Literal
 
@@ -394,6 +395,18 @@ class JobCounts(BaseModel):
     failed: int = Field(description="Failed jobs are counted here, never averaged in.")
     cancelled: int
 
+    @classmethod
+    def of(cls, found: Mapping[str, int]) -> JobCounts:
+        """From jobs per status (a status no job has may be absent)."""
+        return cls(
+            total=sum(found.values()),
+            queued=found.get("queued", 0),
+            running=found.get("running", 0),
+            succeeded=found.get("succeeded", 0),
+            failed=found.get("failed", 0),
+            cancelled=found.get("cancelled", 0),
+        )
+
 
 class Interval(BaseModel):
     """A metric over a grid point's succeeded seeds."""
@@ -474,6 +487,38 @@ class Study(StudySummary):
         description="With 'compare': each value of the compared key against the first, at every "
         "combination of the other keys, seed by seed."
     )
+
+
+class StudyState(BaseModel):
+    """A study as its event stream shows it: where it stands, without the statistics (which
+    can be large) that `GET /studies/{id}` adds."""
+
+    model_config = ConfigDict(
+        json_schema_extra={
+            "examples": [
+                {
+                    "id": 3,
+                    "status": "running",
+                    "jobs": {
+                        "total": 60,
+                        "queued": 20,
+                        "running": 2,
+                        "succeeded": 38,
+                        "failed": 0,
+                        "cancelled": 0,
+                    },
+                    "progress": 0.65,
+                    "finished_at": None,
+                }
+            ]
+        }
+    )
+
+    id: int
+    status: Status = Field(description=STUDY_STATUS_DOC)
+    jobs: JobCounts
+    progress: float = Field(ge=0.0, le=1.0, description="Share of its jobs' work done.")
+    finished_at: datetime | None = Field(description="When its last job finished, once done.")
 
 
 class StudyPage(BaseModel):

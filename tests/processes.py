@@ -86,6 +86,7 @@ class ApiServer(_Process):
         command = [
             sys.executable, "-m", "uvicorn", "service.app:create_app", "--factory",
             "--host", "127.0.0.1", "--port", self.url.rsplit(":", 1)[1],
+            "--timeout-graceful-shutdown", "5",
         ]  # fmt: skip
         super().__init__(command, log, clean_environment(NANONAV_DATABASE_URL=database_url))
 

@@ -45,7 +45,13 @@ def _api(args: argparse.Namespace) -> int:
     if not 1 <= port <= 65535:
         raise UsageError([f"--port must be between 1 and 65535, not {port}"])
     host = args.host or settings.host
-    uvicorn.run("service.app:create_app", factory=True, host=host, port=port)
+    uvicorn.run(
+        "service.app:create_app",
+        factory=True,
+        host=host,
+        port=port,
+        timeout_graceful_shutdown=settings.shutdown_grace_s,
+    )
     return EXIT_OK
 
 

@@ -10,7 +10,14 @@ from nanonav.store.errors import (
 )
 from nanonav.store.models import JobStatus
 from nanonav.store.queue import Census, Claim, JobRecord, JobStore, Outcome, Page
-from nanonav.store.studies import StudyJob, StudyJobState, StudyPage, StudyRecord, StudyStore
+from nanonav.store.studies import (
+    StudyJob,
+    StudyJobState,
+    StudyPage,
+    StudyProgress,
+    StudyRecord,
+    StudyStore,
+)
 
 __all__ = [
     "Census",
@@ -29,6 +36,7 @@ __all__ = [
     "StudyJobState",
     "StudyNotFound",
     "StudyPage",
+    "StudyProgress",
     "StudyRecord",
     "StudyStore",
 ]

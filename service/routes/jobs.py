@@ -21,6 +21,7 @@ from nanonav.scenario import Policy, Scenario
 from nanonav.store import JobStatus, JobStore
 from nanonav.store.arrays import pack
 from service.budget import check_budget
+from service.caching import IMMUTABLE
 from service.deps import DrawerDep, JsonBody, SettingsDep, StoreDep
 from service.drawing import Drawer
 from service.paging import decode_cursor, encode_cursor
@@ -31,8 +32,6 @@ from service.schemas import GreedyState, Job, JobPage, Metrics, QTable, Trajecto
 router = APIRouter(prefix="/jobs", tags=["jobs"])
 
 JobId = Annotated[int, Path(ge=1, le=2**63 - 1, description="The job's id.")]
-# A succeeded job's results never change.
-IMMUTABLE = {"Cache-Control": "max-age=86400, immutable"}
 PNG: dict[int | str, dict[str, Any]] = {
     200: {"content": {"image/png": {}}, "description": "A PNG picture."}
 }
@@ -116,9 +115,11 @@ def cancel_job(job_id: JobId, store: StoreDep) -> Job:
 
 
 @router.get("/{job_id}/metrics", response_model=Metrics, responses=NOT_FOUND_OR_NOT_READY)
-def get_metrics(job_id: JobId, store: StoreDep) -> Metrics:
+def get_metrics(job_id: JobId, store: StoreDep, response: Response) -> Metrics:
     """The summary (the paper's Table 1), one row per robot, and the learning curve."""
-    return Metrics.model_validate(store.metrics(job_id))
+    metrics = Metrics.model_validate(store.metrics(job_id))
+    response.headers.update(IMMUTABLE)  # only a succeeded job has them, and they never change
+    return metrics
 
 
 @router.get(
@@ -185,10 +186,11 @@ def get_trajectory(
 
 
 @router.get("/{job_id}/qtable", response_model=QTable, responses=NOT_FOUND_OR_NOT_READY)
-def get_qtable(job_id: JobId, store: StoreDep) -> QTable:
+def get_qtable(job_id: JobId, store: StoreDep, response: Response) -> QTable:
     """The learned action values and visit counts, with state and action labels, and the
     greedy action of every state."""
     arrays = store.qtable(job_id)
+    response.headers.update(IMMUTABLE)
     if not arrays:
         return QTable(states=[], actions=[], values=[], visits=[], greedy=[])
     states = arrays["states"].tolist()

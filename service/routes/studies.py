@@ -24,12 +24,13 @@ from nanonav.studies.report import (
 )
 from nanonav.studies.spec import StudySpec, point_values, points
 from service.budget import check_budget
+from service.caching import IMMUTABLE
 from service.deps import DrawerDep, JsonBody, SettingsDep, StoreDep, StudiesDep
 from service.drawing import Drawer
 from service.paging import decode_cursor, encode_cursor
 from service.policy_from import check_policy_from
 from service.problems import InvalidInput, StudyFinished, field_error, invalid_body, problems
-from service.routes.jobs import IMMUTABLE, PNG
+from service.routes.jobs import PNG
 from service.schemas import JobCounts, Study, StudyLinks, StudyPage, StudySummary
 
 router = APIRouter(prefix="/studies", tags=["studies"])
@@ -129,7 +130,7 @@ def list_studies(
     summaries = []
     for record in page.studies:
         found = {status.value: n for status, n in counts[record.id].items()}
-        jobs = _counts(found)
+        jobs = JobCounts.of(found)
         summaries.append(
             StudySummary(
                 id=record.id,
@@ -186,16 +187,18 @@ def get_results(
     rows = table(point_values(loaded.spec), loaded.outcomes)
     columns = table_columns(loaded.spec)
     name = f"nanonav-study-{study_id}"
+    # A finished study's table never changes; an unfinished one's is asked for again.
+    caching = IMMUTABLE if loaded.done else {}
     if format == "parquet":
         return Response(
             export.to_parquet(columns, rows),
             media_type=export.PARQUET_MEDIA_TYPE,
-            headers={"Content-Disposition": f'attachment; filename="{name}.parquet"'},
+            headers={"Content-Disposition": f'attachment; filename="{name}.parquet"', **caching},
         )
     return Response(
         export.to_csv(columns, rows),
         media_type="text/csv; charset=utf-8",
-        headers={"Content-Disposition": f'attachment; filename="{name}.csv"'},
+        headers={"Content-Disposition": f'attachment; filename="{name}.csv"', **caching},
     )
 
 
@@ -283,7 +286,7 @@ def study_answer(studies: StudyStore, record: StudyRecord) -> Study:
         created_at=record.created_at,
         finished_at=max(ends) if loaded.done and ends else None,
         cancel_requested=record.cancel_requested,
-        jobs=_counts(status_counts(loaded.outcomes)),
+        jobs=JobCounts.of(status_counts(loaded.outcomes)),
         progress=progress,
         spec=record.spec,
         links=_links(record.id),
@@ -303,17 +306,6 @@ def _policy_blame(spec: StudySpec, values: Mapping[str, Any]) -> tuple[tuple[str
     others = {k: v for k, v in values.items() if k != "policy_from"}
     where = f"at the grid point {others}: " if others else ""
     return loc, where
-
-
-def _counts(found: Mapping[str, int]) -> JobCounts:
-    return JobCounts(
-        total=sum(found.values()),
-        queued=found.get("queued", 0),
-        running=found.get("running", 0),
-        succeeded=found.get("succeeded", 0),
-        failed=found.get("failed", 0),
-        cancelled=found.get("cancelled", 0),
-    )
 
 
 def _links(study_id: int) -> StudyLinks:

@@ -40,7 +40,11 @@ def _seeded_settings() -> Settings:
     return settings
 
 
-schema = schemathesis.openapi.from_asgi("/openapi.json", create_app(_seeded_settings()))
+# An event stream of an unfinished job or study never ends by design, so the event routes are
+# left out; tests/service/test_event_streams.py pins their 404 and 422 answers.
+schema = schemathesis.openapi.from_asgi("/openapi.json", create_app(_seeded_settings())).exclude(
+    tag="events"
+)
 
 
 @schema.parametrize()

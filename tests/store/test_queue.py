@@ -5,7 +5,7 @@ from datetime import UTC, datetime, timedelta
 
 import numpy as np
 import pytest
-from sqlalchemy import text
+from sqlalchemy import event, text
 
 from nanonav.store import (
     Claim,
@@ -317,3 +317,22 @@ def test_jobs_are_listed_by_policy(store: JobStore) -> None:
     found = store.page(status=None, limit=10, before_id=None, policy="gradient").jobs
     assert [j.scenario["robots"]["policy"] for j in found] == ["gradient", "gradient"]
     assert store.page(status=None, limit=10, before_id=None, policy="rule").jobs == []
+
+
+def test_get_many_reads_the_jobs_that_exist_in_one_query(store: JobStore) -> None:
+    first, second = enqueue(store, seed=1), enqueue(store, seed=2)
+    claimed = claim(store)
+    store.report_progress(claimed, episode=1, episodes=2, fraction=0.5, lease_s=LEASE_S)
+    statements: list[str] = []
+    listen = ("before_cursor_execute", lambda *args: statements.append(args[2]))
+    event.listen(store.engine, *listen)
+    try:
+        found = store.get_many([second.id, first.id, 10_000])
+    finally:
+        event.remove(store.engine, *listen)
+    assert set(found) == {first.id, second.id}
+    assert found[first.id].status is JobStatus.RUNNING
+    assert found[first.id].fraction == 0.5
+    assert found[second.id] == store.get(second.id)
+    assert sum(s.lstrip().upper().startswith("SELECT") for s in statements) == 1
+    assert store.get_many([]) == {}
