@@ -434,6 +434,7 @@ _POLICY_NAMES = {
     "q_learning": "Q-learning",
     "gradient": "gradient climbing",
     "run_and_tumble": "run and tumble",
+    "rule": "fixed rule",
     "random": "random walk",
 }
 _LEARNING_PANELS = (

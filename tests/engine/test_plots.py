@@ -1,6 +1,7 @@
 """Pictures: every PNG decodes, has the promised size and shows something."""
 
 import io
+import typing
 from typing import Any
 
 import numpy as np
@@ -11,7 +12,7 @@ from numpy.typing import NDArray
 
 from nanonav import plots
 from nanonav.engine import Progress, SimulationResult, qlearning, simulate
-from nanonav.scenario import Scenario
+from nanonav.scenario import Policy, Scenario
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
@@ -128,6 +129,16 @@ def test_stopped_run_draws_only_its_learning_curve() -> None:
             draw(stopped)
     with pytest.raises(ValueError, match="no evaluation episode"):
         plots.render_all(stopped)
+
+
+@pytest.mark.parametrize("policy", typing.get_args(Policy))
+def test_every_policy_draws_its_learning_curve(policy: str) -> None:
+    run = simulate(
+        scenario(
+            seed=3, robots={"count": 3, "policy": policy}, learning={"episodes": 2, "max_steps": 80}
+        )
+    )
+    assert_picture(plots.learning_png(run), EXPECTED_SIZE["learning"])
 
 
 def test_learning_curve_needs_at_least_one_episode() -> None:
