@@ -6,12 +6,13 @@ from typing import Any
 
 import numpy as np
 import pytest
+from matplotlib.container import ErrorbarContainer
 from matplotlib.figure import Figure
 from matplotlib.image import imread
 from numpy.typing import NDArray
 
 from nanonav import plots
-from nanonav.engine import Progress, SimulationResult, qlearning, simulate
+from nanonav.engine import Progress, SimulationResult, Trajectory, qlearning, simulate
 from nanonav.scenario import Policy, Scenario
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
@@ -124,6 +125,7 @@ def test_stopped_run_draws_only_its_learning_curve() -> None:
     assert not stopped.completed and stopped.trajectory is None
     assert 2 <= len(stopped.episodes) < 10
     assert_picture(plots.learning_png(stopped), EXPECTED_SIZE["learning"])
+    assert not any(ax.containers for ax in plots.learning_figure(stopped).axes)  # no evaluation
     for draw in (plots.trajectory_png, plots.concentration_png, plots.heatmap_png):
         with pytest.raises(ValueError, match="no evaluation episode"):
             draw(stopped)
@@ -176,6 +178,130 @@ def test_render_names_every_picture_and_refuses_others(single: SimulationResult)
         assert_picture(plots.render(single, name), EXPECTED_SIZE[name])
     with pytest.raises(ValueError, match="no picture 'heatmap_xx'"):
         plots.render(single, "heatmap_xx")
+
+
+def result_of(trajectory: Trajectory, **fields: Any) -> SimulationResult:
+    """A result holding only ``trajectory`` (in a scenario of ``fields``), to draw it."""
+    return SimulationResult(
+        scenario=scenario(**fields), summary={}, robots=[], episodes=[], work={},
+        trajectory=trajectory, qtable=None,
+    )  # fmt: skip
+
+
+def made_trajectory(
+    robots: NDArray[np.float64],
+    cells: NDArray[np.float64],
+    steps: list[int],
+    reached: list[bool],
+    obstacles: NDArray[np.float64] | None = None,
+    radius: float = 1.5,
+) -> Trajectory:
+    """A trajectory of one row per step from positions ``(rows, n, 3)`` and ``(rows, c, 3)``;
+    distances are the true ones, the concentration falls off with them."""
+    gaps = np.linalg.norm(robots[:, :, None, :] - cells[:, None, :, :], axis=-1)
+    distance = gaps.min(axis=2)
+    return Trajectory(
+        step=np.arange(robots.shape[0]),
+        robots=robots,
+        cells=cells,
+        obstacles=np.zeros((1, 0, 3)) if obstacles is None else obstacles[None],
+        concentration=1.0 / (1.0 + distance),
+        distance=distance,
+        steps=np.array(steps),
+        reached=np.array(reached),
+        emitter_offsets=np.zeros((cells.shape[1], 1, 3)),
+        obstacle_radius=radius,
+    )
+
+
+def panel_titles(figure: Figure) -> list[str]:
+    return [ax.get_title() for ax in figure.axes]
+
+
+# ---------------------------------------------------------------- the learning curve
+
+LEARNER_PANELS = [
+    "steps per episode",
+    "robots that reached a cell",
+    "mean return per robot",
+    "exploration rate",
+]
+
+
+def test_a_learner_shows_its_greedy_evaluation_as_a_mean_with_its_interval(
+    swarm: SimulationResult,
+) -> None:
+    figure = plots.learning_figure(swarm)
+    assert panel_titles(figure) == LEARNER_PANELS
+    steps, success, _, epsilon = figure.axes
+    (bar,) = steps.containers
+    assert isinstance(bar, ErrorbarContainer)
+    x, y = bar.lines[0].get_data()
+    assert float(y[0]) == pytest.approx(swarm.summary["episode_steps"])
+    spread = swarm.uncertainty["episode_steps"]
+    assert spread["ci_high"] > spread["ci_low"]
+    (segment,) = bar.lines[2][0].get_segments()
+    assert segment[:, 1] == pytest.approx([spread["ci_low"], spread["ci_high"]])
+    (rate,) = success.containers
+    assert float(rate.lines[0].get_ydata()[0]) == pytest.approx(100 * swarm.summary["success_rate"])
+    assert not epsilon.containers  # the evaluation is greedy: no exploration rate to show
+    labels = {t.get_text(): t.get_position()[0] for t in epsilon.get_xticklabels()}
+    assert labels["greedy\nevaluation"] == pytest.approx(float(x[0]))
+    (legend,) = figure.legends
+    texts = [t.get_text() for t in legend.get_texts()]
+    assert "greedy evaluation, 20 worlds (mean, 95% CI)" in texts
+
+
+def test_a_baseline_shows_its_trials_without_exploration_or_evaluation() -> None:
+    run = simulate(
+        scenario(
+            seed=4, robots={"count": 3, "policy": "gradient"},
+            learning={"episodes": 6, "max_steps": 80}, evaluation={"worlds": 3},
+        )
+    )  # fmt: skip
+    figure = plots.learning_figure(run)
+    assert panel_titles(figure) == LEARNER_PANELS[:3]
+    assert not any(ax.containers for ax in figure.axes)
+    ticks = [t.get_text() for ax in figure.axes for t in ax.get_xticklabels()]
+    assert not any("evaluation" in t for t in ticks)
+    title = figure.get_suptitle()
+    assert title == "Gradient climbing does not learn: 6 training episodes, all trials alike"
+    assert_picture(plots.learning_png(run), EXPECTED_SIZE["learning"])
+
+
+def test_a_baseline_without_training_draws_its_evaluation_worlds_as_trials() -> None:
+    run = simulate(
+        scenario(
+            seed=4, robots={"count": 3, "policy": "rule"},
+            learning={"episodes": 0, "max_steps": 80}, evaluation={"worlds": 5},
+        )
+    )  # fmt: skip
+    figure = plots.learning_figure(run)
+    steps = figure.axes[0].get_lines()[-1]  # the moving mean over the raw line
+    raw = figure.axes[0].get_lines()[0]
+    assert raw.get_xdata().tolist() == [0, 1, 2, 3, 4]
+    assert raw.get_ydata().tolist() == [w["episode_steps"] for w in run.worlds]
+    assert steps.get_ydata() == pytest.approx(plots.moving_mean(raw.get_ydata(), 2))
+    assert "5 evaluation worlds as trials" in figure.get_suptitle()
+    assert figure.axes[-1].get_xlabel() == "evaluation world"
+
+
+def test_the_moving_mean_spans_about_an_eighth_of_the_run() -> None:
+    windows = [plots.smoothing_window(n) for n in (1, 3, 4, 10, 20, 50, 200, 5000)]
+    assert windows == [1, 1, 2, 2, 3, 7, 25, plots.MAX_SMOOTHING_WINDOW]
+    mean = plots.moving_mean(np.array([2.0, 4.0, 6.0, 10.0, 0.0]), 3)
+    assert mean == pytest.approx([2.0, 3.0, 4.0, 20 / 3, 16 / 3])
+
+
+def test_a_short_run_gets_a_moving_mean_over_its_faint_raw_values() -> None:
+    run = simulate(scenario(seed=6, robots={"count": 4}, learning={"episodes": 8, "max_steps": 80}))
+    figure = plots.learning_figure(run)
+    raw, mean, *_ = figure.axes[0].get_lines()
+    assert raw.get_ydata().tolist() == [e["steps"] for e in run.episodes]
+    assert raw.get_alpha() == pytest.approx(0.3)
+    assert mean.get_ydata() == pytest.approx(plots.moving_mean(raw.get_ydata(), 2))
+    (legend,) = figure.legends
+    assert "moving mean of 2" in [t.get_text() for t in legend.get_texts()]
 
 
 # ---------------------------------------------------------------- the Q-table picture
