@@ -17,6 +17,7 @@ from typing import Any, Literal
 
 import matplotlib
 import numpy as np
+from matplotlib import patheffects
 from matplotlib.artist import Artist
 from matplotlib.axes import Axes
 from matplotlib.colors import CenteredNorm, LogNorm, Normalize
@@ -58,12 +59,16 @@ PICTURE_PIXELS: dict[str, tuple[int, int]] = {
 """(width, height) in pixels of each picture, whatever it shows (one robot or ten thousand, a
 learner or a baseline, any heatmap resolution); the Q-table's grows with the table."""
 
+# Heatmap grids are HEATMAP_RESOLUTION pixels per side unless asked otherwise, within these.
 HEATMAP_RESOLUTION = 120
+MIN_HEATMAP_RESOLUTION = 20
+MAX_HEATMAP_RESOLUTION = 400
 # A log colour scale shows this many decades below the maximum, at most: the inverse-square and
 # diffusion fields diverge (softened) at their sources and would otherwise squash everything else.
 LOG_DECADES = 5.0
-# Beyond these counts the 3-D picture stays readable and fast by drawing less.
+# Beyond these counts the 3-D picture and the heatmaps stay readable and fast by drawing less.
 MAX_ROBOT_PATHS = 30
+MAX_HEATMAP_PATHS = 10
 MAX_CELL_PATHS = 4
 MAX_LINE_POINTS = 2000
 # Obstacles are meshes of 14 x 8 facets up to SMOOTH_SPHERES, 10 x 6 up to COARSE_SPHERES_FROM,
@@ -79,6 +84,12 @@ _ROBOT_BLUE = "tab:blue"
 _CELL_RED = "tab:red"
 _START_GREEN = "tab:green"
 _HEATMAP_CMAP = "viridis"
+_FIELD_NAMES = {
+    "gaussian": "Gaussian",
+    "inverse_square": "inverse-square",
+    "diffusion": "diffusion",
+    "sampled_gaussian": "sampled Gaussian",
+}
 
 
 def _new_figure(name: str) -> Figure:
@@ -118,36 +129,74 @@ def _resolve_scale(result: SimulationResult, scale: ColourScale) -> Literal["lin
 # ---------------------------------------------------------------- heatmap (Figure 5)
 
 
-def _slices(
-    result: SimulationResult, planes: tuple[str, ...], resolution: int
-) -> dict[str, NDArray[np.float64]]:
-    """The true concentration on a ``resolution`` square grid over the whole cube, in each plane
-    through the target cell; one field evaluation for all planes."""
+@dataclass(frozen=True)
+class Slice:
+    """The true concentration in one plane: ``grid[row, column]`` at the centre of the pixel
+    ``(u, v) = (axis[column], axis[row])``, where the plane cuts its normal axis at ``level``;
+    ``peak`` is the largest concentration at the cells themselves, which tops the colour
+    scale, so that a slice away from the cells reads darker than one through them."""
+
+    plane: str
+    level: float
+    axis: NDArray[np.float64]
+    grid: NDArray[np.float64]
+    peak: float
+
+
+def check_heatmap(size: float, at: float | None, resolution: int) -> None:
+    """Refuse a slice outside the cube (``at`` beyond ``[-size/2, size/2]``) or a resolution
+    outside ``[MIN_HEATMAP_RESOLUTION, MAX_HEATMAP_RESOLUTION]`` with ``ValueError``."""
+    half = size / 2
+    if at is not None and not (math.isfinite(at) and -half <= at <= half):
+        raise ValueError(f"at must be within [{-half:g}, {half:g}], the cube; it is {at!r}")
+    if not MIN_HEATMAP_RESOLUTION <= resolution <= MAX_HEATMAP_RESOLUTION:
+        raise ValueError(
+            f"resolution must be within [{MIN_HEATMAP_RESOLUTION}, {MAX_HEATMAP_RESOLUTION}] "
+            f"pixels per side; it is {resolution}"
+        )
+
+
+def heatmap_slices(
+    result: SimulationResult,
+    planes: tuple[str, ...],
+    resolution: int = HEATMAP_RESOLUTION,
+    at: float | None = None,
+) -> dict[str, Slice]:
+    """The true concentration at the centres of a ``resolution`` square grid over the whole
+    cube, in each plane at ``at`` along its normal axis, or through the target cell when
+    ``at`` is None; one field evaluation for all planes."""
+    check_heatmap(result.scenario.space.size, at, resolution)
     trajectory = _trajectory(result)
     half = result.scenario.space.size / 2
     target = trajectory.cells[-1, _target_cell(trajectory)]
-    axis = np.linspace(-half, half, resolution)
+    axis = np.linspace(-half, half, resolution, endpoint=False) + half / resolution
     u, v = np.meshgrid(axis, axis, indexing="xy")
     blocks = []
+    levels = []
     for plane in planes:
         a, b, fixed = _PLANE_AXES[plane]
+        level = float(target[fixed]) if at is None else at
         block = np.empty((resolution * resolution, 3))
         block[:, a] = u.ravel()
         block[:, b] = v.ravel()
-        block[:, fixed] = target[fixed]
+        block[:, fixed] = level
         blocks.append(block)
+        levels.append(level)
+    cells = trajectory.cells[-1]
+    points = np.concatenate([*blocks, cells])
     concentration, _ = field_and_gradient(
-        result.scenario.biomarker,
-        trajectory.cells[-1],
-        trajectory.emitter_offsets,
-        np.concatenate(blocks),
+        result.scenario.biomarker, cells, trajectory.emitter_offsets, points
     )
-    grids = concentration.reshape(len(planes), resolution, resolution)
-    return {plane: grids[i] for i, plane in enumerate(planes)}
+    peak = float(concentration[-len(cells) :].max())
+    grids = concentration[: -len(cells)].reshape(len(planes), resolution, resolution)
+    return {plane: Slice(plane, levels[i], axis, grids[i], peak) for i, plane in enumerate(planes)}
 
 
-def _norm(values: list[NDArray[np.float64]], scale: Literal["linear", "log"]) -> Normalize:
-    top = max(float(v.max()) for v in values)
+def _norm(slices: list[Slice], scale: Literal["linear", "log"]) -> Normalize:
+    """One colour scale for the slices, topped by the concentration at the cells (or the
+    slices' own maximum, were it larger); a log scale spans at most ``LOG_DECADES``."""
+    values = [s.grid for s in slices]
+    top = max(max(float(v.max()) for v in values), slices[0].peak)
     if scale == "linear":
         return Normalize(vmin=0.0, vmax=top if top > 0 else 1.0)
     positive = [v[v > 0] for v in values]
@@ -157,154 +206,174 @@ def _norm(values: list[NDArray[np.float64]], scale: Literal["linear", "log"]) ->
     return LogNorm(vmin=low if low < top else top / 10.0, vmax=top)
 
 
-def _draw_slice(
-    ax: Axes,
-    result: SimulationResult,
-    plane: str,
-    grid: NDArray[np.float64],
-    norm: Normalize,
-) -> tuple[AxesImage, bool]:
-    """Draw one slice; also say whether it cut any obstacle (for the legend)."""
+@dataclass(frozen=True)
+class _Drawn:
+    """What a slice showed, for the legend."""
+
+    image: AxesImage
+    obstacles_cut: bool
+    cells_in: bool
+    cells_off: bool
+    reached: bool
+    failed: bool
+
+
+_HALO = [patheffects.withStroke(linewidth=2.2, foreground="white", alpha=0.7)]
+
+
+def _draw_paths(ax: Axes, trajectory: Trajectory, a: int, b: int) -> tuple[bool, bool]:
+    """The paths of the first ``MAX_HEATMAP_PATHS`` robots projected on the plane (thin blue
+    lines on a white halo, so that they read on any colour, fewer than in 3-D so that they do
+    not hide the field), their starts and their ends, drawn over the cells; whether any end
+    reached, any failed."""
+    shown = min(trajectory.robots.shape[1], MAX_HEATMAP_PATHS)
+    ends = np.empty((shown, 2))
+    for i in range(shown):
+        path = _thin(trajectory.robots[: _last_row(trajectory, i) + 1, i])
+        ax.plot(path[:, a], path[:, b], color=_ROBOT_BLUE, linewidth=1.2,
+                path_effects=_HALO, zorder=2)  # fmt: skip
+        ends[i] = path[-1, [a, b]]
+    starts = trajectory.robots[0, :shown]
+    ax.scatter(starts[:, a], starts[:, b], s=18, color=_START_GREEN, edgecolors="white",
+               linewidths=0.7, zorder=4)  # fmt: skip
+    reached = trajectory.reached[:shown]
+    if reached.any():
+        for colour, line in (("white", 3.0), (_ROBOT_BLUE, 1.5)):
+            ax.scatter(ends[reached, 0], ends[reached, 1], s=34, facecolors="none",
+                       edgecolors=colour, linewidths=line, zorder=7)  # fmt: skip
+    if not reached.all():
+        ax.scatter(ends[~reached, 0], ends[~reached, 1], s=50, marker="X", color=_ROBOT_BLUE,
+                   edgecolors="white", linewidths=0.7, zorder=7)  # fmt: skip
+    return bool(reached.any()), bool((~reached).any())
+
+
+def _draw_slice(ax: Axes, result: SimulationResult, cut: Slice, norm: Normalize) -> _Drawn:
     trajectory = _trajectory(result)
     half = result.scenario.space.size / 2
-    a, b, fixed = _PLANE_AXES[plane]
-    target_index = _target_cell(trajectory)
-    level = float(trajectory.cells[-1, target_index, fixed])
-    if isinstance(norm, LogNorm):
-        grid = np.clip(grid, norm.vmin, None)
-    image = ax.imshow(
-        grid,
-        origin="lower",
-        extent=(-half, half, -half, half),
-        cmap=_HEATMAP_CMAP,
-        norm=norm,
-        interpolation="bilinear",
-    )
+    a, b, fixed = _PLANE_AXES[cut.plane]
+    grid = np.clip(cut.grid, norm.vmin, None) if isinstance(norm, LogNorm) else cut.grid
+    # Nearest: every computed value is one square pixel, so the resolution asked for shows.
+    image = ax.imshow(grid, origin="lower", extent=(-half, half, -half, half),
+                      cmap=_HEATMAP_CMAP, norm=norm, interpolation="nearest")  # fmt: skip
     radius = trajectory.obstacle_radius
-    cut = False
+    obstacles_cut = False
     for centre in trajectory.obstacles_at(-1):
-        depth = abs(float(centre[fixed]) - level)
+        depth = abs(float(centre[fixed]) - cut.level)
         if depth < radius:
-            cut = True
+            obstacles_cut = True
             ax.add_patch(
-                Circle(
-                    (float(centre[a]), float(centre[b])),
-                    float(np.sqrt(radius**2 - depth**2)),
-                    facecolor="black",
-                    edgecolor="white",
-                    linewidth=0.8,
-                    alpha=0.85,
-                )
-            )
+                Circle((float(centre[a]), float(centre[b])), float(np.sqrt(radius**2 - depth**2)),
+                       facecolor="black", edgecolor="white", linewidth=0.8, alpha=0.85, zorder=1)
+            )  # fmt: skip
+    reached, failed = _draw_paths(ax, trajectory, a, b)
     cells = trajectory.cells[-1]
-    others = np.delete(cells, target_index, axis=0)
-    if len(others):
-        ax.scatter(
-            others[:, a], others[:, b], s=50, facecolors="none", edgecolors=_CELL_RED, linewidths=2
-        )
-    ax.scatter(
-        cells[target_index, a],
-        cells[target_index, b],
-        s=70,
-        color=_CELL_RED,
-        edgecolors="white",
-        linewidths=1.2,
-        zorder=3,
-    )
+    pixel = 2 * half / len(cut.axis)
+    near = np.abs(cells[:, fixed] - cut.level) <= max(result.scenario.reach_distance, pixel)
+    if (~near).any():
+        ax.scatter(cells[~near, a], cells[~near, b], s=60, facecolors="none",
+                   edgecolors=_CELL_RED, linewidths=2, zorder=6)  # fmt: skip
+    if near.any():
+        ax.scatter(cells[near, a], cells[near, b], s=80, color=_CELL_RED, edgecolors="white",
+                   linewidths=1.2, zorder=6)  # fmt: skip
     ax.set_xlim(-half, half)
     ax.set_ylim(-half, half)
     ax.set_aspect("equal")
     ax.set_xlabel(f"{_AXIS_NAMES[a]} ({_LENGTH})")
     ax.set_ylabel(f"{_AXIS_NAMES[b]} ({_LENGTH})")
-    ax.set_title(f"{plane.upper()} plane at {_AXIS_NAMES[fixed]} = {level:.1f}")
-    return image, cut
+    ax.set_title(f"{cut.plane.upper()} plane at {_AXIS_NAMES[fixed]} = {cut.level:.1f}")
+    return _Drawn(image, obstacles_cut, bool(near.any()), bool((~near).any()), reached, failed)
 
 
-def _heatmap_legend_handles(other_cells: bool, obstacles: bool) -> list[Artist]:
+def _heatmap_legend_handles(drawn: list[_Drawn], robots: int) -> list[Artist]:
+    paths = "robot path (projected)"
+    if robots > MAX_HEATMAP_PATHS:
+        paths = f"paths of the first {MAX_HEATMAP_PATHS} of {robots} robots (projected)"
     handles: list[Artist] = [
-        Line2D(
-            [],
-            [],
-            marker="o",
-            linestyle="",
-            color=_CELL_RED,
-            markeredgecolor="white",
-            markersize=9,
-            label="target cell (in the slice)",
-        ),
-    ]
-    if other_cells:
+        Line2D([], [], color=_ROBOT_BLUE, linewidth=1.2, path_effects=_HALO, label=paths),
+        Line2D([], [], marker="o", linestyle="", color=_START_GREEN, markeredgecolor="white",
+               label="robot start"),
+    ]  # fmt: skip
+    if any(d.reached for d in drawn):
+        handles.append(Line2D([], [], marker="o", linestyle="", markerfacecolor="none",
+                              markeredgecolor=_ROBOT_BLUE, markeredgewidth=1.5,
+                              label="robot end, reached"))  # fmt: skip
+    if any(d.failed for d in drawn):
+        handles.append(Line2D([], [], marker="X", linestyle="", color=_ROBOT_BLUE,
+                              markeredgecolor="white", markersize=8,
+                              label="robot end, not reached"))  # fmt: skip
+    if any(d.cells_in for d in drawn):
+        handles.append(Line2D([], [], marker="o", linestyle="", color=_CELL_RED,
+                              markeredgecolor="white", markersize=9,
+                              label="cell in the slice"))  # fmt: skip
+    if any(d.cells_off for d in drawn):
+        handles.append(Line2D([], [], marker="o", linestyle="", markerfacecolor="none",
+                              markeredgecolor=_CELL_RED, markeredgewidth=2, markersize=8,
+                              label="cell off the slice (projected)"))  # fmt: skip
+    if any(d.obstacles_cut for d in drawn):
         handles.append(
-            Line2D(
-                [],
-                [],
-                marker="o",
-                linestyle="",
-                markerfacecolor="none",
-                markeredgecolor=_CELL_RED,
-                markeredgewidth=2,
-                markersize=8,
-                label="other cells (projected)",
-            )
+            Patch(facecolor="black", edgecolor="grey", label="obstacle cut by the slice")
         )
-    if obstacles:
-        handles.append(
-            Patch(facecolor="black", edgecolor="grey", label="obstacles cut by the slice")
-        )
-    return handles  # fmt: skip
+    return handles
 
 
-def _heatmap_figure(
+def heatmap_figure(
     result: SimulationResult,
-    planes: tuple[str, ...],
-    slices: dict[str, NDArray[np.float64]],
+    slices: dict[str, Slice],
     scale: Literal["linear", "log"],
-) -> bytes:
+    *,
+    through_target: bool = True,
+) -> Figure:
+    """The slices side by side on one colour scale, each with the robots' paths projected on
+    it, the cells and the obstacles it cuts; one or three planes."""
     trajectory = _trajectory(result)
+    planes = tuple(slices)
     single = len(planes) == 1
     fig = _new_figure("heatmap_xy" if single else "heatmap_all")
     axes = fig.subplots(1, len(planes), squeeze=False)[0]
-    norm = _norm([slices[p] for p in planes], scale)
-    drawn = [
-        _draw_slice(ax, result, plane, slices[plane], norm)
-        for ax, plane in zip(axes, planes, strict=True)
-    ]
-    colourbar = fig.colorbar(drawn[0][0], ax=list(axes), shrink=0.9)
+    norm = _norm(list(slices.values()), scale)
+    drawn = [_draw_slice(ax, result, slices[p], norm) for ax, p in zip(axes, planes, strict=True)]
+    colourbar = fig.colorbar(drawn[0].image, ax=list(axes), shrink=0.9)
     colourbar.set_label(f"biomarker concentration (a.u.{', log scale' if scale == 'log' else ''})")
-    model = result.scenario.biomarker.model.replace("_", "-")
-    when = f"last step ({trajectory.length}) of the evaluation episode"
+    model = _FIELD_NAMES[result.scenario.biomarker.model]
+    where = "through the cell nearest to robot 0" if through_target else "at the chosen level"
     fig.suptitle(
-        f"Biomarker concentration, {model} field\n{when}"
-        if single
-        else f"Biomarker concentration, {model} field, at the {when}"
+        f"Biomarker concentration, {model} field, at the last step ({trajectory.length})\n"
+        f"of the evaluation episode; slice{'' if single else 's'} {where}"
     )
-    handles = _heatmap_legend_handles(
-        other_cells=trajectory.cells.shape[1] > 1, obstacles=any(cut for _, cut in drawn)
-    )
+    handles = _heatmap_legend_handles(drawn, trajectory.robots.shape[1])
     fig.legend(
         handles=handles,
         loc="outside lower center",
-        ncols=min(len(handles), 2 if single else 3),
+        ncols=min(len(handles), 3 if single else 4),
         frameon=False,
+        fontsize="small",
     )
-    return png(fig)
+    return fig
 
 
 def heatmap_png(
     result: SimulationResult,
     plane: Plane = "all",
     *,
-    scale: ColourScale = "auto",
+    at: float | None = None,
     resolution: int = HEATMAP_RESOLUTION,
+    scale: ColourScale = "auto",
 ) -> bytes:
-    """Figure 5: the true concentration in a plane through the target cell (the cell nearest to
-    robot 0 at the end of the evaluation episode), over the whole cube, with the cells and the
-    obstacles the slice cuts. ``plane="all"`` draws XY, XZ and YZ side by side on one colour
-    scale. ``scale="auto"`` is linear for the Gaussian field and logarithmic for the
+    """Figure 5: the true concentration at the end of the evaluation episode in a plane over
+    the whole cube, with the robots' paths projected on it, the cells and the obstacles the
+    slice cuts. ``at`` is where the slice cuts the plane's normal axis (z for ``xy``), within
+    the cube; by default the slice goes through the target cell (the cell nearest to robot 0
+    at the end). ``plane="all"`` draws XY, XZ and YZ side by side on one colour scale (with
+    ``at``: at x, y and z = ``at``). ``resolution`` is the grid's pixels per side
+    (``MIN_HEATMAP_RESOLUTION`` to ``MAX_HEATMAP_RESOLUTION``); the PNG's size does not change
+    with it. ``scale="auto"`` is linear for the Gaussian fields and logarithmic for the
     inverse-square and diffusion fields, which span decades."""
     planes = ("xy", "xz", "yz") if plane == "all" else (plane,)
-    resolved = _resolve_scale(result, scale)
-    return _heatmap_figure(result, planes, _slices(result, planes, resolution), resolved)
+    slices = heatmap_slices(result, planes, resolution, at)
+    figure = heatmap_figure(
+        result, slices, _resolve_scale(result, scale), through_target=at is None
+    )
+    return png(figure)
 
 
 # ---------------------------------------------------------------- trajectory (Figure 3)
@@ -1018,16 +1087,26 @@ def qtable_png(
 # ---------------------------------------------------------------- all of them
 
 
-def render(result: SimulationResult, name: str, *, scale: ColourScale = "auto") -> bytes:
-    """The one picture ``name`` (one of ``PICTURE_NAMES``), drawn on its own."""
+def render(
+    result: SimulationResult,
+    name: str,
+    *,
+    scale: ColourScale = "auto",
+    at: float | None = None,
+    resolution: int = HEATMAP_RESOLUTION,
+) -> bytes:
+    """The one picture ``name`` (one of ``PICTURE_NAMES``), drawn on its own; ``at`` and
+    ``resolution`` choose a heatmap's slice and grid (``heatmap_png``)."""
     planes: dict[str, Plane] = {"heatmap_xy": "xy", "heatmap_xz": "xz", "heatmap_yz": "yz",
                                 "heatmap_all": "all"}  # fmt: skip
     if name in planes:
-        return heatmap_png(result, planes[name], scale=scale)
+        return heatmap_png(result, planes[name], at=at, resolution=resolution, scale=scale)
     drawers = {"trajectory": trajectory_png, "concentration": concentration_png,
                "learning": learning_png}  # fmt: skip
     if name not in drawers:
         raise ValueError(f"there is no picture {name!r}; there are {', '.join(PICTURE_NAMES)}")
+    if at is not None or resolution != HEATMAP_RESOLUTION:
+        raise ValueError(f"only heatmaps take at and resolution, not {name!r}")
     return drawers[name](result)
 
 
@@ -1035,10 +1114,12 @@ def render_all(result: SimulationResult, *, scale: ColourScale = "auto") -> dict
     """Every picture, keyed by ``PICTURE_NAMES``; the field is evaluated once for the four
     heatmaps."""
     planes = ("xy", "xz", "yz")
-    slices = _slices(result, planes, HEATMAP_RESOLUTION)
+    slices = heatmap_slices(result, planes)
     resolved = _resolve_scale(result, scale)
-    pictures = {f"heatmap_{p}": _heatmap_figure(result, (p,), slices, resolved) for p in planes}
-    pictures["heatmap_all"] = _heatmap_figure(result, planes, slices, resolved)
+    pictures = {
+        f"heatmap_{p}": png(heatmap_figure(result, {p: slices[p]}, resolved)) for p in planes
+    }
+    pictures["heatmap_all"] = png(heatmap_figure(result, slices, resolved))
     pictures["trajectory"] = trajectory_png(result)
     pictures["concentration"] = concentration_png(result)
     pictures["learning"] = learning_png(result)
