@@ -344,7 +344,7 @@ def heatmap_figure(
     fig.legend(
         handles=handles,
         loc="outside lower center",
-        ncols=min(len(handles), 3 if single else 4),
+        ncols=min(len(handles), 2 if single else 4),
         frameon=False,
         fontsize="small",
     )
