@@ -860,7 +860,11 @@ def learning_figure(result: SimulationResult) -> Figure:
         if trials:
             ax.set_xlabel(trial_name)
     handles = _learning_handles(
-        trial_name if trials else None, window, show_evaluation, _evaluation_worlds(result)
+        trial_name if trials else None,
+        window,
+        len(trials) <= POINTS_UP_TO,
+        show_evaluation,
+        _evaluation_worlds(result),
     )
     fig.legend(handles=handles, loc="outside lower center", ncols=3, frameon=False)
     fig.suptitle(_learning_title(result, len(trials), planned, trial_name))
@@ -914,13 +918,13 @@ def _episode_ticks(
 
 
 def _learning_handles(
-    trial_name: str | None, window: int, evaluation: bool, worlds: int | None
+    trial_name: str | None, window: int, points: bool, evaluation: bool, worlds: int | None
 ) -> list[Artist]:
     handles: list[Artist] = []
     if trial_name is not None:
         handles.append(
             Line2D([], [], color=_ROBOT_BLUE, linewidth=0.8, alpha=0.3 if window > 1 else 1.0,
-                   marker="o", markersize=2.5, label=f"each {trial_name}")
+                   marker="o" if points else None, markersize=2.5, label=f"each {trial_name}")
         )  # fmt: skip
     if trial_name is not None and window > 1:
         handles.append(
