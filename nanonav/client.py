@@ -465,12 +465,22 @@ class Client:
         the greedy action of every state (all empty for a baseline policy)."""
         return self._json("GET", f"/jobs/{job_id}/qtable")
 
-    def picture(self, job_id: int, name: str) -> bytes:
+    def picture(
+        self, job_id: int, name: str, *, at: float | None = None, resolution: int | None = None
+    ) -> bytes:
         """A PNG of a succeeded job; ``name`` is one of ``JOB_PICTURES`` (``qtable`` answers
-        404 for a job whose policy learns no Q-table)."""
+        404 for a job whose policy learns no Q-table). A heatmap takes ``at``, where its slice
+        cuts the plane's normal axis, and ``resolution``, its pixels per side (20 to 400)."""
         if name not in JOB_PICTURES:
             raise ValueError(f"no picture {name!r}; there are {', '.join(JOB_PICTURES)}")
-        path, params = JOB_PICTURES[name]
+        path, fixed = JOB_PICTURES[name]
+        params: dict[str, str | float | int] = dict(fixed)
+        if at is not None or resolution is not None:
+            if not name.startswith("heatmap_"):
+                raise ValueError(f"only heatmaps take at and resolution, not {name!r}")
+            params.update(
+                {k: v for k, v in (("at", at), ("resolution", resolution)) if v is not None}
+            )
         return self._request("GET", f"/jobs/{job_id}/{path}", params=params).content
 
     # ------------------------------------------------------------ studies

@@ -18,7 +18,7 @@ from nanonav import plots
 from nanonav.engine import SimulationResult
 from nanonav.policy import greedy_table
 from nanonav.scenario import Policy, Scenario
-from nanonav.store import JobStatus, JobStore
+from nanonav.store import JobStatus, JobStore, ResultsUnavailable
 from nanonav.store.arrays import pack
 from service.budget import check_budget
 from service.caching import IMMUTABLE
@@ -215,9 +215,52 @@ async def get_heatmap(
     store: StoreDep,
     drawer: DrawerDep,
     plane: Annotated[Literal["xy", "xz", "yz", "all"], Query()] = "xy",
+    at: Annotated[
+        float | None,
+        Query(
+            allow_inf_nan=False,
+            description="Where the slice cuts the plane's normal axis (z for xy), within "
+            "[-size/2, size/2] of the job's cube; by default through the cell nearest to robot 0.",
+        ),
+    ] = None,
+    resolution: Annotated[
+        int,
+        Query(
+            ge=plots.MIN_HEATMAP_RESOLUTION,
+            le=plots.MAX_HEATMAP_RESOLUTION,
+            description="Grid pixels per side of each slice (the PNG's size does not change).",
+        ),
+    ] = plots.HEATMAP_RESOLUTION,
 ) -> Response:
-    """The biomarker concentration in a plane through the cells, with the paths drawn on it."""
-    return await _picture(store, drawer, job_id, f"heatmap_{plane}")
+    """The biomarker concentration in a plane, with the robots' paths projected on it. The
+    default slice is kept once drawn; one chosen with ``at`` or ``resolution`` is drawn anew."""
+    name = f"heatmap_{plane}"
+    if at is None and resolution == plots.HEATMAP_RESOLUTION:
+        return await _picture(store, drawer, job_id, name)
+    await run_in_threadpool(_check_heatmap_request, store, job_id, at)
+    key = ("job", job_id, name, at, resolution)
+    png = await drawer.draw(key, partial(_draw_heatmap, store, job_id, name, at, resolution))
+    return Response(png, media_type="image/png", headers=IMMUTABLE)
+
+
+def _check_heatmap_request(store: JobStore, job_id: int, at: float | None) -> None:
+    """404 for no such job, 422 naming ``at`` when the slice would lie outside the job's cube,
+    409 for a job that has not succeeded: before a drawing is queued."""
+    job = store.get(job_id)
+    half = Scenario.model_validate(job.scenario).space.size / 2
+    if at is not None and not -half <= at <= half:
+        detail = f"at must be within [{-half:g}, {half:g}], the job's cube; it is {at:g}"
+        raise InvalidInput(detail, [field_error(["query", "at"], detail, "out_of_range")])
+    if job.status is not JobStatus.SUCCEEDED:
+        raise ResultsUnavailable(job_id, job.status)
+
+
+def _draw_heatmap(
+    store: JobStore, job_id: int, name: str, at: float | None, resolution: int
+) -> bytes:
+    """A heatmap at a chosen slice or resolution: drawn for this request, not stored."""
+    result = SimulationResult.from_stored(store.metrics(job_id), store.trajectory(job_id))
+    return plots.render(result, name, at=at, resolution=resolution)
 
 
 @router.get(

@@ -98,6 +98,11 @@ def test_a_job_runs_and_its_metrics_arrays_qtable_and_pictures_come_back(api: Cl
     assert heatmap.shape != learning.shape or not np.array_equal(heatmap, learning)
     with pytest.raises(ValueError, match="heatmap_xz"):
         api.picture(job.id, "heatmap_ab")
+    sliced = api.picture(job.id, "heatmap_xy", at=-20.0, resolution=20)
+    assert decode_png(sliced).shape == heatmap.shape
+    assert sliced != api.picture(job.id, "heatmap_xy")
+    with pytest.raises(ValueError, match="only heatmaps"):
+        api.picture(job.id, "learning", resolution=20)
 
 
 def test_the_same_idempotency_key_gives_the_same_job(api: Client) -> None:

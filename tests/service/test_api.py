@@ -186,6 +186,13 @@ def test_a_streamed_body_over_the_limit_is_413(api: Api) -> None:
         ("/jobs/1/trajectory?stride=x", "stride"),
         ("/jobs/1/trajectory?format=xml", "format"),
         ("/jobs/1/heatmap.png?plane=xx", "plane"),
+        ("/jobs/1/heatmap.png?resolution=19", "resolution"),
+        ("/jobs/1/heatmap.png?resolution=401", "resolution"),
+        ("/jobs/1/heatmap.png?resolution=1.5", "resolution"),
+        ("/jobs/1/heatmap.png?at=x", "at"),
+        ("/jobs/1/heatmap.png?at=nan", "at"),
+        ("/jobs/1/heatmap.png?at=inf", "at"),
+        ("/jobs/1/heatmap.png?at=25.5", "at"),
         ("/jobs/1/plots/radar.png", "name"),
     ],
 )
