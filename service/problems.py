@@ -209,14 +209,23 @@ def install(app: FastAPI) -> None:
             )
             for e in exc.errors()
         ]
-        if any(e.type == "json_invalid" for e in errors):
+        malformed = [e for e in exc.errors() if e.get("type") == "json_invalid"]
+        if malformed:
+            # the location of a JSON syntax error is a character offset, not a JSON pointer
+            offset = next((p for p in malformed[0].get("loc", ()) if isinstance(p, int)), None)
+            where = "" if offset is None else f" at character {offset}"
+            reason = str(malformed[0].get("ctx", {}).get("error", "")) or "invalid JSON"
             return respond(
                 request,
                 400,
                 "malformed-json",
                 "Malformed JSON",
-                "the request body is not valid JSON",
-                errors,
+                f"the request body is not valid JSON{where}: {reason}",
+                [
+                    FieldError(
+                        pointer="#", loc=["body"], detail=f"{reason}{where}", type="json_invalid"
+                    )
+                ],
             )
         first = errors[0] if errors else None
         detail = "the request is invalid"

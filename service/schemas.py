@@ -8,7 +8,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from nanonav.store import JobRecord
+from nanonav.store import JobRecord, JobStatus
 
 Status = Literal["queued", "running", "succeeded", "failed", "cancelled"]
 PLOTS = ("trajectory", "concentration", "learning", "qtable")
@@ -44,14 +44,17 @@ class Progress(BaseModel):
 
 
 class JobLinks(BaseModel):
+    """Where the job's results are, as far as it has them: null (and no picture) until it
+    succeeds; a cancelled job that had started keeps its metrics, Q-table and their pictures."""
+
     model_config = ConfigDict(populate_by_name=True)
 
     self_: str = Field(alias="self")
     cancel: str
-    metrics: str
-    trajectory: str
-    qtable: str
-    heatmap: str
+    metrics: str | None
+    trajectory: str | None
+    qtable: str | None
+    heatmap: str | None
     plots: dict[str, str]
     study: str | None = Field(None, description="The study the job belongs to, if any.")
 
@@ -79,6 +82,10 @@ class Job(BaseModel):
     @classmethod
     def of(cls, job: JobRecord) -> Job:
         base = f"/jobs/{job.id}"
+        done = job.status is JobStatus.SUCCEEDED
+        # a job cancelled while it ran keeps the episodes it finished
+        kept = job.status is JobStatus.CANCELLED and job.started_at is not None
+        learns = (job.scenario.get("robots") or {}).get("policy", "q_learning") == "q_learning"
         return cls(
             id=job.id,
             status=job.status.value,
@@ -94,11 +101,16 @@ class Job(BaseModel):
             links=JobLinks(
                 self_=base,
                 cancel=f"{base}/cancel",
-                metrics=f"{base}/metrics",
-                trajectory=f"{base}/trajectory",
-                qtable=f"{base}/qtable",
-                heatmap=f"{base}/heatmap.png",
-                plots={name: f"{base}/plots/{name}.png" for name in PLOTS},
+                metrics=f"{base}/metrics" if done or kept else None,
+                trajectory=f"{base}/trajectory" if done else None,
+                qtable=f"{base}/qtable" if (done or kept) and learns else None,
+                heatmap=f"{base}/heatmap.png" if done else None,
+                plots={
+                    name: f"{base}/plots/{name}.png"
+                    for name in PLOTS
+                    if (done or (kept and name in ("learning", "qtable")))
+                    and (learns or name != "qtable")
+                },
                 study=None if job.study_id is None else f"/studies/{job.study_id}",
             ),
         )

@@ -30,7 +30,14 @@ class JobAlreadyFinished(StoreError):
 
 class ResultsUnavailable(StoreError):
     def __init__(self, job_id: int, status: JobStatus) -> None:
-        super().__init__(f"job {job_id} is {status.value}; results exist only for succeeded jobs")
+        if status is JobStatus.CANCELLED:
+            message = (
+                f"job {job_id} was cancelled before its evaluation: it keeps only its metrics "
+                "(the episodes it finished), its Q-table and their pictures, if it started"
+            )
+        else:
+            message = f"job {job_id} is {status.value}; results exist only for succeeded jobs"
+        super().__init__(message)
         self.job_id = job_id
         self.status = status
 

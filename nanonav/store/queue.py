@@ -223,8 +223,11 @@ class JobStore:
             return JobRecord.of(row)
 
     def metrics(self, job_id: int) -> dict[str, Any]:
+        """A succeeded job's metrics, or what a cancelled one kept (its finished episodes)."""
         with unit_of_work(self._sessions) as session:
-            metrics: dict[str, Any] = _result_column(session, job_id, JobResult.metrics)
+            metrics: dict[str, Any] = _result_column(
+                session, job_id, JobResult.metrics, kept=True
+            )
             return metrics
 
     def trajectory(self, job_id: int) -> dict[str, NDArray[Any]]:
@@ -238,14 +241,16 @@ class JobStore:
             return blob
 
     def qtable(self, job_id: int) -> dict[str, NDArray[Any]]:
+        """A succeeded job's Q-table, or the one a cancelled job learned until it stopped."""
         with unit_of_work(self._sessions) as session:
-            blob: bytes | None = _result_column(session, job_id, JobResult.qtable)
+            blob: bytes | None = _result_column(session, job_id, JobResult.qtable, kept=True)
         return unpack(blob) if blob is not None else {}
 
-    def plot(self, job_id: int, name: str) -> bytes | None:
-        """The PNG ``name`` of a succeeded job if it has been drawn, else None."""
+    def plot(self, job_id: int, name: str, *, kept: bool = False) -> bytes | None:
+        """The PNG ``name`` of a succeeded job (or, if ``kept``, of a cancelled job that kept
+        its episodes) if it has been drawn, else None."""
         with unit_of_work(self._sessions) as session:
-            _succeeded(session, job_id)
+            _with_results(session, job_id, kept=kept)
             return session.scalars(
                 select(JobPlot.png).where(JobPlot.job_id == job_id, JobPlot.name == name)
             ).one_or_none()
@@ -496,17 +501,20 @@ def _job(session: Session, job_id: int) -> Job:
     return row
 
 
-def _succeeded(session: Session, job_id: int) -> Job:
+def _with_results(session: Session, job_id: int, *, kept: bool = False) -> Job:
+    """The job, if it has the results asked for: a succeeded job's, or (``kept``) also what a
+    cancelled job kept of the episodes it finished."""
     row = _job(session, job_id)
-    if row.status != JobStatus.SUCCEEDED:
-        raise ResultsUnavailable(job_id, JobStatus(row.status))
-    return row
+    status = JobStatus(row.status)
+    if status is JobStatus.SUCCEEDED or (kept and status is JobStatus.CANCELLED):
+        return row
+    raise ResultsUnavailable(job_id, status)
 
 
-def _result_column(session: Session, job_id: int, column: Any) -> Any:
-    """One column of a succeeded job's results, loading none of the others (blobs are large)."""
-    _succeeded(session, job_id)
+def _result_column(session: Session, job_id: int, column: Any, *, kept: bool = False) -> Any:
+    """One column of a job's results, loading none of the others (blobs are large)."""
+    row = _with_results(session, job_id, kept=kept)
     found = session.execute(select(column).where(JobResult.job_id == job_id)).one_or_none()
-    if found is None:
-        raise ResultsUnavailable(job_id, JobStatus.SUCCEEDED)
+    if found is None or (found[0] is None and row.status != JobStatus.SUCCEEDED):
+        raise ResultsUnavailable(job_id, JobStatus(row.status))
     return found[0]

@@ -31,6 +31,9 @@ from service.schemas import GreedyState, Job, JobPage, Metrics, QTable, Trajecto
 
 router = APIRouter(prefix="/jobs", tags=["jobs"])
 
+# Pictures of what a cancelled job keeps: the episodes it finished and the table it learned.
+KEPT_PICTURES = ("learning", "qtable")
+
 JobId = Annotated[int, Path(ge=1, le=2**63 - 1, description="The job's id.")]
 PNG: dict[int | str, dict[str, Any]] = {
     200: {"content": {"image/png": {}}, "description": "A PNG picture."}
@@ -281,7 +284,9 @@ async def get_plot(
 
 async def _picture(store: JobStore, drawer: Drawer, job_id: int, name: str) -> Response:
     """The stored picture, or drawn now (off the event loop) and stored for next time."""
-    png = await run_in_threadpool(store.plot, job_id, name)
+    png = await run_in_threadpool(
+        partial(store.plot, job_id, name, kept=name in KEPT_PICTURES)
+    )
     if png is None:
         png = await drawer.draw(("job", job_id, name), partial(_draw, store, job_id, name))
     return Response(png, media_type="image/png", headers=IMMUTABLE)

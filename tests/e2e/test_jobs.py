@@ -167,7 +167,16 @@ def test_cancel_stops_a_queued_job_at_once_and_a_running_one_within_a_second(
     kept = api.store.partial_result(running)
     assert kept is not None and kept["completed"] is False
     assert len(kept["episodes"]) >= 2
-    assert api.client.get(f"/jobs/{running}/metrics").status_code == 409
+    # what it kept is advertised and served; what it never made is neither
+    links = job["links"]
+    assert links["metrics"] and set(links["plots"]) == {"learning"}  # random walkers learn none
+    assert links["trajectory"] is None and links["heatmap"] is None and links["qtable"] is None
+    metrics = api.client.get(links["metrics"]).json()
+    assert metrics["completed"] is False and len(metrics["episodes"]) >= 2
+    decode_png(api.client.get(links["plots"]["learning"]).content)
+    refused = api.client.get(f"/jobs/{running}/trajectory")
+    assert refused.status_code == 409 and "cancelled before its evaluation" in refused.text
+    assert api.client.get(f"/jobs/{queued}/metrics").status_code == 409  # it never started
 
     after = submit(api, TINY)
     job, _ = wait_for(api, after, finished, 60)

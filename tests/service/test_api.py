@@ -50,7 +50,9 @@ def test_submit_answers_202_with_location_and_the_resolved_scenario(api: Api) ->
     assert job["scenario"]["seed"] == 0
     assert job["scenario"]["learning"]["episodes"] == 50
     assert job["progress"] == {"episode": 0, "episodes": 50 + 20, "fraction": 0.0}
-    assert job["links"]["plots"]["learning"] == f"/jobs/{job['id']}/plots/learning.png"
+    # nothing to fetch yet: no result is advertised before it exists
+    assert job["links"]["metrics"] is None and job["links"]["plots"] == {}
+    assert job["links"]["cancel"] == f"/jobs/{job['id']}/cancel"
     assert api.store.get(job["id"]).status is JobStatus.QUEUED
 
 
@@ -133,7 +135,10 @@ def test_malformed_json_is_400(api: Api) -> None:
     response = api.client.post(
         "/jobs", content=b'{"seed": ', headers={"content-type": "application/json"}
     )
-    assert assert_problem(response, 400)["type"].endswith("malformed-json")
+    problem = assert_problem(response, 400)
+    assert problem["type"].endswith("malformed-json")
+    assert "at character 9" in problem["detail"]
+    assert problem["errors"][0]["pointer"] == "#"  # the body, not a member "1" of it
 
 
 @pytest.mark.parametrize("content_type", ["text/plain", "application/x-www-form-urlencoded", None])
@@ -350,3 +355,28 @@ def test_a_server_fault_is_a_problem_document_without_details(sqlite_url: str) -
     body = assert_problem(response, 500)
     assert "secret" not in response.text
     assert body["type"].endswith("internal-error")
+
+
+def test_a_cancelled_job_serves_what_it_kept_and_advertises_only_that(api: Api) -> None:
+    from nanonav.engine import simulate
+    from nanonav.scenario import Scenario
+    from worker.job import outcome
+
+    scenario = Scenario.model_validate({"learning": {"episodes": 20_000, "max_steps": 200}})
+    job = api.store.enqueue(scenario.model_dump(mode="json"), robot_steps=1, episodes=20_020)
+    claim = api.store.claim("test", lease_s=30)
+    assert claim is not None
+    stopped = simulate(scenario, lambda progress: False)  # stopped after its first chunk
+    assert not stopped.completed and stopped.qtable is not None
+    api.store.finish(claim, outcome(stopped))
+    answer = api.client.get(f"/jobs/{job.id}").json()
+    assert answer["status"] == "cancelled"
+    links = answer["links"]
+    assert set(links["plots"]) == {"learning", "qtable"}
+    assert links["trajectory"] is None and links["heatmap"] is None
+    assert api.client.get(links["metrics"]).json()["completed"] is False
+    assert len(api.client.get(links["qtable"]).json()["greedy"]) == 72
+    for picture in links["plots"].values():
+        response = api.client.get(picture)
+        assert response.status_code == 200 and response.content.startswith(b"\x89PNG")
+    assert api.client.get(f"/jobs/{job.id}/plots/trajectory.png").status_code == 409
