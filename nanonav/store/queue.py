@@ -225,9 +225,7 @@ class JobStore:
     def metrics(self, job_id: int) -> dict[str, Any]:
         """A succeeded job's metrics, or what a cancelled one kept (its finished episodes)."""
         with unit_of_work(self._sessions) as session:
-            metrics: dict[str, Any] = _result_column(
-                session, job_id, JobResult.metrics, kept=True
-            )
+            metrics: dict[str, Any] = _result_column(session, job_id, JobResult.metrics, kept=True)
             return metrics
 
     def trajectory(self, job_id: int) -> dict[str, NDArray[Any]]:

@@ -284,9 +284,7 @@ async def get_plot(
 
 async def _picture(store: JobStore, drawer: Drawer, job_id: int, name: str) -> Response:
     """The stored picture, or drawn now (off the event loop) and stored for next time."""
-    png = await run_in_threadpool(
-        partial(store.plot, job_id, name, kept=name in KEPT_PICTURES)
-    )
+    png = await run_in_threadpool(partial(store.plot, job_id, name, kept=name in KEPT_PICTURES))
     if png is None:
         png = await drawer.draw(("job", job_id, name), partial(_draw, store, job_id, name))
     return Response(png, media_type="image/png", headers=IMMUTABLE)
