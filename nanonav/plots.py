@@ -109,7 +109,7 @@ def _trajectory(result: SimulationResult) -> Trajectory:
 def _last_row(trajectory: Trajectory, robot: int) -> int:
     """The history row that shows ``robot`` where it stopped: the first row at or after its last
     step (rows may be ``stride`` steps apart, and a stopped robot stays put)."""
-    row = int(np.searchsorted(trajectory.step, trajectory.steps[robot], side="left"))
+    row = int(np.searchsorted(trajectory.step, trajectory.robot_steps[robot], side="left"))
     return min(row, len(trajectory.step) - 1)
 
 
@@ -584,7 +584,7 @@ def searching_mask(trajectory: Trajectory) -> NDArray[np.bool_]:
     searches up to the step it reached a cell, excluded (it stops there while the cell drifts
     on), or to the end of the episode when it never reached one."""
     step = trajectory.step[:, None]
-    own = trajectory.steps[None, :]
+    own = trajectory.robot_steps[None, :]
     mask: NDArray[np.bool_] = (step < own) | ((step == own) & ~trajectory.reached[None, :])
     return mask
 
@@ -608,7 +608,7 @@ def _reach_summary(trajectory: Trajectory) -> str:
     reached = int(np.count_nonzero(trajectory.reached))
     if n == 1:
         if reached:
-            return f"reached a cell at step {int(trajectory.steps[0])}"
+            return f"reached a cell at step {int(trajectory.robot_steps[0])}"
         return f"did not reach a cell in {trajectory.length} steps"
     return f"{reached} of {n} reached a cell within {trajectory.length} steps"
 

@@ -234,7 +234,7 @@ class Trajectory(BaseModel):
                 {
                     "stride": 10,
                     "length": 20,
-                    "steps": [0, 10, 20],
+                    "step": [0, 10, 20],
                     "robots": [[[1.0, 2.0, 3.0]], [[1.5, 2.0, 3.0]], [[2.0, 2.0, 3.0]]],
                     "cells": [[[5.0, 5.0, 5.0]], [[5.1, 5.0, 5.0]], [[5.1, 4.9, 5.0]]],
                     "obstacles": [[[0.0, 0.0, 0.0]], [[0.0, 0.0, 0.0]], [[0.0, 0.0, 0.0]]],
@@ -250,7 +250,7 @@ class Trajectory(BaseModel):
 
     stride: int
     length: int = Field(description="Steps the episode lasted (T).")
-    steps: list[int] = Field(description="The step number of every row below.")
+    step: list[int] = Field(description="The step number of every row below.")
     robots: list[list[list[float]]] = Field(description="[row][robot][x, y, z]")
     cells: list[list[list[float]]] = Field(description="[row][cell][x, y, z]")
     obstacles: list[list[list[float]]] = Field(

@@ -36,7 +36,7 @@ TRAJECTORY_KEYS = (
     "obstacles",
     "concentration",
     "distance",
-    "steps",
+    "robot_steps",
     "reached",
     "emitter_offsets",
     "obstacle_radius",

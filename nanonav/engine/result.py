@@ -28,7 +28,7 @@ class Trajectory:
     1 unless a row for every step would overflow the history cap (``simulate``'s
     ``record_bytes``), which the per-step arrays (``step``, ``robots``, ``cells``, ``obstacles``,
     ``concentration``, ``distance``) share. A robot's path ends at the row whose step equals its
-    ``steps``: it stops once it reaches a cell.
+    ``robot_steps``: it stops once it reaches a cell.
 
     ``obstacles`` has one row per history row when obstacles move (``obstacles.motion_std`` >
     0), and a single row, ``(1, obstacles, 3)``, when they stand still: their centres for the
@@ -41,7 +41,7 @@ class Trajectory:
     obstacles: NDArray[np.float64]  # (rows, obstacles, 3) centres; (1, obstacles, 3) if still
     concentration: NDArray[np.float64]  # (rows, robots) true concentration at each robot
     distance: NDArray[np.float64]  # (rows, robots) true distance to the nearest cell
-    steps: NDArray[np.int64]  # (robots,) steps each robot was active (to its reach, or T)
+    robot_steps: NDArray[np.int64]  # (robots,) steps each robot was active (to its reach, or T)
     reached: NDArray[np.bool_]  # (robots,) whether each robot reached a cell
     emitter_offsets: NDArray[np.float64]  # (cells, emitters, 3); the inverse-square field's
     obstacle_radius: float
@@ -137,7 +137,8 @@ class SimulationResult:
                 obstacles=arrays["obstacles"],
                 concentration=arrays["concentration"],
                 distance=arrays["distance"],
-                steps=arrays["steps"],
+                # stored by older versions as "steps"
+                robot_steps=arrays["robot_steps"] if "robot_steps" in arrays else arrays["steps"],
                 reached=arrays["reached"],
                 emitter_offsets=arrays["emitter_offsets"],
                 obstacle_radius=float(arrays["obstacle_radius"]),
@@ -169,7 +170,7 @@ class SimulationResult:
                 obstacles=t.obstacles,
                 concentration=t.concentration,
                 distance=t.distance,
-                steps=t.steps,
+                robot_steps=t.robot_steps,
                 reached=t.reached,
                 emitter_offsets=t.emitter_offsets,
                 obstacle_radius=np.array(t.obstacle_radius),

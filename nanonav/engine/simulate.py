@@ -326,7 +326,7 @@ class _Run:
             obstacles=r.obstacles[:rows].copy(),
             concentration=r.conc[:rows].copy(),
             distance=r.dist[:rows].copy(),
-            steps=self.evaluation[0, :, state.EV_STEPS].astype(np.int64),
+            robot_steps=self.evaluation[0, :, state.EV_STEPS].astype(np.int64),
             reached=self.evaluation[0, :, state.EV_REACHED] > 0.0,
             emitter_offsets=r.offsets.reshape(self.scenario.cells.count, -1, 3).copy(),
             obstacle_radius=self.params.obstacle_radius,

@@ -230,7 +230,10 @@ class JobStore:
 
     def trajectory(self, job_id: int) -> dict[str, NDArray[Any]]:
         blob = self.trajectory_npz(job_id)
-        return unpack(blob) if blob is not None else {}
+        arrays = unpack(blob) if blob is not None else {}
+        if "steps" in arrays and "robot_steps" not in arrays:
+            arrays["robot_steps"] = arrays.pop("steps")  # recorded before the rename
+        return arrays
 
     def trajectory_npz(self, job_id: int) -> bytes | None:
         """The trajectory as the ``.npz`` bytes it is stored as, without decoding it."""

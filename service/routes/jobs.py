@@ -174,7 +174,7 @@ def get_trajectory(
         Trajectory(
             stride=stride,
             length=int(arrays["step"][-1]),
-            steps=strided["step"].tolist(),
+            step=strided["step"].tolist(),
             robots=strided["robots"].tolist(),
             cells=strided["cells"].tolist(),
             obstacles=strided["obstacles"].tolist(),
@@ -182,7 +182,7 @@ def get_trajectory(
             concentration=strided["concentration"].tolist(),
             distance=strided["distance"].tolist(),
             reached=arrays["reached"].tolist(),
-            robot_steps=arrays["steps"].tolist(),
+            robot_steps=arrays["robot_steps"].tolist(),
         ).model_dump(),
         headers=IMMUTABLE,
     )
@@ -327,7 +327,7 @@ def _json_values(arrays: dict[str, NDArray[Any]], rows: int) -> int:
     """How many numbers a JSON answer with ``rows`` rows holds."""
     per_row = sum(int(arrays[k][0].size) for k in PER_ROW if _per_row(arrays, k))
     once = [k for k in PER_ROW if not _per_row(arrays, k)]
-    fixed = sum(int(arrays[k].size) for k in (*once, "reached", "steps"))
+    fixed = sum(int(arrays[k].size) for k in (*once, "reached", "robot_steps"))
     return rows * per_row + fixed
 
 

@@ -102,12 +102,12 @@
       return;
     }
     const t = answer.document;
-    const rows = t.steps.length;
+    const rows = t.step.length;
     const robots = Math.min(t.robots[0].length, MAX_ROBOTS);
     const cells = Math.min(t.cells[0].length, MAX_CELLS);
     const traces = [];
     for (let r = 0; r < robots; r++) {
-      const own = t.steps.map((step, row) => [step, row]).filter(([step]) => step <= t.robot_steps[r]);
+      const own = t.step.map((step, row) => [step, row]).filter(([step]) => step <= t.robot_steps[r]);
       traces.push(lines(own.map(([, row]) => t.robots[row][r]), "#1f77b4", "robot paths", r === 0));
     }
     for (let c = 0; c < cells; c++) {
@@ -142,7 +142,7 @@
     slider.addEventListener("input", () => {
       const row = Number(slider.value);
       const p = at(row);
-      output.textContent = String(t.steps[row]);
+      output.textContent = String(t.step[row]);
       Plotly.restyle(view, {
         x: [p.robots.map((q) => q[0]), p.cells.map((q) => q[0])],
         y: [p.robots.map((q) => q[1]), p.cells.map((q) => q[1])],

@@ -226,7 +226,9 @@ def test_fetch_writes_a_jobs_results(
     assert json.loads((out_dir / "qtable.json").read_text()) == api.qtable(job.id)
     with np.load(out_dir / "trajectory.npz", allow_pickle=False) as arrays:
         assert arrays["robots"].shape[1:] == (2, 3)
-        assert arrays["steps"].tolist() == [r["total_steps"] for r in api.metrics(job.id)["robots"]]
+        assert arrays["robot_steps"].tolist() == [
+            r["total_steps"] for r in api.metrics(job.id)["robots"]
+        ]
     for name in JOB_PICTURES:
         assert imread(out_dir / f"{name}.png", format="png").ndim == 3
 

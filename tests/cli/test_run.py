@@ -95,7 +95,7 @@ def test_out_writes_decodable_pictures_arrays_and_metrics(
         assert imread(io.BytesIO(png), format="png").ndim == 3
     with np.load(out_dir / "result.npz") as arrays:
         assert arrays["robots"].shape[1:] == (2, 3)
-        assert arrays["steps"].shape == (2,)
+        assert arrays["robot_steps"].shape == (2,)
         assert "q_values" in arrays
     metrics = json.loads((out_dir / "metrics.json").read_text(encoding="utf-8"))
     assert metrics["scenario"] == printed["scenario"]

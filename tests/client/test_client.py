@@ -81,7 +81,7 @@ def test_a_job_runs_and_its_metrics_arrays_qtable_and_pictures_come_back(api: Cl
     rows = arrays["robots"].shape[0]
     assert arrays["robots"].shape == (rows, 2, 3) and arrays["robots"].dtype == np.float64
     assert arrays["step"].tolist() == list(range(rows))
-    assert arrays["steps"].tolist() == [r["total_steps"] for r in metrics["robots"]]
+    assert arrays["robot_steps"].tolist() == [r["total_steps"] for r in metrics["robots"]]
     strided = api.arrays(job.id, stride=10)
     assert strided["step"].tolist() == sorted({*range(0, rows, 10), rows - 1})
     np.testing.assert_array_equal(strided["robots"], arrays["robots"][strided["step"]])

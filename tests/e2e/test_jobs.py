@@ -100,7 +100,7 @@ def test_a_submitted_job_runs_and_every_result_comes_back(
     length = full["length"]
     assert 1 <= length <= 60
     assert length == metrics["worlds"][0]["episode_steps"]
-    assert full["steps"] == list(range(length + 1))
+    assert full["step"] == list(range(length + 1))
     assert np.asarray(full["robots"]).shape == (length + 1, 2, 3)
     assert np.asarray(full["cells"]).shape == (length + 1, 1, 3)
     assert np.asarray(full["concentration"]).shape == (length + 1, 2)
@@ -109,7 +109,7 @@ def test_a_submitted_job_runs_and_every_result_comes_back(
 
     strided = api.client.get(f"/jobs/{job_id}/trajectory", params={"stride": 7}).json()
     expected_steps = sorted({*range(0, length + 1, 7), length})
-    assert strided["steps"] == expected_steps
+    assert strided["step"] == expected_steps
     assert strided["robots"] == [full["robots"][s] for s in expected_steps]
 
     npz = api.client.get(f"/jobs/{job_id}/trajectory", params={"format": "npz", "stride": 7})

@@ -217,7 +217,7 @@ def made_trajectory(
         obstacles=np.zeros((1, 0, 3)) if obstacles is None else obstacles[None],
         concentration=1.0 / (1.0 + distance),
         distance=distance,
-        steps=np.array(steps),
+        robot_steps=np.array(steps),
         reached=np.array(reached),
         emitter_offsets=np.zeros((cells.shape[1], 1, 3)),
         obstacle_radius=radius,
@@ -367,8 +367,8 @@ def test_one_robot_keeps_the_papers_twin_axes_up_to_its_reach(single: Simulation
     assert concentration.get_ylabel().startswith("biomarker concentration")
     assert distance.get_ylabel().startswith("distance to the nearest cell")
     (line,) = distance.get_lines()
-    assert int(line.get_xdata()[-1]) == int(trajectory.steps[0])
-    assert f"reached a cell at step {int(trajectory.steps[0])}" in figure.get_suptitle()
+    assert int(line.get_xdata()[-1]) == int(trajectory.robot_steps[0])
+    assert f"reached a cell at step {int(trajectory.robot_steps[0])}" in figure.get_suptitle()
 
 
 # ---------------------------------------------------------------- the 3-D paths
@@ -475,7 +475,7 @@ def test_the_heatmap_draws_the_paths_projected_on_the_slice(swarm: SimulationRes
     paths = ax.get_lines()
     assert trajectory.robots.shape[1] > plots.MAX_HEATMAP_PATHS
     assert len(paths) == plots.MAX_HEATMAP_PATHS  # the field stays visible under them
-    end = int(trajectory.steps[3])
+    end = int(trajectory.robot_steps[3])
     x, z = paths[3].get_data()
     assert x[-1] == pytest.approx(trajectory.robots[end, 3, 0])
     assert z[-1] == pytest.approx(trajectory.robots[end, 3, 2])

@@ -121,7 +121,7 @@ def test_a_small_cap_changes_what_is_recorded_never_the_run() -> None:
     # every kept row is the full history's row at that step
     for name in HISTORY[1:]:
         assert np.array_equal(getattr(b, name), getattr(a, name)[b.step]), name
-    assert np.array_equal(a.steps, b.steps) and np.array_equal(a.reached, b.reached)
+    assert np.array_equal(a.robot_steps, b.robot_steps) and np.array_equal(a.reached, b.reached)
 
 
 def test_large_swarms_get_a_strided_history_within_the_default_cap() -> None:

@@ -101,7 +101,7 @@ def test_a_return_is_the_distance_closed_the_arrival_and_the_steps_it_took() -> 
     for row in result.robots:
         i = row["robot"]
         closed = t.distance[0, i] - row["final_distance"]
-        expected = closed + 10.0 * row["reached"] - 0.25 * int(t.steps[i])
+        expected = closed + 10.0 * row["reached"] - 0.25 * int(t.robot_steps[i])
         assert row["return"] == pytest.approx(expected, abs=1e-9)
 
 

@@ -136,12 +136,12 @@ def test_table_1_agrees_with_the_trajectory() -> None:
     t = result.trajectory
     assert t is not None
     first = result.worlds[0]  # the recorded evaluation world
-    assert first["episode_steps"] == t.length == int(t.steps.max())
+    assert first["episode_steps"] == t.length == int(t.robot_steps.max())
     steps = [r["steps_to_reach"] or result.scenario.learning.max_steps for r in result.robots]
     assert first["total_steps"] == float(np.median(steps))
     for row in result.robots:
         i = row["robot"]
-        own = slice(0, int(t.steps[i]) + 1)
+        own = slice(0, int(t.robot_steps[i]) + 1)
         assert row["average_distance"] == pytest.approx(t.distance[own, i].mean(), rel=1e-12)
         assert row["average_concentration"] == pytest.approx(
             t.concentration[own, i].mean(), rel=1e-12
@@ -210,10 +210,10 @@ def test_the_episode_ends_on_the_step_the_last_robot_reaches_a_cell() -> None:
         t = result.trajectory
         assert t is not None
         if t.reached.all():
-            assert result.worlds[0]["episode_steps"] == int(t.steps.max())
+            assert result.worlds[0]["episode_steps"] == int(t.robot_steps.max())
         for i in np.flatnonzero(t.reached):
-            assert t.distance[t.steps[i], i] <= s.reach_distance
-            assert result.robots[i]["final_distance"] == t.distance[t.steps[i], i]
+            assert t.distance[t.robot_steps[i], i] <= s.reach_distance
+            assert result.robots[i]["final_distance"] == t.distance[t.robot_steps[i], i]
 
 
 def test_methods_and_fields_compared_on_one_seed_face_the_same_worlds() -> None:

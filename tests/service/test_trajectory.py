@@ -42,9 +42,9 @@ def test_trajectory_answers_are_bounded_and_say_how_to_get_the_rest(sqlite_url: 
         fits = client.get(f"/jobs/{job.id}/trajectory", params={"stride": 2})
         assert fits.status_code == 200, fits.text
         body = fits.json()
-        assert body["steps"][:3] == [0, 2, 4] and body["steps"][-1] == int(stored["step"][-1])
+        assert body["step"][:3] == [0, 2, 4] and body["step"][-1] == int(stored["step"][-1])
         assert len(body["obstacles"]) == 1  # they stand still: recorded once
-        assert len(body["robots"]) == len(body["steps"])
+        assert len(body["robots"]) == len(body["step"])
 
         npz = client.get(f"/jobs/{job.id}/trajectory", params={"format": "npz"})
         assert npz.content == store.trajectory_npz(job.id)
