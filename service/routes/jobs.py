@@ -113,7 +113,10 @@ def get_job(job_id: JobId, store: StoreDep) -> Job:
 
 @router.post("/{job_id}/cancel", response_model=Job, responses=problems(404, 409, 422))
 def cancel_job(job_id: JobId, store: StoreDep) -> Job:
-    """Cancel a job: a queued one at once, a running one within about a second."""
+    """Cancel a job: a queued one at once, a running one within about a second.
+
+    200 when the job is or will be cancelled (asking twice is harmless); 409 when it already
+    ended another way, succeeded or failed."""
     return Job.of(store.cancel(job_id))
 
 
@@ -188,24 +191,54 @@ def get_trajectory(
     )
 
 
-@router.get("/{job_id}/qtable", response_model=QTable, responses=NOT_FOUND_OR_NOT_READY)
-def get_qtable(job_id: JobId, store: StoreDep, response: Response) -> QTable:
+@router.get(
+    "/{job_id}/qtable",
+    response_model=QTable,
+    responses={
+        **NOT_FOUND_OR_NOT_READY,
+        200: {
+            "content": {"application/octet-stream": {}, "text/csv": {}},
+            "description": "JSON, or an .npz / .csv download with ?format=.",
+        },
+    },
+)
+def get_qtable(
+    job_id: JobId,
+    store: StoreDep,
+    format: Annotated[Literal["json", "npz", "csv"], Query()] = "json",
+) -> Any:
     """The learned action values and visit counts, with state and action labels, and the
-    greedy action of every state."""
+    greedy action of every state.
+
+    ``npz`` holds the arrays ``states``, ``actions``, ``values`` and ``visits`` (a job that
+    learned no table gives empty ones); ``csv`` has a row per state and action."""
     arrays = store.qtable(job_id)
-    response.headers.update(IMMUTABLE)
     if not arrays:
-        return QTable(states=[], actions=[], values=[], visits=[], greedy=[])
+        arrays = {
+            "states": np.array([], dtype=np.str_),
+            "actions": np.array([], dtype=np.str_),
+            "values": np.zeros((0, 0)),
+            "visits": np.zeros((0, 0), dtype=np.int64),
+        }
+    if format != "json":
+        name = f"nanonav-job-{job_id}-qtable.{format}"
+        download = {"Content-Disposition": f'attachment; filename="{name}"', **IMMUTABLE}
+        if format == "npz":
+            return Response(pack(arrays), media_type="application/octet-stream", headers=download)
+        return StreamingResponse(
+            _qtable_csv_lines(arrays), media_type="text/csv; charset=utf-8", headers=download
+        )
     states = arrays["states"].tolist()
     actions = arrays["actions"].tolist()
-    greedy = greedy_table(states, actions, arrays["values"], arrays["visits"])
-    return QTable(
+    greedy = greedy_table(states, actions, arrays["values"], arrays["visits"]) if states else []
+    table = QTable(
         states=states,
         actions=actions,
         values=arrays["values"].tolist(),
         visits=arrays["visits"].tolist(),
         greedy=[GreedyState.model_validate(g.to_dict()) for g in greedy],
     )
+    return JSONResponse(table.model_dump(), headers=IMMUTABLE)
 
 
 @router.get(
@@ -366,3 +399,26 @@ def _csv_lines(arrays: dict[str, NDArray[Any]]) -> Iterator[str]:
         yield out.getvalue()
         out.seek(0)
         out.truncate()
+
+
+def _qtable_csv_lines(arrays: dict[str, NDArray[Any]]) -> Iterator[str]:
+    """The Q-table as CSV, a state at a time: its label, an action's, the value, the visits;
+    per-robot tables (``learning.shared_table`` false) lead each row with the robot."""
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    values, visits = arrays["values"], arrays["visits"]
+    per_robot = values.ndim == 3
+    writer.writerow([*(["robot"] if per_robot else []), "state", "action", "value", "visits"])
+    tables = range(values.shape[0]) if per_robot else [None]
+    actions = arrays["actions"].tolist()
+    for r in tables:
+        v, n = (values[r], visits[r]) if r is not None else (values, visits)
+        lead = [r] if r is not None else []
+        for i, state in enumerate(arrays["states"].tolist()):
+            for a, action in enumerate(actions):
+                writer.writerow([*lead, state, action, repr(float(v[i, a])), int(n[i, a])])
+            yield out.getvalue()
+            out.seek(0)
+            out.truncate()
+    if out.tell():
+        yield out.getvalue()

@@ -159,7 +159,10 @@ def get_study(study_id: StudyId, studies: StudiesDep) -> Study:
 
 @router.post("/{study_id}/cancel", response_model=Study, responses=problems(404, 409, 422))
 def cancel_study(study_id: StudyId, studies: StudiesDep) -> Study:
-    """Cancel a study's unfinished jobs: queued ones at once, running ones within a second."""
+    """Cancel a study's unfinished jobs: queued ones at once, running ones within a second.
+
+    The rule of a job's cancel: 200 when the study is or will be cancelled, 409 when it
+    already ended another way (every job succeeded or failed)."""
     view = study_answer(studies, studies.get(study_id))
     if view.status in FINISHED and not view.cancel_requested:
         raise StudyFinished(f"study {study_id} has already finished: it is {view.status}")

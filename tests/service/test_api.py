@@ -10,7 +10,7 @@ import httpx
 import pytest
 
 from nanonav.settings import Settings
-from nanonav.store import JobStatus
+from nanonav.store import JobStatus, Outcome
 from service.app import create_app
 from tests.conftest import Api, serve
 
@@ -237,6 +237,24 @@ def test_cancel_of_a_failed_job_is_409(api: Api) -> None:
     api.store.fail(claim, "boom")
     body = assert_problem(api.client.post(f"/jobs/{job['id']}/cancel"), 409)
     assert "failed" in body["detail"]
+
+
+def test_cancel_is_200_while_a_job_is_or_will_be_cancelled_and_409_once_it_succeeded(
+    api: Api,
+) -> None:
+    job = submit(api)
+    claim = api.store.claim("test", lease_s=30)
+    assert claim is not None
+    for _ in range(2):  # a running job: asked to stop, and asking again changes nothing
+        response = api.client.post(f"/jobs/{job['id']}/cancel")
+        assert response.status_code == 200
+        assert response.json()["status"] == "running" and response.json()["cancel_requested"]
+    done = submit(api, {"seed": 2})
+    claim = api.store.claim("test", lease_s=30)
+    assert claim is not None and claim.job.id == done["id"]
+    api.store.finish(claim, Outcome(completed=True, metrics={}, trajectory=None, qtable=None))
+    body = assert_problem(api.client.post(f"/jobs/{done['id']}/cancel"), 409)
+    assert "succeeded" in body["detail"]
 
 
 def test_the_job_list_is_newest_first_and_follows_its_cursor(api: Api) -> None:

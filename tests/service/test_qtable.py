@@ -3,6 +3,7 @@ its picture, drawn on first request from the stored arrays."""
 
 from __future__ import annotations
 
+import csv
 import io
 
 import numpy as np
@@ -53,6 +54,56 @@ def test_a_job_without_a_qtable_answers_an_empty_greedy_table(
     baseline = ran(api.store, api_settings, {**TINY, "robots": {"count": 1, "policy": "gradient"}})
     answer = api.client.get(f"/jobs/{baseline}/qtable").json()
     assert answer == {"states": [], "actions": [], "values": [], "visits": [], "greedy": []}
+
+
+# ---------------------------------------------------------------- downloads
+
+
+def test_the_qtable_downloads_as_npz_and_csv_hold_what_the_json_holds(
+    api: Api, trained: int
+) -> None:
+    answer = api.client.get(f"/jobs/{trained}/qtable").json()
+    npz = api.client.get(f"/jobs/{trained}/qtable?format=npz")
+    assert npz.status_code == 200 and npz.headers["content-type"] == "application/octet-stream"
+    assert "qtable.npz" in npz.headers["content-disposition"]
+    with np.load(io.BytesIO(npz.content), allow_pickle=False) as arrays:
+        assert arrays["states"].tolist() == answer["states"]
+        assert arrays["actions"].tolist() == answer["actions"]
+        assert np.array_equal(arrays["values"], np.asarray(answer["values"]))
+        assert np.array_equal(arrays["visits"], np.asarray(answer["visits"]))
+    text = api.client.get(f"/jobs/{trained}/qtable?format=csv")
+    assert text.headers["content-type"].startswith("text/csv")
+    rows = list(csv.reader(io.StringIO(text.text)))
+    assert rows[0] == ["state", "action", "value", "visits"]
+    assert len(rows) - 1 == len(answer["states"]) * len(answer["actions"])
+    for state, action, value, visits in rows[1:]:
+        i, a = answer["states"].index(state), answer["actions"].index(action)
+        assert float(value) == answer["values"][i][a] and int(visits) == answer["visits"][i][a]
+
+
+def test_per_robot_tables_download_as_csv_with_a_robot_column(
+    api: Api, api_settings: Settings
+) -> None:
+    own = {**TINY, "learning": {**TINY["learning"], "shared_table": False}}
+    job_id = ran(api.store, api_settings, own)
+    rows = list(csv.reader(io.StringIO(api.client.get(f"/jobs/{job_id}/qtable?format=csv").text)))
+    assert rows[0] == ["robot", "state", "action", "value", "visits"]
+    assert len(rows) - 1 == 2 * 72 * 4
+    assert {row[0] for row in rows[1:]} == {"0", "1"}
+
+
+def test_a_job_without_a_qtable_downloads_empty_tables(api: Api, api_settings: Settings) -> None:
+    baseline = ran(api.store, api_settings, {**TINY, "robots": {"count": 1, "policy": "gradient"}})
+    text = api.client.get(f"/jobs/{baseline}/qtable?format=csv").text
+    assert text == "state,action,value,visits\n"
+    npz = api.client.get(f"/jobs/{baseline}/qtable?format=npz").content
+    with np.load(io.BytesIO(npz), allow_pickle=False) as arrays:
+        assert arrays["states"].size == 0 and arrays["values"].size == 0
+
+
+def test_an_unknown_qtable_format_is_a_422_naming_it(api: Api, trained: int) -> None:
+    body = assert_problem(api.client.get(f"/jobs/{trained}/qtable?format=xml"), 422)
+    assert body["errors"][0]["loc"] == ["query", "format"]
 
 
 # ---------------------------------------------------------------- the picture
