@@ -402,11 +402,22 @@ class Client:
     # ------------------------------------------------------------ jobs
 
     def submit(
-        self, scenario: Mapping[str, Any] | None = None, *, idempotency_key: str | None = None
+        self,
+        scenario: Mapping[str, Any] | None = None,
+        *,
+        idempotency_key: str | None = None,
+        callback_url: str | None = None,
     ) -> Job:
         """Queue a scenario (``None`` or ``{}``: all defaults). The same ``idempotency_key``
-        again answers with the job it made the first time, so a retry never runs twice."""
-        data = self._json("POST", "/jobs", json=dict(scenario or {}), key=idempotency_key)
+        again answers with the job it made the first time, so a retry never runs twice; a
+        ``callback_url`` is sent a signed summary when the job ends."""
+        data = self._json(
+            "POST",
+            "/jobs",
+            json=dict(scenario or {}),
+            key=idempotency_key,
+            params=_callback(callback_url),
+        )
         return Job.of(data)
 
     def job(self, job_id: int) -> Job:
@@ -485,10 +496,27 @@ class Client:
 
     # ------------------------------------------------------------ studies
 
-    def submit_study(self, spec: Mapping[str, Any], *, idempotency_key: str | None = None) -> Study:
+    def submit_study(
+        self,
+        spec: Mapping[str, Any],
+        *,
+        idempotency_key: str | None = None,
+        callback_url: str | None = None,
+    ) -> Study:
         """Queue every grid point x seed of ``spec`` (``name``, ``base``, ``grid``, ``seeds``
-        or ``replicates``, ``compare``) as jobs, all or none."""
-        return Study.of(self._json("POST", "/studies", json=dict(spec), key=idempotency_key))
+        or ``replicates``, ``compare``) as jobs, all or none; a ``callback_url`` is sent a
+        signed summary when the last one ends."""
+        data = self._json(
+            "POST", "/studies", json=dict(spec), key=idempotency_key, params=_callback(callback_url)
+        )
+        return Study.of(data)
+
+    def callback(self, job_id: int) -> dict[str, Any]:
+        """How sending a job's webhook went (``state``, ``attempts``, ``last_error``...)."""
+        return self._json("GET", f"/jobs/{job_id}/callback")
+
+    def study_callback(self, study_id: int) -> dict[str, Any]:
+        return self._json("GET", f"/studies/{study_id}/callback")
 
     def study(self, study_id: int) -> Study:
         return Study.of(self._json("GET", f"/studies/{study_id}"))
@@ -632,3 +660,7 @@ def _reason(error: httpx.TransportError) -> str:
     if isinstance(error, httpx.TimeoutException):
         return f"no answer in time ({type(error).__name__})"
     return str(error) or type(error).__name__
+
+
+def _callback(url: str | None) -> dict[str, str] | None:
+    return None if url is None else {"callback_url": url}

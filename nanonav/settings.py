@@ -8,14 +8,20 @@ so a bad configuration stops a process at start-up, not at its first request.
 from __future__ import annotations
 
 from functools import lru_cache
+from typing import Annotated
 
-from pydantic import AliasChoices, Field, field_validator
-from pydantic_settings import BaseSettings, SettingsConfigDict
+from pydantic import AliasChoices, Field, SecretStr, field_validator, model_validator
+from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 from sqlalchemy.engine import make_url
 from sqlalchemy.exc import ArgumentError
 
 DEFAULT_DATABASE_URL = "sqlite:///var/nanonav.db"
 DEFAULT_API_URL = "http://127.0.0.1:8000"
+MIN_WEBHOOK_SECRET_LENGTH = 32
+SECRET_RECIPE = "python -c 'import secrets; print(secrets.token_urlsafe(32))'"
+# Words that mark a secret copied from an example rather than made for the deployment.
+PLACEHOLDER_WORDS = ("changeme", "changethis", "change-me", "password", "secret", "example",
+                     "placeholder", "xxxxxxxx")  # fmt: skip
 
 
 def _aliases(name: str, *unprefixed: str) -> AliasChoices:
@@ -25,7 +31,13 @@ def _aliases(name: str, *unprefixed: str) -> AliasChoices:
 class Settings(BaseSettings):
     """Configuration of the API, the worker and the store."""
 
-    model_config = SettingsConfigDict(env_prefix="NANONAV_", extra="ignore", frozen=True)
+    model_config = SettingsConfigDict(
+        env_prefix="NANONAV_",
+        extra="ignore",
+        frozen=True,
+        hide_input_in_errors=True,  # a refused secret must not reach a log
+        validate_by_name=True,
+    )
 
     database_url: str = Field(
         DEFAULT_DATABASE_URL,
@@ -159,6 +171,88 @@ class Settings(BaseSettings):
         description="Most numbers a trajectory answered as JSON may hold (about 20 bytes each); "
         "a larger one is refused with 422 that says to use ?stride= or ?format=npz.",
     )
+
+    webhook_hosts: Annotated[tuple[str, ...], NoDecode] = Field(
+        (),
+        validation_alias=_aliases("webhook_hosts"),
+        description="Comma-separated hosts a job's or study's callback_url may name: "
+        "'hooks.example.org' exactly, '*.example.org' its subdomains, 'localhost:9000' only "
+        "that port. Empty: no webhooks, and a callback_url gets 422.",
+    )
+    webhook_secret: SecretStr | None = Field(
+        None,
+        validation_alias="NANONAV_WEBHOOK_SECRET",
+        description="The key webhooks are signed with (HMAC-SHA256, the NanoNav-Signature "
+        f"header); needed with webhook_hosts, at least {MIN_WEBHOOK_SECRET_LENGTH} characters "
+        "and no placeholder.",
+    )
+    webhook_timeout_s: float = Field(
+        10.0,
+        gt=0,
+        le=300,
+        validation_alias=_aliases("webhook_timeout_s"),
+        description="How long a webhook's receiver has to answer before the try counts as failed.",
+    )
+    webhook_attempts: int = Field(
+        12,
+        ge=1,
+        le=100,
+        validation_alias=_aliases("webhook_attempts"),
+        description="Tries a webhook gets before it is given up (its state says so).",
+    )
+    webhook_retry_s: float = Field(
+        10.0,
+        gt=0,
+        le=3600,
+        validation_alias=_aliases("webhook_retry_s"),
+        description="Wait before a failed webhook's second try; it doubles after each failure, "
+        "up to an hour (12 tries span about 3.6 hours).",
+    )
+
+    @field_validator("webhook_hosts", mode="before")
+    @classmethod
+    def _split_hosts(cls, value: object) -> object:
+        if isinstance(value, str):
+            return tuple(part.strip() for part in value.split(",") if part.strip())
+        return value
+
+    @field_validator("webhook_hosts")
+    @classmethod
+    def _host_patterns(cls, hosts: tuple[str, ...]) -> tuple[str, ...]:
+        for host in hosts:
+            name, colon, port = host.partition(":")
+            wild = name.startswith("*.")
+            if not name or "*" in (name[2:] if wild else name) or "/" in host:
+                raise ValueError(f"a webhook host looks like 'hooks.example.org', "
+                                 f"'*.example.org' or 'localhost:9000', not {host!r}")  # fmt: skip
+            if colon and not (port.isdigit() and 0 < int(port) < 65536):
+                raise ValueError(f"not a port in webhook host {host!r}")
+        return tuple(host.lower() for host in hosts)
+
+    @field_validator("webhook_secret")
+    @classmethod
+    def _real_secret(cls, secret: SecretStr | None) -> SecretStr | None:
+        if secret is None:
+            return None
+        value = secret.get_secret_value()
+        if len(value) < MIN_WEBHOOK_SECRET_LENGTH:
+            raise ValueError(
+                f"the webhook secret is shorter than {MIN_WEBHOOK_SECRET_LENGTH} characters; "
+                f"make one with {SECRET_RECIPE}"
+            )
+        if any(word in value.lower() for word in PLACEHOLDER_WORDS) or len(set(value)) < 8:
+            raise ValueError(f"the webhook secret looks like a placeholder; make one with "
+                             f"{SECRET_RECIPE}")  # fmt: skip
+        return secret
+
+    @model_validator(mode="after")
+    def _webhooks_are_signed(self) -> Settings:
+        if self.webhook_hosts and self.webhook_secret is None:
+            raise ValueError(
+                "NANONAV_WEBHOOK_HOSTS is set but NANONAV_WEBHOOK_SECRET is not: webhooks are "
+                f"always signed; make a secret with {SECRET_RECIPE}"
+            )
+        return self
 
     @field_validator("database_url")
     @classmethod

@@ -13,6 +13,7 @@ from fastapi.staticfiles import StaticFiles
 import nanonav
 from nanonav.settings import Settings
 from nanonav.store import JobStore, StudyStore
+from nanonav.store.deliveries import DeliveryStore
 from service import problems
 from service.caching import ETags
 from service.drawing import Drawer
@@ -57,6 +58,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.state.settings = settings
     app.state.store = store
     app.state.studies = study_store
+    app.state.deliveries = DeliveryStore(store.engine)
     app.state.poller = poller
     app.state.job_events = poller.channel(partial(events.job_snapshots, store))
     app.state.study_events = poller.channel(partial(events.study_snapshots, study_store))

@@ -8,6 +8,7 @@ from fastapi import Depends, Request
 
 from nanonav.settings import Settings
 from nanonav.store import JobStore, StudyStore
+from nanonav.store.deliveries import DeliveryStore
 from service.drawing import Drawer
 from service.events import Channel
 from service.problems import UnsupportedMediaType
@@ -26,6 +27,11 @@ def _settings(request: Request) -> Settings:
 def _studies(request: Request) -> StudyStore:
     studies: StudyStore = request.app.state.studies
     return studies
+
+
+def _deliveries(request: Request) -> DeliveryStore:
+    deliveries: DeliveryStore = request.app.state.deliveries
+    return deliveries
 
 
 def _drawer(request: Request) -> Drawer:
@@ -59,6 +65,7 @@ StoreDep = Annotated[JobStore, Depends(_store)]
 SettingsDep = Annotated[Settings, Depends(_settings)]
 DrawerDep = Annotated[Drawer, Depends(_drawer)]
 StudiesDep = Annotated[StudyStore, Depends(_studies)]
+DeliveriesDep = Annotated[DeliveryStore, Depends(_deliveries)]
 JobEventsDep = Annotated[Channel, Depends(_job_events)]
 StudyEventsDep = Annotated[Channel, Depends(_study_events)]
 JsonBody = Depends(require_json)

@@ -103,6 +103,12 @@ class NoQTable(ProblemError):
     title = "No Q-table"
 
 
+class NoCallback(ProblemError):
+    status = 404
+    slug = "no-callback"
+    title = "No callback"
+
+
 class EventsUnavailable(ProblemError):
     """The event poller is not running (the server is stopping, or it failed and logged why)."""
 

@@ -59,6 +59,28 @@ class JobLinks(BaseModel):
     study: str | None = Field(None, description="The study the job belongs to, if any.")
 
 
+class Callback(BaseModel):
+    """The webhook a job or study sends when it ends, and how sending it went."""
+
+    id: int = Field(description="Also sent as the NanoNav-Delivery header and the body's id.")
+    url: str
+    state: Literal["waiting", "due", "delivered", "failed"] = Field(
+        description="waiting: it has not ended; due: to be sent (again) at next_attempt_at; "
+        "delivered: the receiver answered 2xx; failed: given up after its attempts."
+    )
+    event: str | None = Field(
+        description="job.succeeded, job.failed, job.cancelled or study.<its status>; null "
+        "while waiting."
+    )
+    attempts: int
+    created_at: datetime
+    next_attempt_at: datetime | None
+    last_attempt_at: datetime | None
+    delivered_at: datetime | None
+    last_status: int | None = Field(description="The receiver's HTTP status at the last try.")
+    last_error: str | None = Field(description="Why the last try failed.")
+
+
 class Job(BaseModel):
     """A job: its scenario as it will run, where it is, and where its results are."""
 

@@ -23,8 +23,10 @@ from nanonav.engine import simulate
 from nanonav.scenario import Scenario
 from nanonav.settings import Settings
 from nanonav.store import JobStore
+from nanonav.store.deliveries import DeliveryStore
 from nanonav.store.faults import reason
 from nanonav.store.queue import PRESENCE_INTERVAL_S
+from worker.deliveries import run_deliveries
 from worker.job import run_job
 
 logger = logging.getLogger(__name__)
@@ -58,6 +60,10 @@ def work(settings: Settings, shutdown: threading.Event, *, max_jobs: int | None 
         threading.Thread(target=_sweep, args=(store, settings, stopped), name="sweeper",
                          daemon=True),
     ]  # fmt: skip
+    if settings.webhook_hosts:  # a worker without the webhook settings leaves them to others
+        deliveries = DeliveryStore(store.engine)
+        housekeeping.append(threading.Thread(target=run_deliveries, name="webhooks", daemon=True,
+                                             args=(deliveries, settings, stopped)))  # fmt: skip
     for thread in housekeeping:
         thread.start()
     try:

@@ -5,7 +5,8 @@
 study reads, apart so that a study never loads the rest) and ``job_plots``
 the PNGs drawn the first time each was asked for. ``studies`` groups jobs (a grid of scenarios
 x seeds); ``study_plots`` keeps the pictures of finished studies. ``workers`` says which worker
-processes were seen lately.
+processes were seen lately. ``deliveries`` is the outbox of webhooks: a row per job or study
+that named a ``callback_url``, from its submit until the receiver took it or it was given up.
 A claim gives a job a lease: ``lease_token`` names the claim, ``lease_expires_at`` says until when
 it holds (every progress write renews it) and every later write by the worker is fenced by the
 token, so a worker that lost its lease can neither report progress nor store a result.
@@ -171,3 +172,49 @@ class Worker(Base):
     name: Mapped[str] = mapped_column(String(200), primary_key=True)
     started_at: Mapped[datetime] = mapped_column(UTCDateTime())
     seen_at: Mapped[datetime] = mapped_column(UTCDateTime(), index=True)
+
+
+class DeliveryState(enum.StrEnum):
+    """Where a webhook is; the last two never change again."""
+
+    WAITING = "waiting"  # its job or study has not ended
+    DUE = "due"  # it ended: the summary is fixed, and sent at next_attempt_at
+    DELIVERED = "delivered"  # the receiver answered 2xx
+    FAILED = "failed"  # every attempt failed, or it could not be sent at all
+
+
+class Delivery(Base):
+    """A webhook to send when a job or a study ends; leased like a job while it is sent."""
+
+    __tablename__ = "deliveries"
+    __table_args__ = (Index(None, "state", "next_attempt_at"),)
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
+    job_id: Mapped[int | None] = mapped_column(
+        ForeignKey("jobs.id", ondelete="SET NULL"), unique=True
+    )
+    study_id: Mapped[int | None] = mapped_column(
+        ForeignKey("studies.id", ondelete="SET NULL"), unique=True
+    )
+    url: Mapped[str] = mapped_column(String(2048))
+    state: Mapped[DeliveryState] = mapped_column(
+        Enum(
+            DeliveryState,
+            native_enum=False,
+            length=16,
+            values_callable=lambda members: [m.value for m in members],
+            validate_strings=True,
+        ),
+        default=DeliveryState.WAITING,
+    )
+    event: Mapped[str | None] = mapped_column(String(32))
+    payload: Mapped[dict[str, Any] | None] = mapped_column(JSON)
+    created_at: Mapped[datetime] = mapped_column(UTCDateTime())
+    attempts: Mapped[int] = mapped_column(Integer, default=0)
+    next_attempt_at: Mapped[datetime | None] = mapped_column(UTCDateTime())
+    last_attempt_at: Mapped[datetime | None] = mapped_column(UTCDateTime())
+    delivered_at: Mapped[datetime | None] = mapped_column(UTCDateTime())
+    last_status: Mapped[int | None] = mapped_column(Integer)  # the receiver's HTTP status
+    last_error: Mapped[str | None] = mapped_column(String(500))
+    lease_token: Mapped[str | None] = mapped_column(String(64))
+    lease_expires_at: Mapped[datetime | None] = mapped_column(UTCDateTime())

@@ -27,6 +27,7 @@ from nanonav.store.db import (
     make_sessionmaker,
     unit_of_work,
 )
+from nanonav.store.deliveries import add_waiting
 from nanonav.store.errors import JobAlreadyFinished, JobNotFound, LeaseLost, ResultsUnavailable
 from nanonav.store.models import Job, JobPlot, JobResult, JobStatus, UTCDateTime, Worker
 
@@ -140,8 +141,10 @@ class JobStore:
         robot_steps: int,
         episodes: int,
         idempotency_key: str | None = None,
+        callback_url: str | None = None,
     ) -> JobRecord:
-        """A new queued job; with a key already used, the job that key made instead."""
+        """A new queued job (with the webhook its end sends to ``callback_url``); with a key
+        already used, the job that key made instead."""
         try:
             with unit_of_work(self._sessions) as session:
                 row = Job(
@@ -158,6 +161,8 @@ class JobStore:
                 )
                 session.add(row)
                 session.flush()
+                if callback_url is not None:
+                    add_waiting(session, callback_url, job_id=row.id)
                 return JobRecord.of(row)
         except IntegrityError:
             if idempotency_key is None:

@@ -17,6 +17,7 @@ from sqlalchemy import JSON, Engine, func, insert, literal, select, update
 from sqlalchemy.exc import IntegrityError
 
 from nanonav.store.db import add_once, make_sessionmaker, unit_of_work
+from nanonav.store.deliveries import add_waiting
 from nanonav.store.errors import StudyNotFound
 from nanonav.store.models import Job, JobResult, JobStatus, Study, StudyPlot
 from nanonav.store.queue import aware, utcnow
@@ -100,6 +101,7 @@ class StudyStore:
         spec: dict[str, Any],
         jobs: Sequence[StudyJob],
         idempotency_key: str | None = None,
+        callback_url: str | None = None,
     ) -> StudyRecord:
         """The study and every one of its jobs, queued in one transaction; with a key already
         used, the study that key made instead."""
@@ -136,6 +138,8 @@ class StudyStore:
                         for job in jobs
                     ],
                 )
+                if callback_url is not None:
+                    add_waiting(session, callback_url, study_id=study.id)
                 return StudyRecord.of(study)
         except IntegrityError:
             if idempotency_key is None:

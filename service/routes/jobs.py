@@ -22,12 +22,13 @@ from nanonav.store import JobStatus, JobStore, ResultsUnavailable
 from nanonav.store.arrays import pack
 from service.budget import check_budget
 from service.caching import IMMUTABLE
-from service.deps import DrawerDep, JsonBody, SettingsDep, StoreDep
+from service.callbacks import CallbackUrl, callback_answer, check_callback
+from service.deps import DeliveriesDep, DrawerDep, JsonBody, SettingsDep, StoreDep
 from service.drawing import Drawer
 from service.paging import decode_cursor, encode_cursor
 from service.policy_from import check_policy_from
-from service.problems import InvalidInput, NoQTable, field_error, problems
-from service.schemas import GreedyState, Job, JobPage, Metrics, QTable, Trajectory
+from service.problems import InvalidInput, NoCallback, NoQTable, field_error, problems
+from service.schemas import Callback, GreedyState, Job, JobPage, Metrics, QTable, Trajectory
 
 router = APIRouter(prefix="/jobs", tags=["jobs"])
 
@@ -63,8 +64,10 @@ def submit_job(
     settings: SettingsDep,
     response: Response,
     idempotency_key: Annotated[str | None, Header(max_length=200)] = None,
+    callback_url: CallbackUrl = None,
 ) -> Job:
     """Queue a scenario to run; answers once the job is stored."""
+    check_callback(callback_url, settings)
     check_budget(scenario, settings)
     check_policy_from(scenario, store.qtable, ("body", "policy_from"))
     job = store.enqueue(
@@ -72,6 +75,7 @@ def submit_job(
         robot_steps=scenario.robot_steps_budget,
         episodes=scenario.episodes,
         idempotency_key=idempotency_key,
+        callback_url=callback_url,
     )
     response.headers["Location"] = f"/jobs/{job.id}"
     return Job.of(job)
@@ -118,6 +122,16 @@ def cancel_job(job_id: JobId, store: StoreDep) -> Job:
     200 when the job is or will be cancelled (asking twice is harmless); 409 when it already
     ended another way, succeeded or failed."""
     return Job.of(store.cancel(job_id))
+
+
+@router.get("/{job_id}/callback", response_model=Callback, responses=problems(404, 422))
+def get_callback(job_id: JobId, store: StoreDep, deliveries: DeliveriesDep) -> Callback:
+    """The webhook the job sends when it ends (its ``callback_url``), and how sending it went."""
+    store.get(job_id)
+    record = deliveries.for_job(job_id)
+    if record is None:
+        raise NoCallback(f"job {job_id} was submitted without a callback_url")
+    return callback_answer(record)
 
 
 @router.get("/{job_id}/metrics", response_model=Metrics, responses=NOT_FOUND_OR_NOT_READY)

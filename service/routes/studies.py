@@ -25,13 +25,21 @@ from nanonav.studies.report import (
 from nanonav.studies.spec import StudySpec, point_values, points
 from service.budget import check_budget
 from service.caching import IMMUTABLE
-from service.deps import DrawerDep, JsonBody, SettingsDep, StoreDep, StudiesDep
+from service.callbacks import CallbackUrl, callback_answer, check_callback
+from service.deps import DeliveriesDep, DrawerDep, JsonBody, SettingsDep, StoreDep, StudiesDep
 from service.drawing import Drawer
 from service.paging import decode_cursor, encode_cursor
 from service.policy_from import check_policy_from
-from service.problems import InvalidInput, StudyFinished, field_error, invalid_body, problems
+from service.problems import (
+    InvalidInput,
+    NoCallback,
+    StudyFinished,
+    field_error,
+    invalid_body,
+    problems,
+)
 from service.routes.jobs import PNG
-from service.schemas import JobCounts, Study, StudyLinks, StudyPage, StudySummary
+from service.schemas import Callback, JobCounts, Study, StudyLinks, StudyPage, StudySummary
 
 router = APIRouter(prefix="/studies", tags=["studies"])
 
@@ -73,8 +81,10 @@ def submit_study(
     settings: SettingsDep,
     response: Response,
     idempotency_key: Annotated[str | None, Header(max_length=200)] = None,
+    callback_url: CallbackUrl = None,
 ) -> Study:
     """Queue every grid point x seed as a job, all in one transaction, after validating all."""
+    check_callback(callback_url, settings)
     if spec.job_count > settings.study_max_jobs:
         detail = (
             f"the study makes {spec.job_count} jobs (grid points x seeds), over the "
@@ -113,6 +123,7 @@ def submit_study(
         spec=stored.model_dump(mode="json"),
         jobs=jobs,
         idempotency_key=idempotency_key,
+        callback_url=callback_url,
     )
     response.headers["Location"] = f"/studies/{record.id}"
     return study_answer(studies, record)
@@ -155,6 +166,18 @@ def get_study(study_id: StudyId, studies: StudiesDep) -> Study:
     """A study's jobs per status and, per grid point and metric, mean and 95% CI; with
     `compare`, paired differences seed by seed."""
     return study_answer(studies, studies.get(study_id))
+
+
+@router.get("/{study_id}/callback", response_model=Callback, responses=problems(404, 422))
+def get_study_callback(
+    study_id: StudyId, studies: StudiesDep, deliveries: DeliveriesDep
+) -> Callback:
+    """The webhook the study sends when its last job ends, and how sending it went."""
+    studies.get(study_id)
+    record = deliveries.for_study(study_id)
+    if record is None:
+        raise NoCallback(f"study {study_id} was submitted without a callback_url")
+    return callback_answer(record)
 
 
 @router.post("/{study_id}/cancel", response_model=Study, responses=problems(404, 409, 422))

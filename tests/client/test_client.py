@@ -112,6 +112,21 @@ def test_the_same_idempotency_key_gives_the_same_job(api: Client) -> None:
     assert api.submit(TINY).id > first.id
 
 
+def test_a_callback_url_reaches_the_server_which_refuses_it_without_webhook_hosts(
+    api: Client,
+) -> None:
+    for submit in (
+        lambda: api.submit(TINY, callback_url="https://hooks.example.org/x"),
+        lambda: api.submit_study(
+            {"base": TINY, "grid": {"robots.count": [1]}, "seeds": [1]},
+            callback_url="https://hooks.example.org/x",
+        ),
+    ):
+        with pytest.raises(ApiError) as refused:
+            submit()
+        assert refused.value.status == 422 and "sends no webhooks" in str(refused.value)
+
+
 def test_listing_jobs_is_newest_first_and_stops_at_the_limit(api: Client) -> None:
     ids = [api.submit({**TINY, "seed": s}).id for s in range(3)]
     assert [j.id for j in api.jobs(limit=2)] == [ids[2], ids[1]]

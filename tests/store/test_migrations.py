@@ -24,6 +24,7 @@ def test_migrations_and_models_agree_both_ways(database_url: str) -> None:
         "studies",
         "study_plots",
         "workers",
+        "deliveries",
     }
     downgrade(database_url, "base")
     assert tables(database_url) == set()

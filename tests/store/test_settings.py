@@ -48,3 +48,45 @@ def test_a_bad_value_fails_at_start_up(
     monkeypatch.setenv(name, value)
     with pytest.raises(ValidationError):
         Settings()
+
+
+WEBHOOK_SECRET = "kq3N9vTz0bX7mR2sW5yC8dF1gH4jL6pA"
+
+
+def test_webhook_hosts_are_read_comma_separated_with_their_secret(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    monkeypatch.setenv(
+        "NANONAV_WEBHOOK_HOSTS", " Hooks.Example.org, *.lab.example.net,localhost:9000 "
+    )
+    monkeypatch.setenv("NANONAV_WEBHOOK_SECRET", WEBHOOK_SECRET)
+    settings = Settings()
+    assert settings.webhook_hosts == ("hooks.example.org", "*.lab.example.net", "localhost:9000")
+    assert settings.webhook_secret is not None
+    assert settings.webhook_secret.get_secret_value() == WEBHOOK_SECRET
+    assert WEBHOOK_SECRET not in repr(settings)
+    assert Settings(**settings.model_dump()).webhook_secret == settings.webhook_secret
+
+
+@pytest.mark.parametrize(
+    ("hosts", "secret", "why"),
+    [
+        ("hooks.example.org", None, "NANONAV_WEBHOOK_SECRET is not"),
+        ("hooks.example.org", "k3Q9zP", "shorter than 32"),
+        ("hooks.example.org", "changeme-changeme-changeme-changeme", "placeholder"),
+        ("hooks.example.org", "a" * 40, "placeholder"),
+        ("https://hooks.example.org/x", WEBHOOK_SECRET, "a webhook host looks like"),
+        ("hooks.*.org", WEBHOOK_SECRET, "a webhook host looks like"),
+        ("localhost:0", WEBHOOK_SECRET, "not a port"),
+    ],
+)
+def test_bad_webhook_settings_stop_the_process_saying_why_without_the_secret(
+    monkeypatch: pytest.MonkeyPatch, hosts: str, secret: str | None, why: str
+) -> None:
+    monkeypatch.setenv("NANONAV_WEBHOOK_HOSTS", hosts)
+    if secret is not None:
+        monkeypatch.setenv("NANONAV_WEBHOOK_SECRET", secret)
+    with pytest.raises(ValidationError, match=why) as refused:
+        Settings()
+    if secret is not None:
+        assert secret not in str(refused.value)
