@@ -209,6 +209,65 @@ class Settings(BaseSettings):
         "up to an hour (12 tries span about 3.6 hours).",
     )
 
+    api_keys: Annotated[tuple[SecretStr, ...], NoDecode] = Field(
+        (),
+        validation_alias=_aliases("api_keys"),
+        description="Comma-separated keys a client must send as 'Authorization: Bearer <key>' "
+        f"on every route but /healthz, each at least {MIN_WEBHOOK_SECRET_LENGTH} characters and "
+        "no placeholder; jobs and studies then belong to the key that made them. Empty (the "
+        "default): no keys, every job is everyone's.",
+    )
+    quota_active_jobs: int = Field(
+        1000,
+        ge=0,
+        validation_alias=_aliases("quota_active_jobs"),
+        description="Most queued and running jobs one key (or, without keys, one client "
+        "address) may have; a submit past it gets 429. 0: no limit.",
+    )
+    quota_robot_steps: int = Field(
+        5_000_000_000,
+        ge=0,
+        validation_alias=_aliases("quota_robot_steps"),
+        description="Most robot-steps (the budget's measure) one key or client address may have "
+        "queued and running; a submit past it gets 429. 0: no limit.",
+    )
+    allowed_hosts: Annotated[tuple[str, ...], NoDecode] = Field(
+        ("localhost", "127.0.0.1", "testserver"),
+        validation_alias=_aliases("allowed_hosts"),
+        description="Comma-separated Host names the API answers ('*.example.org' for "
+        "subdomains, '*' for any); another gets 400, against DNS rebinding. A deployment sets "
+        "its own name.",
+    )
+    allowed_origins: Annotated[tuple[str, ...], NoDecode] = Field(
+        (),
+        validation_alias=_aliases("allowed_origins"),
+        description="Comma-separated origins ('https://lab.example.org') other than the API's "
+        "own from which a browser may send a POST or DELETE; any other Origin gets 403.",
+    )
+
+    @field_validator("api_keys", "allowed_hosts", "allowed_origins", mode="before")
+    @classmethod
+    def _split_list(cls, value: object) -> object:
+        if isinstance(value, str):
+            return tuple(part.strip() for part in value.split(",") if part.strip())
+        return value
+
+    @field_validator("api_keys")
+    @classmethod
+    def _real_keys(cls, keys: tuple[SecretStr, ...]) -> tuple[SecretStr, ...]:
+        for key in keys:
+            _check_secret(key.get_secret_value(), "an API key")
+        return keys
+
+    @field_validator("allowed_origins")
+    @classmethod
+    def _origins(cls, origins: tuple[str, ...]) -> tuple[str, ...]:
+        for origin in origins:
+            scheme, sep, rest = origin.partition("://")
+            if scheme not in {"http", "https"} or not sep or not rest or "/" in rest:
+                raise ValueError(f"an origin looks like 'https://lab.example.org', not {origin!r}")
+        return tuple(origin.lower().rstrip("/") for origin in origins)
+
     @field_validator("webhook_hosts", mode="before")
     @classmethod
     def _split_hosts(cls, value: object) -> object:
@@ -232,17 +291,8 @@ class Settings(BaseSettings):
     @field_validator("webhook_secret")
     @classmethod
     def _real_secret(cls, secret: SecretStr | None) -> SecretStr | None:
-        if secret is None:
-            return None
-        value = secret.get_secret_value()
-        if len(value) < MIN_WEBHOOK_SECRET_LENGTH:
-            raise ValueError(
-                f"the webhook secret is shorter than {MIN_WEBHOOK_SECRET_LENGTH} characters; "
-                f"make one with {SECRET_RECIPE}"
-            )
-        if any(word in value.lower() for word in PLACEHOLDER_WORDS) or len(set(value)) < 8:
-            raise ValueError(f"the webhook secret looks like a placeholder; make one with "
-                             f"{SECRET_RECIPE}")  # fmt: skip
+        if secret is not None:
+            _check_secret(secret.get_secret_value(), "the webhook secret")
         return secret
 
     @model_validator(mode="after")
@@ -268,6 +318,17 @@ class Settings(BaseSettings):
         return url.render_as_string(hide_password=False)
 
 
+def _check_secret(value: str, what: str) -> None:
+    """Refuse a secret too short to resist guessing, or copied from an example."""
+    if len(value) < MIN_WEBHOOK_SECRET_LENGTH:
+        raise ValueError(
+            f"{what} is shorter than {MIN_WEBHOOK_SECRET_LENGTH} characters; "
+            f"make one with {SECRET_RECIPE}"
+        )
+    if any(word in value.lower() for word in PLACEHOLDER_WORDS) or len(set(value)) < 8:
+        raise ValueError(f"{what} looks like a placeholder; make one with {SECRET_RECIPE}")
+
+
 class ClientSettings(BaseSettings):
     """Configuration of the HTTP client and the commands that talk to a running API; apart
     from ``Settings`` so that a client never needs (or validates) the server's database."""
@@ -279,6 +340,12 @@ class ClientSettings(BaseSettings):
         validation_alias=_aliases("url"),
         description="Base URL of the NanoNav API that `nanonav submit`, `study`, `fetch`, "
         "`jobs` and `nanonav.client.Client` talk to.",
+    )
+    api_key: SecretStr | None = Field(
+        None,
+        validation_alias=_aliases("api_key"),
+        description="The key sent as 'Authorization: Bearer <key>' to an API that has "
+        "NANONAV_API_KEYS set; never printed.",
     )
 
     @field_validator("url")

@@ -9,6 +9,7 @@ from pathlib import Path
 
 from fastapi import FastAPI
 from fastapi.staticfiles import StaticFiles
+from starlette.middleware.trustedhost import TrustedHostMiddleware
 
 import nanonav
 from nanonav.settings import Settings
@@ -20,6 +21,7 @@ from service.drawing import Drawer
 from service.events import Poller
 from service.limits import BodySizeLimit
 from service.routes import events, jobs, meta, pages, studies
+from service.security import Guard
 
 STATIC = Path(__file__).resolve().parent / "static"
 DESCRIPTION = """Submit nanorobot scenarios, watch them run, and fetch their results.
@@ -65,6 +67,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.state.drawer = Drawer(settings.drawing_queue)
     app.add_middleware(BodySizeLimit, max_bytes=settings.max_body_bytes)
     app.add_middleware(ETags)
+    app.add_middleware(Guard, settings=settings)
+    app.add_middleware(TrustedHostMiddleware, allowed_hosts=list(settings.allowed_hosts))
     problems.install(app)
     app.add_exception_handler(events.NothingNew, events.nothing_new)
     app.include_router(jobs.router)

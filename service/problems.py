@@ -20,9 +20,12 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.responses import Response
 
 from nanonav.store import JobAlreadyFinished, JobNotFound, ResultsUnavailable, StudyNotFound
+from nanonav.store.errors import QuotaExceeded
 
 PROBLEM_JSON = "application/problem+json"
 PROBLEM_BASE = "urn:nanonav:problem:"
+# How long a client over its quota is asked to wait before it submits again, seconds.
+QUOTA_RETRY_AFTER_S = 30
 
 logger = logging.getLogger(__name__)
 
@@ -89,6 +92,13 @@ class UnsupportedMediaType(ProblemError):
     status = 415
     slug = "unsupported-media-type"
     title = "Unsupported media type"
+
+
+class Unauthorized(ProblemError):
+    status = 401
+    slug = "unauthorized"
+    title = "Unauthorized"
+    headers = {"WWW-Authenticate": 'Bearer realm="nanonav", error="invalid_token"'}  # noqa: RUF012
 
 
 class StudyFinished(ProblemError):
@@ -205,6 +215,12 @@ def install(app: FastAPI) -> None:
     async def on_finished(request: Request, exc: Exception) -> Response:
         return respond(request, 409, "job-finished", "Job already finished", str(exc))
 
+    async def on_quota(request: Request, exc: Exception) -> Response:
+        assert isinstance(exc, QuotaExceeded)
+        response = respond(request, 429, "quota-exceeded", "Quota exceeded", str(exc))
+        response.headers["Retry-After"] = str(QUOTA_RETRY_AFTER_S)
+        return response
+
     async def on_validation(request: Request, exc: Exception) -> Response:
         assert isinstance(exc, RequestValidationError)
         errors = [
@@ -278,6 +294,7 @@ def install(app: FastAPI) -> None:
     app.add_exception_handler(StudyNotFound, on_study_not_found)
     app.add_exception_handler(ResultsUnavailable, on_unavailable)
     app.add_exception_handler(JobAlreadyFinished, on_finished)
+    app.add_exception_handler(QuotaExceeded, on_quota)
     app.add_exception_handler(RequestValidationError, on_validation)
     app.add_exception_handler(StarletteHTTPException, on_http)
     app.add_exception_handler(OperationalError, on_database_down)

@@ -48,3 +48,19 @@ class LeaseLost(StoreError):
     def __init__(self, job_id: int) -> None:
         super().__init__(f"the lease on job {job_id} was lost")
         self.job_id = job_id
+
+
+class QuotaExceeded(StoreError):
+    """A submit would take its key past a quota: ``name`` is ``active_jobs`` (queued and
+    running jobs) or ``robot_steps`` (their robot-steps)."""
+
+    def __init__(self, name: str, limit: int, used: int, asked: int) -> None:
+        what = (
+            "queued and running jobs" if name == "active_jobs" else "robot-steps queued and running"
+        )
+        super().__init__(
+            f"the {name} quota allows {limit:,} {what}; {used:,} are in use and this submit "
+            f"adds {asked:,}: wait for some to finish, or cancel some"
+        )
+        self.name = name
+        self.limit = limit

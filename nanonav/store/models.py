@@ -34,6 +34,7 @@ from sqlalchemy import (
     String,
     Text,
     TypeDecorator,
+    UniqueConstraint,
 )
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column
 
@@ -83,12 +84,15 @@ class JobStatus(enum.StrEnum):
 
 class Study(Base):
     __tablename__ = "studies"
+    __table_args__ = (UniqueConstraint("owner", "idempotency_key"),)
 
     id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
     name: Mapped[str] = mapped_column(String(200))
     spec: Mapped[dict[str, Any]] = mapped_column(JSON)
     jobs: Mapped[int] = mapped_column(Integer)
-    idempotency_key: Mapped[str | None] = mapped_column(String(200), unique=True)
+    # The SHA-256 of the API key that made it; '' when the API has no keys.
+    owner: Mapped[str] = mapped_column(String(64), default="", server_default="")
+    idempotency_key: Mapped[str | None] = mapped_column(String(200))
     created_at: Mapped[datetime] = mapped_column(UTCDateTime())
     cancel_requested: Mapped[bool] = mapped_column(Boolean, default=False)
     # The report of a finished study, kept once computed: its jobs never change again.
@@ -101,6 +105,9 @@ class Job(Base):
         Index(None, "status", "id"),
         Index(None, "status", "lease_expires_at"),
         Index(None, "study_id", "id"),
+        Index(None, "owner", "id"),
+        Index(None, "quota_key", "status"),
+        UniqueConstraint("owner", "idempotency_key"),
     )
 
     id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
@@ -116,7 +123,11 @@ class Job(Base):
     )
     scenario: Mapped[dict[str, Any]] = mapped_column(JSON)
     robot_steps: Mapped[int] = mapped_column(BigInteger)
-    idempotency_key: Mapped[str | None] = mapped_column(String(200), unique=True)
+    # The SHA-256 of the API key that made it ('' when the API has no keys), and whom its
+    # quota counts against: the owner, or without keys the client's address.
+    owner: Mapped[str] = mapped_column(String(64), default="", server_default="")
+    quota_key: Mapped[str] = mapped_column(String(64), default="", server_default="")
+    idempotency_key: Mapped[str | None] = mapped_column(String(200))
     created_at: Mapped[datetime] = mapped_column(UTCDateTime())
     started_at: Mapped[datetime | None] = mapped_column(UTCDateTime())
     finished_at: Mapped[datetime | None] = mapped_column(UTCDateTime())

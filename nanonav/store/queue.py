@@ -30,6 +30,7 @@ from nanonav.store.db import (
 from nanonav.store.deliveries import add_waiting
 from nanonav.store.errors import JobAlreadyFinished, JobNotFound, LeaseLost, ResultsUnavailable
 from nanonav.store.models import Job, JobPlot, JobResult, JobStatus, UTCDateTime, Worker
+from nanonav.store.quotas import Quota, check_quota
 
 # A worker says it is alive this often; it counts as present for PRESENCE_WINDOW_S after.
 PRESENCE_INTERVAL_S = 5.0
@@ -59,6 +60,7 @@ class JobRecord:
     error: str | None
     attempts: int
     study_id: int | None = None
+    owner: str = ""
 
     @classmethod
     def of(cls, row: Job) -> JobRecord:
@@ -78,6 +80,7 @@ class JobRecord:
             error=row.error,
             attempts=row.attempts,
             study_id=row.study_id,
+            owner=row.owner,
         )
 
 
@@ -142,15 +145,25 @@ class JobStore:
         episodes: int,
         idempotency_key: str | None = None,
         callback_url: str | None = None,
+        owner: str = "",
+        quota: Quota | None = None,
     ) -> JobRecord:
-        """A new queued job (with the webhook its end sends to ``callback_url``); with a key
-        already used, the job that key made instead."""
+        """A new queued job of ``owner`` (with the webhook its end sends to ``callback_url``);
+        with a key ``owner`` already used, the job that key made instead. Past ``quota``,
+        ``QuotaExceeded``."""
         try:
-            with unit_of_work(self._sessions) as session:
+            with unit_of_work(self._sessions, write=quota is not None) as session:
+                if idempotency_key is not None:
+                    existing = session.scalars(keyed(Job, owner, idempotency_key)).one_or_none()
+                    if existing is not None:
+                        return JobRecord.of(existing)
+                check_quota(session, quota, jobs=1, robot_steps=robot_steps)
                 row = Job(
                     status=JobStatus.QUEUED,
                     scenario=scenario,
                     robot_steps=robot_steps,
+                    owner=owner,
+                    quota_key=owner if quota is None else quota.key,
                     idempotency_key=idempotency_key,
                     created_at=utcnow(),
                     episode=0,
@@ -168,14 +181,17 @@ class JobStore:
             if idempotency_key is None:
                 raise
             with unit_of_work(self._sessions) as session:
-                existing = session.scalars(
-                    select(Job).where(Job.idempotency_key == idempotency_key)
-                ).one()
-                return JobRecord.of(existing)
+                return JobRecord.of(session.scalars(keyed(Job, owner, idempotency_key)).one())
 
     def get(self, job_id: int) -> JobRecord:
         with unit_of_work(self._sessions) as session:
             return JobRecord.of(_job(session, job_id))
+
+    def owner_of(self, job_id: int) -> str | None:
+        """The owner of the job (its key's digest, '' for none), or None if there is no job."""
+        with unit_of_work(self._sessions) as session:
+            owner: str | None = session.scalar(select(Job.owner).where(Job.id == job_id))
+            return owner
 
     def get_many(self, job_ids: Collection[int]) -> dict[int, JobRecord]:
         """The jobs among ``job_ids`` that exist, by id, in one query: what an API process
@@ -194,10 +210,14 @@ class JobStore:
         before_id: int | None,
         study_id: int | None = None,
         policy: str | None = None,
+        owner: str | None = None,
     ) -> Page:
         """Up to ``limit`` jobs, newest first, older than ``before_id`` when given; only those
-        in ``status``, of ``study_id``, or whose robots follow ``policy``, when given."""
+        in ``status``, of ``study_id``, whose robots follow ``policy``, or of ``owner``, when
+        given."""
         query = select(Job).order_by(Job.id.desc()).limit(limit + 1)
+        if owner is not None:
+            query = query.where(Job.owner == owner)
         if status is not None:
             query = query.where(Job.status == status)
         if study_id is not None:
@@ -469,6 +489,11 @@ class JobStore:
         )
         with unit_of_work(self._sessions, write=True) as session:
             return len(session.scalars(statement).all())
+
+
+def keyed(table: Any, owner: str, idempotency_key: str) -> Any:
+    """The row ``owner`` made with ``idempotency_key``: keys are scoped per owner."""
+    return select(table).where(table.owner == owner, table.idempotency_key == idempotency_key)
 
 
 def aware(value: datetime) -> datetime:

@@ -20,7 +20,8 @@ from nanonav.store.db import add_once, make_sessionmaker, unit_of_work
 from nanonav.store.deliveries import add_waiting
 from nanonav.store.errors import StudyNotFound
 from nanonav.store.models import Job, JobResult, JobStatus, Study, StudyPlot
-from nanonav.store.queue import aware, utcnow
+from nanonav.store.queue import aware, keyed, utcnow
+from nanonav.store.quotas import Quota, check_quota
 
 
 @dataclass(frozen=True)
@@ -43,6 +44,7 @@ class StudyRecord:
     created_at: datetime
     cancel_requested: bool
     report: dict[str, Any] | None
+    owner: str = ""
 
     @classmethod
     def of(cls, row: Study) -> StudyRecord:
@@ -54,6 +56,7 @@ class StudyRecord:
             created_at=row.created_at,
             cancel_requested=row.cancel_requested,
             report=row.report,
+            owner=row.owner,
         )
 
 
@@ -102,16 +105,28 @@ class StudyStore:
         jobs: Sequence[StudyJob],
         idempotency_key: str | None = None,
         callback_url: str | None = None,
+        owner: str = "",
+        quota: Quota | None = None,
     ) -> StudyRecord:
-        """The study and every one of its jobs, queued in one transaction; with a key already
-        used, the study that key made instead."""
+        """The study of ``owner`` and every one of its jobs, queued in one transaction; with a
+        key ``owner`` already used, the study that key made instead. Past ``quota`` (which
+        counts every job of the study), ``QuotaExceeded``."""
         now = utcnow()
+        quota_key = owner if quota is None else quota.key
         try:
-            with unit_of_work(self._sessions) as session:
+            with unit_of_work(self._sessions, write=quota is not None) as session:
+                if idempotency_key is not None:
+                    found = session.scalars(keyed(Study, owner, idempotency_key)).one_or_none()
+                    if found is not None:
+                        return StudyRecord.of(found)
+                check_quota(
+                    session, quota, jobs=len(jobs), robot_steps=sum(j.robot_steps for j in jobs)
+                )
                 study = Study(
                     name=name,
                     spec=spec,
                     jobs=len(jobs),
+                    owner=owner,
                     idempotency_key=idempotency_key,
                     created_at=now,
                     cancel_requested=False,
@@ -125,6 +140,8 @@ class StudyStore:
                             "status": JobStatus.QUEUED,
                             "scenario": job.scenario,
                             "robot_steps": job.robot_steps,
+                            "owner": owner,
+                            "quota_key": quota_key,
                             "created_at": now,
                             "episode": 0,
                             "episodes": job.episodes,
@@ -145,18 +162,24 @@ class StudyStore:
             if idempotency_key is None:
                 raise
             with unit_of_work(self._sessions) as session:
-                existing = session.scalars(
-                    select(Study).where(Study.idempotency_key == idempotency_key)
-                ).one()
-                return StudyRecord.of(existing)
+                return StudyRecord.of(session.scalars(keyed(Study, owner, idempotency_key)).one())
 
     def get(self, study_id: int) -> StudyRecord:
         with unit_of_work(self._sessions) as session:
             return StudyRecord.of(_study(session, study_id))
 
-    def page(self, *, limit: int, before_id: int | None) -> StudyPage:
-        """Up to ``limit`` studies, newest first, older than ``before_id`` when given."""
+    def owner_of(self, study_id: int) -> str | None:
+        """The owner of the study ('' for none), or None if there is no such study."""
+        with unit_of_work(self._sessions) as session:
+            owner: str | None = session.scalar(select(Study.owner).where(Study.id == study_id))
+            return owner
+
+    def page(self, *, limit: int, before_id: int | None, owner: str | None = None) -> StudyPage:
+        """Up to ``limit`` studies, newest first, older than ``before_id`` when given; only
+        those of ``owner`` when given."""
         query = select(Study).order_by(Study.id.desc()).limit(limit + 1)
+        if owner is not None:
+            query = query.where(Study.owner == owner)
         if before_id is not None:
             query = query.where(Study.id < before_id)
         with unit_of_work(self._sessions) as session:

@@ -28,8 +28,9 @@ from service.problems import PROBLEM_JSON, EventsUnavailable
 from service.routes.jobs import JobId
 from service.routes.studies import FINISHED, StudyId
 from service.schemas import Job, JobCounts, StudyState
+from service.security import OwnedOnly
 
-router = APIRouter(tags=["events"])
+router = APIRouter(tags=["events"], dependencies=[OwnedOnly])
 
 # Browsers reconnect this long after a stream drops (the SSE default is left to each browser).
 RETRY_MS = 1000

@@ -18,19 +18,20 @@ from nanonav import plots
 from nanonav.engine import SimulationResult
 from nanonav.policy import greedy_table
 from nanonav.scenario import Policy, Scenario
-from nanonav.store import JobStatus, JobStore, ResultsUnavailable
+from nanonav.store import JobStatus, JobStore, ResultsUnavailable, StudyNotFound
 from nanonav.store.arrays import pack
 from service.budget import check_budget
 from service.caching import IMMUTABLE
 from service.callbacks import CallbackUrl, callback_answer, check_callback
-from service.deps import DeliveriesDep, DrawerDep, JsonBody, SettingsDep, StoreDep
+from service.deps import DeliveriesDep, DrawerDep, JsonBody, SettingsDep, StoreDep, StudiesDep
 from service.drawing import Drawer
 from service.paging import decode_cursor, encode_cursor
 from service.policy_from import check_policy_from
 from service.problems import InvalidInput, NoCallback, NoQTable, field_error, problems
 from service.schemas import Callback, GreedyState, Job, JobPage, Metrics, QTable, Trajectory
+from service.security import CallerDep, OwnedOnly, owned_tables, quota_of
 
-router = APIRouter(prefix="/jobs", tags=["jobs"])
+router = APIRouter(prefix="/jobs", tags=["jobs"], dependencies=[OwnedOnly])
 
 # Pictures of what a cancelled job keeps: the episodes it finished and the table it learned.
 KEPT_PICTURES = ("learning", "qtable")
@@ -56,12 +57,13 @@ SCENARIO_EXAMPLES: dict[str, Any] = {
     status_code=202,
     response_model=Job,
     dependencies=[JsonBody],
-    responses=problems(400, 413, 415, 422),
+    responses=problems(400, 413, 415, 422, 429),
 )
 def submit_job(
     scenario: Annotated[Scenario, Body(openapi_examples=SCENARIO_EXAMPLES)],
     store: StoreDep,
     settings: SettingsDep,
+    caller: CallerDep,
     response: Response,
     idempotency_key: Annotated[str | None, Header(max_length=200)] = None,
     callback_url: CallbackUrl = None,
@@ -69,21 +71,25 @@ def submit_job(
     """Queue a scenario to run; answers once the job is stored."""
     check_callback(callback_url, settings)
     check_budget(scenario, settings)
-    check_policy_from(scenario, store.qtable, ("body", "policy_from"))
+    check_policy_from(scenario, owned_tables(store, caller), ("body", "policy_from"))
     job = store.enqueue(
         scenario.model_dump(mode="json"),
         robot_steps=scenario.robot_steps_budget,
         episodes=scenario.episodes,
         idempotency_key=idempotency_key,
         callback_url=callback_url,
+        owner=caller.owner,
+        quota=quota_of(caller, settings),
     )
     response.headers["Location"] = f"/jobs/{job.id}"
     return Job.of(job)
 
 
-@router.get("", response_model=JobPage, responses=problems(422))
+@router.get("", response_model=JobPage, responses=problems(404, 422))
 def list_jobs(
     store: StoreDep,
+    studies: StudiesDep,
+    caller: CallerDep,
     status: Annotated[JobStatus | None, Query(description="Only jobs in this state.")] = None,
     study: Annotated[
         int | None, Query(ge=1, le=2**63 - 1, description="Only the jobs of this study.")
@@ -92,9 +98,18 @@ def list_jobs(
     limit: Annotated[int, Query(ge=1, le=100, description="Jobs per page.")] = 20,
     cursor: Annotated[str | None, Query(max_length=64, description="From `next_cursor`.")] = None,
 ) -> JobPage:
-    """A page of jobs, newest first."""
+    """A page of jobs, newest first; with API keys, only the caller's own."""
+    if caller.scoped and study is not None and studies.owner_of(study) != caller.owner:
+        raise StudyNotFound(study)
     before = None if cursor is None else decode_cursor(cursor)
-    page = store.page(status=status, limit=limit, before_id=before, study_id=study, policy=policy)
+    page = store.page(
+        status=status,
+        limit=limit,
+        before_id=before,
+        study_id=study,
+        policy=policy,
+        owner=caller.only,
+    )
     next_cursor = None if page.next_before_id is None else encode_cursor(page.next_before_id)
     next_url = None
     if next_cursor is not None:

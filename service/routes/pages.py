@@ -19,6 +19,7 @@ from fastapi import Path as PathParam
 from fastapi.openapi.docs import get_swagger_ui_html
 from fastapi.responses import FileResponse, HTMLResponse, Response
 from fastapi.templating import Jinja2Templates
+from pydantic import BaseModel, ConfigDict, Field
 
 from nanonav import table1
 from nanonav.scenario import PRESETS, ActionSet, FieldModel, Policy, Scenario
@@ -28,8 +29,10 @@ from nanonav.studies.report import METRICS
 from nanonav.studies.spec import GRID_KEYS
 from service.deps import SettingsDep, StoreDep, StudiesDep
 from service.paging import decode_cursor, encode_cursor
+from service.problems import Unauthorized
 from service.routes.studies import list_studies, study_answer
 from service.schemas import Job
+from service.security import KEY_COOKIE, Caller, CallerDep, login_cookie, matching_key
 
 router = APIRouter(include_in_schema=False)
 templates = Jinja2Templates(directory=Path(__file__).resolve().parents[1] / "templates")
@@ -79,9 +82,12 @@ def _form_choices() -> dict[str, Any]:
 
 
 @router.get("/", response_class=HTMLResponse)
-def index(request: Request, store: StoreDep, studies: StudiesDep) -> HTMLResponse:
-    jobs = [Job.of(j) for j in store.page(status=None, limit=10, before_id=None).jobs]
-    recent = list_studies(studies, limit=5).studies
+def index(
+    request: Request, store: StoreDep, studies: StudiesDep, caller: CallerDep
+) -> HTMLResponse:
+    page = store.page(status=None, limit=10, before_id=None, owner=caller.only)
+    jobs = [Job.of(j) for j in page.jobs]
+    recent = list_studies(studies, caller, limit=5).studies
     return _page(request, "index.html", nav="new", jobs=jobs, studies=recent, **_form_choices())
 
 
@@ -89,6 +95,7 @@ def index(request: Request, store: StoreDep, studies: StudiesDep) -> HTMLRespons
 def jobs_page(
     request: Request,
     store: StoreDep,
+    caller: CallerDep,
     status: Annotated[str, Query(max_length=16)] = "",
     policy: Annotated[str, Query(max_length=32)] = "",
     study: Annotated[str, Query(max_length=20)] = "",
@@ -101,7 +108,7 @@ def jobs_page(
     before = None if cursor is None else decode_cursor(cursor)
     page = store.page(
         status=wanted_status, limit=25, before_id=before, study_id=wanted_study,
-        policy=wanted_policy,
+        policy=wanted_policy, owner=caller.only,
     )  # fmt: skip
     filters = {"status": wanted_status.value if wanted_status else "",
                "policy": wanted_policy or "", "study": wanted_study}  # fmt: skip
@@ -119,12 +126,15 @@ def jobs_page(
 
 
 @router.get("/ui/jobs/{job_id}", response_class=HTMLResponse)
-def job_page(request: Request, job_id: PageId, store: StoreDep) -> HTMLResponse:
+def job_page(request: Request, job_id: PageId, store: StoreDep, caller: CallerDep) -> HTMLResponse:
     """A job: its progress live, then its Table 1, pictures and 3-D paths."""
     try:
-        job = Job.of(store.get(job_id))
+        record = store.get(job_id)
     except JobNotFound:
         return _missing(request, f"job {job_id}")
+    if caller.scoped and record.owner != caller.owner:
+        return _missing(request, f"job {job_id}")
+    job = Job.of(record)
     metrics = store.metrics(job_id) if job.status == "succeeded" else None
     stride = 1
     if metrics is not None and metrics.get("worlds"):
@@ -144,9 +154,10 @@ def job_page(request: Request, job_id: PageId, store: StoreDep) -> HTMLResponse:
 def studies_page(
     request: Request,
     studies: StudiesDep,
+    caller: CallerDep,
     cursor: Annotated[str | None, Query(max_length=64)] = None,
 ) -> HTMLResponse:
-    page = list_studies(studies, limit=25, cursor=cursor)
+    page = list_studies(studies, caller, limit=25, cursor=cursor)
     next_url = None if page.next_cursor is None else f"/ui/studies?cursor={page.next_cursor}"
     return _page(
         request, "studies.html", nav="studies", studies=page.studies, next=next_url,
@@ -162,8 +173,11 @@ def new_study_page(request: Request, settings: SettingsDep) -> HTMLResponse:
     )  # fmt: skip
 
 
-def _study_context(studies: StudiesDep, study_id: int) -> dict[str, Any]:
-    study = study_answer(studies, studies.get(study_id))
+def _study_context(studies: StudiesDep, study_id: int, caller: Caller) -> dict[str, Any]:
+    record = studies.get(study_id)
+    if caller.scoped and record.owner != caller.owner:
+        raise StudyNotFound(study_id)
+    study = study_answer(studies, record)
     keys = list(study.spec.get("grid", {}))
     compare = study.spec.get("compare")
     done = study.jobs.succeeded + study.jobs.failed + study.jobs.cancelled
@@ -182,23 +196,64 @@ def _study_context(studies: StudiesDep, study_id: int) -> dict[str, Any]:
 
 
 @router.get("/ui/studies/{study_id}", response_class=HTMLResponse)
-def study_page(request: Request, study_id: PageId, studies: StudiesDep) -> HTMLResponse:
+def study_page(
+    request: Request, study_id: PageId, studies: StudiesDep, caller: CallerDep
+) -> HTMLResponse:
     """A study: its jobs filling in live, its table with intervals and paired comparisons."""
     try:
-        context = _study_context(studies, study_id)
+        context = _study_context(studies, study_id, caller)
     except StudyNotFound:
         return _missing(request, f"study {study_id}")
     return _page(request, "study.html", nav="studies", **context)
 
 
 @router.get("/ui/studies/{study_id}/results", response_class=HTMLResponse)
-def study_results(request: Request, study_id: PageId, studies: StudiesDep) -> HTMLResponse:
+def study_results(
+    request: Request, study_id: PageId, studies: StudiesDep, caller: CallerDep
+) -> HTMLResponse:
     """The study page's results and counts alone, for the page to refresh as jobs finish."""
     try:
-        context = _study_context(studies, study_id)
+        context = _study_context(studies, study_id, caller)
     except StudyNotFound:
         return _missing(request, f"study {study_id}")
     return templates.TemplateResponse(request, "_study_fragment.html", context)
+
+
+@router.get("/ui/login", response_class=HTMLResponse)
+def login_page(
+    request: Request, next: Annotated[str, Query(max_length=2000)] = "/"
+) -> HTMLResponse:
+    """Where a person pastes an API key, for the dashboard to send with every request."""
+    target = next if next.startswith("/") and not next.startswith("//") else "/"
+    return templates.TemplateResponse(request, "login.html", {"next": target, "health": None})
+
+
+class Login(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    key: str = Field(min_length=1, max_length=1000, description="An API key.")
+
+
+@router.post("/ui/login", status_code=204, response_class=Response)
+def login(login: Login, request: Request, settings: SettingsDep) -> Response:
+    """Check the key and keep it in an HttpOnly, SameSite=Strict cookie until the browser
+    closes: script cannot read it and another site's requests do not carry it."""
+    keys = tuple(key.get_secret_value() for key in settings.api_keys)
+    if keys and not matching_key(login.key, keys):
+        raise Unauthorized("the key is not one this API accepts")
+    response = Response(status_code=204)
+    if keys:
+        secure = request.url.scheme == "https"
+        response.headers["Set-Cookie"] = login_cookie(login.key, secure=secure)
+    return response
+
+
+@router.post("/ui/logout", status_code=204, response_class=Response)
+def logout() -> Response:
+    """Forget the dashboard's key."""
+    response = Response(status_code=204)
+    response.headers["Set-Cookie"] = f"{KEY_COOKIE}=; Path=/; Max-Age=0; HttpOnly; SameSite=Strict"
+    return response
 
 
 @router.get("/static/vendor/{name}")

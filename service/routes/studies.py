@@ -40,8 +40,9 @@ from service.problems import (
 )
 from service.routes.jobs import PNG
 from service.schemas import Callback, JobCounts, Study, StudyLinks, StudyPage, StudySummary
+from service.security import CallerDep, OwnedOnly, owned_tables, quota_of
 
-router = APIRouter(prefix="/studies", tags=["studies"])
+router = APIRouter(prefix="/studies", tags=["studies"], dependencies=[OwnedOnly])
 
 StudyId = Annotated[int, Path(ge=1, le=2**63 - 1, description="The study's id.")]
 PictureName = Annotated[
@@ -72,13 +73,14 @@ STUDY_EXAMPLES: dict[str, Any] = {
     status_code=202,
     response_model=Study,
     dependencies=[JsonBody],
-    responses=problems(400, 413, 415, 422),
+    responses=problems(400, 413, 415, 422, 429),
 )
 def submit_study(
     spec: Annotated[StudySpec, Body(openapi_examples=STUDY_EXAMPLES)],
     studies: StudiesDep,
     store: StoreDep,
     settings: SettingsDep,
+    caller: CallerDep,
     response: Response,
     idempotency_key: Annotated[str | None, Header(max_length=200)] = None,
     callback_url: CallbackUrl = None,
@@ -99,7 +101,7 @@ def submit_study(
         grid = points(spec)
     except ValidationError as error:
         raise invalid_body(error) from None
-    read = cache(store.qtable)  # points that name the same job read its table once
+    read = cache(owned_tables(store, caller))  # points that name the same job read its table once
     for point in grid:
         blame = [("body", "grid", k, spec.grid[k].index(v)) for k, v in point.values.items()]
         check_budget(point.scenario, settings, blame or None)
@@ -124,6 +126,8 @@ def submit_study(
         jobs=jobs,
         idempotency_key=idempotency_key,
         callback_url=callback_url,
+        owner=caller.owner,
+        quota=quota_of(caller, settings),
     )
     response.headers["Location"] = f"/studies/{record.id}"
     return study_answer(studies, record)
@@ -132,11 +136,13 @@ def submit_study(
 @router.get("", response_model=StudyPage, responses=problems(422))
 def list_studies(
     studies: StudiesDep,
+    caller: CallerDep,
     limit: Annotated[int, Query(ge=1, le=100, description="Studies per page.")] = 20,
     cursor: Annotated[str | None, Query(max_length=64, description="From `next_cursor`.")] = None,
 ) -> StudyPage:
-    """A page of studies, newest first."""
-    page = studies.page(limit=limit, before_id=None if cursor is None else decode_cursor(cursor))
+    """A page of studies, newest first; with API keys, only the caller's own."""
+    before = None if cursor is None else decode_cursor(cursor)
+    page = studies.page(limit=limit, before_id=before, owner=caller.only)
     counts = studies.counts([s.id for s in page.studies])
     summaries = []
     for record in page.studies:

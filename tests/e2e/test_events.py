@@ -19,7 +19,7 @@ from sqlalchemy import event
 
 from nanonav.settings import Settings
 from service.app import create_app
-from tests.conftest import Api, serve
+from tests.conftest import SCRIPTED, Api, serve
 from tests.e2e.test_jobs import LONG, TINY, submit
 from tests.processes import FIRST_JOB_S, Worker, clean_environment, free_port
 from tests.sse import Message, amessages, events
@@ -143,7 +143,9 @@ def test_a_hundred_streams_cost_one_store_query_per_tick(
 
         async def scenario() -> tuple[list[list[Message]], int, int]:
             limits = httpx.Limits(max_connections=STREAMS + 10)
-            async with httpx.AsyncClient(base_url=url, timeout=30, limits=limits) as client:
+            async with httpx.AsyncClient(
+                base_url=url, timeout=30, limits=limits, headers=SCRIPTED
+            ) as client:
                 watchers = [asyncio.create_task(watch_one(client)) for _ in range(STREAMS)]
                 deadline = time.monotonic() + FIRST_JOB_S
                 while channel.listeners < STREAMS or app.state.store.get(job_id).fraction == 0:

@@ -292,7 +292,7 @@ def test_streams_are_503_while_the_poller_is_not_running(sqlite_url: str) -> Non
 
     async def ask() -> list[httpx.Response]:
         transport = httpx.ASGITransport(app=app)
-        async with httpx.AsyncClient(transport=transport, base_url="http://api") as client:
+        async with httpx.AsyncClient(transport=transport, base_url="http://testserver") as client:
             job_id = (await client.post("/jobs", json={})).json()["id"]
             study_id = (await client.post("/studies", json=STUDY)).json()["id"]
             return [

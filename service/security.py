@@ -1,0 +1,229 @@
+"""Who is asking, and whether a request may go on: API keys, cross-site requests, owners.
+
+``Guard`` is one pure ASGI middleware for the whole app. With ``NANONAV_API_KEYS`` set, every
+request but ``/healthz`` and the login page's assets carries ``Authorization: Bearer <key>`` (a
+browser may carry it in the dashboard's cookie instead); the key is compared in constant time
+with every configured key, and only its SHA-256 digest is kept: it names the request's owner.
+A request that changes state (POST, PUT, PATCH, DELETE) must be JSON or carry a custom header,
+which an HTML form on another site cannot send, and an ``Origin`` it names must be this API's
+own or an allowed one.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import hmac
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Annotated, Any
+from urllib.parse import quote, urlsplit
+
+from fastapi import Depends, Request
+from numpy.typing import NDArray
+from starlette.datastructures import Headers
+from starlette.responses import RedirectResponse
+from starlette.types import ASGIApp, Receive, Scope, Send
+
+from nanonav.settings import Settings
+from nanonav.store import JobNotFound, JobStore, StudyNotFound, StudyStore
+from nanonav.store.quotas import Quota
+from service.problems import PROBLEM_BASE, Problem, problem_response
+
+# The dashboard keeps the key in this cookie (HttpOnly, SameSite=Strict) once a person logs in.
+KEY_COOKIE = "nanonav_key"
+# Reachable without a key: the health check, and what the login page needs to show itself.
+OPEN_PATHS = frozenset(
+    {
+        "/healthz",
+        "/ui/login",
+        "/static/app.css",
+        "/static/app.js",
+        "/static/favicon.svg",
+        "/static/login.js",
+    }
+)
+UNSAFE_METHODS = frozenset({"POST", "PUT", "PATCH", "DELETE"})
+# A header a cross-site HTML form cannot send; marks a body-less POST as made by a script.
+SCRIPT_HEADER = "x-requested-with"
+
+
+def owner_of(key: str) -> str:
+    """What is stored of a key: its SHA-256 digest, in hex."""
+    return hashlib.sha256(key.encode()).hexdigest()
+
+
+@dataclass(frozen=True)
+class Caller:
+    """Who made a request: ``owner`` is the key's digest ('' without keys); ``scoped`` says
+    whether ownership is enforced; ``quota_key`` is what its quota is counted against (the
+    owner, or without keys the client's address)."""
+
+    owner: str
+    scoped: bool
+    quota_key: str
+
+    @property
+    def only(self) -> str | None:
+        """The owner to filter listings by, or None when every job is everyone's."""
+        return self.owner if self.scoped else None
+
+
+def matching_key(candidate: str, keys: tuple[str, ...]) -> bool:
+    """Whether ``candidate`` is one of ``keys``, comparing with every one in constant time."""
+    found = False
+    for key in keys:
+        found |= hmac.compare_digest(candidate.encode(), key.encode())
+    return found
+
+
+def presented_key(headers: Headers) -> str | None:
+    """The key a request carries: a Bearer token, else the dashboard's cookie."""
+    scheme, _, token = headers.get("authorization", "").partition(" ")
+    if scheme.lower() == "bearer" and token.strip():
+        return token.strip()
+    for part in headers.get("cookie", "").split(";"):
+        name, _, value = part.strip().partition("=")
+        if name == KEY_COOKIE and value:
+            return value
+    return None
+
+
+def _problem(scope: Scope, status: int, slug: str, title: str, detail: str) -> Problem:
+    return Problem(type=PROBLEM_BASE + slug, title=title, status=status, detail=detail,
+                   instance=scope.get("path"))  # fmt: skip
+
+
+class Guard:
+    """Pure ASGI middleware: authenticates the request, then refuses cross-site writes."""
+
+    def __init__(self, app: ASGIApp, settings: Settings) -> None:
+        self.app = app
+        self.keys = tuple(key.get_secret_value() for key in settings.api_keys)
+        self.origins = frozenset(settings.allowed_origins)
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        headers = Headers(scope=scope)
+        path: str = scope["path"]
+        owner = ""
+        if self.keys and path not in OPEN_PATHS:
+            key = presented_key(headers)
+            if key is None or not matching_key(key, self.keys):
+                await self._unauthorized(scope, headers, key is not None)(scope, receive, send)
+                return
+            owner = owner_of(key)
+        refusal = self._cross_site(scope, headers)
+        if refusal is not None:
+            await problem_response(refusal)(scope, receive, send)
+            return
+        client = scope.get("client")
+        address = client[0] if client else ""
+        scope.setdefault("state", {})["caller"] = Caller(
+            owner=owner, scoped=bool(self.keys), quota_key=owner if self.keys else address
+        )
+        await self.app(scope, receive, send)
+
+    def _unauthorized(self, scope: Scope, headers: Headers, presented: bool) -> ASGIApp:
+        """401 with a challenge; a person's browser opening a page is sent to the login page."""
+        path: str = scope["path"]
+        page = path == "/" or path.startswith(("/ui/", "/docs"))
+        if scope["method"] == "GET" and page and "text/html" in headers.get("accept", ""):
+            query = scope.get("query_string", b"").decode("latin-1")
+            target = path + (f"?{query}" if query else "")
+            return RedirectResponse(f"/ui/login?next={quote(target, safe='')}", status_code=303)
+        challenge = 'Bearer realm="nanonav"'
+        detail = "this API needs a key: send 'Authorization: Bearer <key>'"
+        if presented:
+            challenge += ', error="invalid_token"'
+            detail = "the key sent is not one this API accepts"
+        problem = _problem(scope, 401, "unauthorized", "Unauthorized", detail)
+        return problem_response(problem, {"WWW-Authenticate": challenge})
+
+    def _cross_site(self, scope: Scope, headers: Headers) -> Problem | None:
+        """Why a state-changing request may have been forged by another site, if it may."""
+        if scope["method"] not in UNSAFE_METHODS:
+            return None
+        origin = headers.get("origin")
+        if origin is not None and not self._own_origin(origin.lower(), headers):
+            detail = f"requests from origin {origin!r} may not change anything here"
+            return _problem(scope, 403, "forbidden-origin", "Forbidden origin", detail)
+        media = headers.get("content-type", "").split(";")[0].strip().lower()
+        kind, _, subtype = media.partition("/")
+        json = kind == "application" and (subtype == "json" or subtype.endswith("+json"))
+        if not json and SCRIPT_HEADER not in headers:
+            detail = (
+                f"a {scope['method']} must be application/json (it is "
+                f"{media or 'undeclared'}) or carry an X-Requested-With header"
+            )
+            return _problem(scope, 415, "unsupported-media-type", "Unsupported media type",
+                            detail)  # fmt: skip
+        return None
+
+    def _own_origin(self, origin: str, headers: Headers) -> bool:
+        if origin in self.origins:
+            return True
+        parts = urlsplit(origin)
+        return bool(parts.netloc) and parts.netloc == headers.get("host", "").lower()
+
+
+def _caller(request: Request) -> Caller:
+    caller = request.scope.get("state", {}).get("caller")
+    if isinstance(caller, Caller):
+        return caller
+    return Caller(owner="", scoped=False, quota_key="")
+
+
+CallerDep = Annotated[Caller, Depends(_caller)]
+
+
+def _path_id(request: Request, name: str) -> int | None:
+    """The path parameter ``name`` as a valid id, or None (then the route's own validation
+    answers for it)."""
+    raw = request.path_params.get(name)
+    if not isinstance(raw, str) or not raw.isdigit():
+        return None
+    value = int(raw)
+    return value if 1 <= value < 2**63 else None
+
+
+def require_owner(request: Request, caller: CallerDep) -> None:
+    """A job or study named in the path that another key made is, to this caller, not there."""
+    if not caller.scoped:
+        return
+    job_id = _path_id(request, "job_id")
+    if job_id is not None:
+        store: JobStore = request.app.state.store
+        if store.owner_of(job_id) not in {None, caller.owner}:
+            raise JobNotFound(job_id)
+    study_id = _path_id(request, "study_id")
+    if study_id is not None:
+        studies: StudyStore = request.app.state.studies
+        if studies.owner_of(study_id) not in {None, caller.owner}:
+            raise StudyNotFound(study_id)
+
+
+OwnedOnly = Depends(require_owner)
+
+
+def owned_tables(store: JobStore, caller: Caller) -> Callable[[int], dict[str, NDArray[Any]]]:
+    """The Q-table reader ``policy_from`` checks use: another key's job is not there."""
+
+    def read(job_id: int) -> dict[str, NDArray[Any]]:
+        if caller.scoped and store.owner_of(job_id) != caller.owner:
+            raise JobNotFound(job_id)
+        return store.qtable(job_id)
+
+    return read
+
+
+def quota_of(caller: Caller, settings: Settings) -> Quota:
+    """The quota a submit by ``caller`` counts against."""
+    return Quota(caller.quota_key, settings.quota_active_jobs, settings.quota_robot_steps)
+
+
+def login_cookie(key: str, *, secure: bool) -> str:
+    """The Set-Cookie value that keeps ``key`` for the dashboard until the browser closes."""
+    flags = "; Secure" if secure else ""
+    return f"{KEY_COOKIE}={key}; Path=/; HttpOnly; SameSite=Strict{flags}"
