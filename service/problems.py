@@ -19,7 +19,13 @@ from sqlalchemy.exc import OperationalError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.responses import Response
 
-from nanonav.store import JobAlreadyFinished, JobNotFound, ResultsUnavailable, StudyNotFound
+from nanonav.store import (
+    IdempotencyKeyReused,
+    JobAlreadyFinished,
+    JobNotFound,
+    ResultsUnavailable,
+    StudyNotFound,
+)
 
 PROBLEM_JSON = "application/problem+json"
 PROBLEM_BASE = "urn:nanonav:problem:"
@@ -205,6 +211,12 @@ def install(app: FastAPI) -> None:
     async def on_finished(request: Request, exc: Exception) -> Response:
         return respond(request, 409, "job-finished", "Job already finished", str(exc))
 
+    async def on_key_reused(request: Request, exc: Exception) -> Response:
+        detail = str(exc)
+        error = field_error(["header", "idempotency-key"], detail, "idempotency_key_reused")
+        slug, title = "idempotency-key-reused", "Idempotency key reused"
+        return respond(request, 422, slug, title, detail, [error])
+
     async def on_validation(request: Request, exc: Exception) -> Response:
         assert isinstance(exc, RequestValidationError)
         errors = [
@@ -278,6 +290,7 @@ def install(app: FastAPI) -> None:
     app.add_exception_handler(StudyNotFound, on_study_not_found)
     app.add_exception_handler(ResultsUnavailable, on_unavailable)
     app.add_exception_handler(JobAlreadyFinished, on_finished)
+    app.add_exception_handler(IdempotencyKeyReused, on_key_reused)
     app.add_exception_handler(RequestValidationError, on_validation)
     app.add_exception_handler(StarletteHTTPException, on_http)
     app.add_exception_handler(OperationalError, on_database_down)

@@ -48,3 +48,14 @@ class LeaseLost(StoreError):
     def __init__(self, job_id: int) -> None:
         super().__init__(f"the lease on job {job_id} was lost")
         self.job_id = job_id
+
+
+class IdempotencyKeyReused(StoreError):
+    """A key that still holds was sent again with a different request."""
+
+    def __init__(self, key: str, kind: str, made_id: int) -> None:
+        super().__init__(
+            f"the Idempotency-Key {key!r} was already used, within its lifetime, for a different "
+            f"request (it made {kind} {made_id}); send that request again or use a new key"
+        )
+        self.key = key
