@@ -19,7 +19,13 @@ from sqlalchemy.exc import OperationalError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.responses import Response
 
-from nanonav.store import JobAlreadyFinished, JobNotFound, ResultsUnavailable, StudyNotFound
+from nanonav.store import (
+    IdempotencyKeyReused,
+    JobAlreadyFinished,
+    JobNotFound,
+    ResultsUnavailable,
+    StudyNotFound,
+)
 from nanonav.store.errors import QuotaExceeded
 
 PROBLEM_JSON = "application/problem+json"
@@ -221,6 +227,12 @@ def install(app: FastAPI) -> None:
         response.headers["Retry-After"] = str(QUOTA_RETRY_AFTER_S)
         return response
 
+    async def on_key_reused(request: Request, exc: Exception) -> Response:
+        detail = str(exc)
+        error = field_error(["header", "idempotency-key"], detail, "idempotency_key_reused")
+        slug, title = "idempotency-key-reused", "Idempotency key reused"
+        return respond(request, 422, slug, title, detail, [error])
+
     async def on_validation(request: Request, exc: Exception) -> Response:
         assert isinstance(exc, RequestValidationError)
         errors = [
@@ -295,6 +307,7 @@ def install(app: FastAPI) -> None:
     app.add_exception_handler(ResultsUnavailable, on_unavailable)
     app.add_exception_handler(JobAlreadyFinished, on_finished)
     app.add_exception_handler(QuotaExceeded, on_quota)
+    app.add_exception_handler(IdempotencyKeyReused, on_key_reused)
     app.add_exception_handler(RequestValidationError, on_validation)
     app.add_exception_handler(StarletteHTTPException, on_http)
     app.add_exception_handler(OperationalError, on_database_down)

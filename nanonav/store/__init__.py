@@ -1,6 +1,7 @@
 """The job store shared by the API and the worker: models, sessions and every queue query."""
 
 from nanonav.store.errors import (
+    IdempotencyKeyReused,
     JobAlreadyFinished,
     JobNotFound,
     LeaseLost,
@@ -8,6 +9,7 @@ from nanonav.store.errors import (
     StoreError,
     StudyNotFound,
 )
+from nanonav.store.idempotency import Idempotency
 from nanonav.store.models import JobStatus
 from nanonav.store.queue import Census, Claim, JobRecord, JobStore, Outcome, Page
 from nanonav.store.studies import (
@@ -22,6 +24,8 @@ from nanonav.store.studies import (
 __all__ = [
     "Census",
     "Claim",
+    "Idempotency",
+    "IdempotencyKeyReused",
     "JobAlreadyFinished",
     "JobNotFound",
     "JobRecord",

@@ -93,6 +93,8 @@ class Study(Base):
     # The SHA-256 of the API key that made it; '' when the API has no keys.
     owner: Mapped[str] = mapped_column(String(64), default="", server_default="")
     idempotency_key: Mapped[str | None] = mapped_column(String(200))
+    # sha256 of the request that used the key: the same key with another request is refused.
+    request_digest: Mapped[str | None] = mapped_column(String(64))
     created_at: Mapped[datetime] = mapped_column(UTCDateTime())
     cancel_requested: Mapped[bool] = mapped_column(Boolean, default=False)
     # The report of a finished study, kept once computed: its jobs never change again.
@@ -128,6 +130,8 @@ class Job(Base):
     owner: Mapped[str] = mapped_column(String(64), default="", server_default="")
     quota_key: Mapped[str] = mapped_column(String(64), default="", server_default="")
     idempotency_key: Mapped[str | None] = mapped_column(String(200))
+    # sha256 of the request that used the key: the same key with another request is refused.
+    request_digest: Mapped[str | None] = mapped_column(String(64))
     created_at: Mapped[datetime] = mapped_column(UTCDateTime())
     started_at: Mapped[datetime | None] = mapped_column(UTCDateTime())
     finished_at: Mapped[datetime | None] = mapped_column(UTCDateTime())

@@ -29,6 +29,7 @@ from nanonav.store.db import (
 )
 from nanonav.store.deliveries import add_waiting
 from nanonav.store.errors import JobAlreadyFinished, JobNotFound, LeaseLost, ResultsUnavailable
+from nanonav.store.idempotency import Idempotency, earlier
 from nanonav.store.models import Job, JobPlot, JobResult, JobStatus, UTCDateTime, Worker
 from nanonav.store.quotas import Quota, check_quota
 
@@ -143,45 +144,50 @@ class JobStore:
         *,
         robot_steps: int,
         episodes: int,
-        idempotency_key: str | None = None,
+        idempotency: Idempotency | None = None,
         callback_url: str | None = None,
         owner: str = "",
         quota: Quota | None = None,
     ) -> JobRecord:
         """A new queued job of ``owner`` (with the webhook its end sends to ``callback_url``);
-        with a key ``owner`` already used, the job that key made instead. Past ``quota``,
+        with a key of ``owner`` that still holds, the job that key made instead
+        (``IdempotencyKeyReused`` if that was made by another request). Past ``quota``,
         ``QuotaExceeded``."""
-        try:
-            with unit_of_work(self._sessions, write=quota is not None) as session:
-                if idempotency_key is not None:
-                    existing = session.scalars(keyed(Job, owner, idempotency_key)).one_or_none()
+        for attempt in range(2):
+            try:
+                # Looking the key up and then inserting is read-then-write: lock up front.
+                locked = idempotency is not None or quota is not None
+                with unit_of_work(self._sessions, write=locked) as session:
+                    now = utcnow()
+                    existing = earlier(session, Job, idempotency, now, owner=owner)
                     if existing is not None:
                         return JobRecord.of(existing)
-                check_quota(session, quota, jobs=1, robot_steps=robot_steps)
-                row = Job(
-                    status=JobStatus.QUEUED,
-                    scenario=scenario,
-                    robot_steps=robot_steps,
-                    owner=owner,
-                    quota_key=owner if quota is None else quota.key,
-                    idempotency_key=idempotency_key,
-                    created_at=utcnow(),
-                    episode=0,
-                    episodes=episodes,
-                    fraction=0.0,
-                    cancel_requested=False,
-                    attempts=0,
-                )
-                session.add(row)
-                session.flush()
-                if callback_url is not None:
-                    add_waiting(session, callback_url, job_id=row.id)
-                return JobRecord.of(row)
-        except IntegrityError:
-            if idempotency_key is None:
-                raise
-            with unit_of_work(self._sessions) as session:
-                return JobRecord.of(session.scalars(keyed(Job, owner, idempotency_key)).one())
+                    check_quota(session, quota, jobs=1, robot_steps=robot_steps)
+                    row = Job(
+                        status=JobStatus.QUEUED,
+                        scenario=scenario,
+                        robot_steps=robot_steps,
+                        owner=owner,
+                        quota_key=owner if quota is None else quota.key,
+                        idempotency_key=None if idempotency is None else idempotency.key,
+                        request_digest=None if idempotency is None else idempotency.digest,
+                        created_at=now,
+                        episode=0,
+                        episodes=episodes,
+                        fraction=0.0,
+                        cancel_requested=False,
+                        attempts=0,
+                    )
+                    session.add(row)
+                    session.flush()
+                    if callback_url is not None:
+                        add_waiting(session, callback_url, job_id=row.id)
+                    return JobRecord.of(row)
+            except IntegrityError:
+                # Another request took the key between our look and our insert: look again.
+                if idempotency is None or attempt == 1:
+                    raise
+        raise AssertionError("unreachable")
 
     def get(self, job_id: int) -> JobRecord:
         with unit_of_work(self._sessions) as session:
@@ -489,11 +495,6 @@ class JobStore:
         )
         with unit_of_work(self._sessions, write=True) as session:
             return len(session.scalars(statement).all())
-
-
-def keyed(table: Any, owner: str, idempotency_key: str) -> Any:
-    """The row ``owner`` made with ``idempotency_key``: keys are scoped per owner."""
-    return select(table).where(table.owner == owner, table.idempotency_key == idempotency_key)
 
 
 def aware(value: datetime) -> datetime:
