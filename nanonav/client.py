@@ -372,17 +372,23 @@ class Client:
         *,
         timeout: float = 30.0,
         transport: httpx.BaseTransport | None = None,
+        api_key: str | None = None,
     ) -> None:
-        if url is None:
+        if url is None or api_key is None:
             from nanonav.settings import ClientSettings
 
-            url = ClientSettings().url
+            settings = ClientSettings()
+            url = settings.url if url is None else url
+            if api_key is None and settings.api_key is not None:
+                api_key = settings.api_key.get_secret_value()
         self.url = url.rstrip("/")
+        # X-Requested-With marks the requests as a script's, which a cross-site form's are not.
+        headers = {"User-Agent": f"nanonav-client/{nanonav.__version__}",
+                   "X-Requested-With": "nanonav-client"}  # fmt: skip
+        if api_key:
+            headers["Authorization"] = f"Bearer {api_key}"
         self._http = httpx.Client(
-            base_url=self.url,
-            timeout=timeout,
-            transport=transport,
-            headers={"User-Agent": f"nanonav-client/{nanonav.__version__}"},
+            base_url=self.url, timeout=timeout, transport=transport, headers=headers
         )
 
     def __enter__(self) -> Client:

@@ -31,6 +31,10 @@ from nanonav.scenario import PRESETS
 JOB_POLL_S = 0.25
 STUDY_POLL_S = 0.5
 URL_HELP = "the API's base URL (default: $NANONAV_URL, else http://127.0.0.1:8000)"
+KEY_HELP = (
+    "the API key, for a server with keys (default: $NANONAV_API_KEY, which keeps it out of the "
+    "process list)"
+)
 WAIT_HELP = (
     "show progress until it has finished; Ctrl-C stops waiting (exit 130) and leaves it running "
     "on the server"
@@ -55,12 +59,13 @@ def _positive(text: str) -> int:
 
 def _add_url(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--url", type=_url, help=URL_HELP)
+    parser.add_argument("--api-key", metavar="KEY", help=KEY_HELP)
 
 
 @contextmanager
 def _connect(args: argparse.Namespace) -> Iterator[Client]:
     try:
-        client = Client(args.url)
+        client = Client(args.url, api_key=args.api_key)
     except ValidationError as error:
         raise UsageError(validation_messages(error)) from error
     with client:
