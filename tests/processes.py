@@ -81,14 +81,15 @@ class Worker(_Process):
 class ApiServer(_Process):
     """The API as ``make run`` serves it: ``python -m uvicorn service.app:create_app``."""
 
-    def __init__(self, database_url: str, log: Path) -> None:
+    def __init__(self, database_url: str, log: Path, **env: str) -> None:
         self.url = f"http://127.0.0.1:{free_port()}"
         command = [
             sys.executable, "-m", "uvicorn", "service.app:create_app", "--factory",
             "--host", "127.0.0.1", "--port", self.url.rsplit(":", 1)[1],
             "--timeout-graceful-shutdown", "5",
         ]  # fmt: skip
-        super().__init__(command, log, clean_environment(NANONAV_DATABASE_URL=database_url))
+        environment = clean_environment(NANONAV_DATABASE_URL=database_url, **env)
+        super().__init__(command, log, environment)
 
     def wait_ready(self, timeout: float = 60.0) -> None:
         """Until ``/healthz`` answers 200."""
