@@ -7,6 +7,7 @@ so a bad configuration stops a process at start-up, not at its first request.
 
 from __future__ import annotations
 
+import re
 from functools import lru_cache
 from typing import Annotated
 
@@ -19,6 +20,7 @@ DEFAULT_DATABASE_URL = "sqlite:///var/nanonav.db"
 DEFAULT_API_URL = "http://127.0.0.1:8000"
 MIN_WEBHOOK_SECRET_LENGTH = 32
 SECRET_RECIPE = "python -c 'import secrets; print(secrets.token_urlsafe(32))'"
+API_KEY_CHARACTERS = re.compile(r"[A-Za-z0-9._~+/=-]+")
 # Words that mark a secret copied from an example rather than made for the deployment.
 PLACEHOLDER_WORDS = ("changeme", "changethis", "change-me", "password", "secret", "example",
                      "placeholder", "xxxxxxxx")  # fmt: skip
@@ -265,7 +267,13 @@ class Settings(BaseSettings):
     @classmethod
     def _real_keys(cls, keys: tuple[SecretStr, ...]) -> tuple[SecretStr, ...]:
         for key in keys:
-            _check_secret(key.get_secret_value(), "an API key")
+            value = key.get_secret_value()
+            _check_secret(value, "an API key")
+            if not API_KEY_CHARACTERS.fullmatch(value):
+                raise ValueError(
+                    "an API key may hold only letters, digits and - _ . ~ + / = (it travels in "
+                    f"a header and a cookie); make one with {SECRET_RECIPE}"
+                )
         return keys
 
     @field_validator("allowed_origins")

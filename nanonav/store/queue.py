@@ -156,7 +156,7 @@ class JobStore:
         for attempt in range(2):
             try:
                 # Looking the key up and then inserting is read-then-write: lock up front.
-                locked = idempotency is not None or quota is not None
+                locked = idempotency is not None or not (quota is None or quota.unlimited)
                 with unit_of_work(self._sessions, write=locked) as session:
                     now = utcnow()
                     existing = earlier(session, Job, idempotency, now, owner=owner)

@@ -122,6 +122,7 @@ def test_a_wrong_key_is_refused_without_being_repeated(
         ("short-key-9x", "shorter than 32"),
         (f"{KEY_A},changeme-changeme-changeme-changeme", "placeholder"),
         ("a" * 40, "placeholder"),
+        ("bad key; 4Jq8vXz2Lr7Nw3Tb9Ks1Hd6Yp0Mf5Gc", "only letters"),
     ],
 )
 def test_short_or_placeholder_keys_stop_the_process_without_being_shown(
