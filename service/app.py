@@ -7,7 +7,7 @@ from contextlib import asynccontextmanager
 from functools import partial
 from pathlib import Path
 
-from fastapi import FastAPI
+from fastapi import FastAPI, Security
 from fastapi.staticfiles import StaticFiles
 from starlette.middleware.trustedhost import TrustedHostMiddleware
 
@@ -21,7 +21,7 @@ from service.drawing import Drawer
 from service.events import Poller
 from service.limits import BodySizeLimit
 from service.routes import events, jobs, meta, pages, studies
-from service.security import Guard
+from service.security import BEARER, Guard
 
 STATIC = Path(__file__).resolve().parent / "static"
 DESCRIPTION = """Submit nanorobot scenarios, watch them run, and fetch their results.
@@ -56,6 +56,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         lifespan=lifespan,
         docs_url=None,  # served by the dashboard, with its assets local
         redoc_url=None,
+        # With keys, the OpenAPI document says so (Swagger UI's "Authorize"); Guard checks them.
+        dependencies=[Security(BEARER)] if settings.api_keys else None,
+        responses=problems.problems(401) if settings.api_keys else None,
     )
     app.state.settings = settings
     app.state.store = store

@@ -19,6 +19,7 @@ from typing import Annotated, Any
 from urllib.parse import quote, urlsplit
 
 from fastapi import Depends, Request
+from fastapi.security import HTTPBearer
 from numpy.typing import NDArray
 from starlette.datastructures import Headers
 from starlette.responses import RedirectResponse
@@ -42,6 +43,8 @@ OPEN_PATHS = frozenset(
         "/static/login.js",
     }
 )
+# Only documents the scheme in OpenAPI: ``Guard`` has already checked the key.
+BEARER = HTTPBearer(auto_error=False, description="One of the API's keys (NANONAV_API_KEYS).")
 UNSAFE_METHODS = frozenset({"POST", "PUT", "PATCH", "DELETE"})
 # A header a cross-site HTML form cannot send; marks a body-less POST as made by a script.
 SCRIPT_HEADER = "x-requested-with"

@@ -58,7 +58,7 @@ SCENARIO_EXAMPLES: dict[str, Any] = {
     status_code=202,
     response_model=Job,
     dependencies=[JsonBody],
-    responses=problems(400, 413, 415, 422, 429),
+    responses=problems(400, 403, 413, 415, 422, 429),
 )
 def submit_job(
     scenario: Annotated[Scenario, Body(openapi_examples=SCENARIO_EXAMPLES)],
@@ -131,7 +131,11 @@ def get_job(job_id: JobId, store: StoreDep) -> Job:
     return Job.of(store.get(job_id))
 
 
-@router.post("/{job_id}/cancel", response_model=Job, responses=problems(404, 409, 422))
+@router.post(
+    "/{job_id}/cancel",
+    response_model=Job,
+    responses=problems(403, 404, 409, 415, 422),
+)
 def cancel_job(job_id: JobId, store: StoreDep) -> Job:
     """Cancel a job: a queued one at once, a running one within about a second.
 

@@ -74,7 +74,7 @@ STUDY_EXAMPLES: dict[str, Any] = {
     status_code=202,
     response_model=Study,
     dependencies=[JsonBody],
-    responses=problems(400, 413, 415, 422, 429),
+    responses=problems(400, 403, 413, 415, 422, 429),
 )
 def submit_study(
     spec: Annotated[StudySpec, Body(openapi_examples=STUDY_EXAMPLES)],
@@ -187,7 +187,11 @@ def get_study_callback(
     return callback_answer(record)
 
 
-@router.post("/{study_id}/cancel", response_model=Study, responses=problems(404, 409, 422))
+@router.post(
+    "/{study_id}/cancel",
+    response_model=Study,
+    responses=problems(403, 404, 409, 415, 422),
+)
 def cancel_study(study_id: StudyId, studies: StudiesDep) -> Study:
     """Cancel a study's unfinished jobs: queued ones at once, running ones within a second.
 
