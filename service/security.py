@@ -171,14 +171,15 @@ class Guard:
         return bool(parts.netloc) and parts.netloc == headers.get("host", "").lower()
 
 
-def _caller(request: Request) -> Caller:
+def caller_of(request: Request) -> Caller:
+    """Who made ``request``, as ``Guard`` found it."""
     caller = request.scope.get("state", {}).get("caller")
     if isinstance(caller, Caller):
         return caller
     return Caller(owner="", scoped=False, quota_key="")
 
 
-CallerDep = Annotated[Caller, Depends(_caller)]
+CallerDep = Annotated[Caller, Depends(caller_of)]
 
 
 def _path_id(request: Request, name: str) -> int | None:

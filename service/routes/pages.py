@@ -32,7 +32,14 @@ from service.paging import decode_cursor, encode_cursor
 from service.problems import Unauthorized
 from service.routes.studies import list_studies, study_answer
 from service.schemas import Job
-from service.security import KEY_COOKIE, Caller, CallerDep, login_cookie, matching_key
+from service.security import (
+    KEY_COOKIE,
+    Caller,
+    CallerDep,
+    caller_of,
+    login_cookie,
+    matching_key,
+)
 
 router = APIRouter(include_in_schema=False)
 templates = Jinja2Templates(directory=Path(__file__).resolve().parents[1] / "templates")
@@ -63,8 +70,9 @@ def _page(request: Request, name: str, status: int = 200, **context: Any) -> HTM
         )
     health = {"queued": census.queued, "running": census.running, "workers": census.workers,
               "window_s": PRESENCE_WINDOW_S, "note": note}  # fmt: skip
+    signed_in = caller_of(request).scoped  # with keys, a page shown is a page logged in to
     return templates.TemplateResponse(
-        request, name, {"health": health, **context}, status_code=status
+        request, name, {"health": health, "signed_in": signed_in, **context}, status_code=status
     )
 
 

@@ -70,3 +70,9 @@ const nanonav = {
     return `${Math.floor(minutes / 60)} h ${minutes % 60} min`;
   },
 };
+
+// With API keys, the header has a button that makes the server forget the browser's key.
+document.getElementById("logout")?.addEventListener("click", async () => {
+  await nanonav.send("POST", "/ui/logout");
+  window.location.assign("/ui/login");
+});

@@ -81,3 +81,7 @@ def test_another_key_does_not_see_the_job(page: Page, site: Site) -> None:
     page.goto(f"{site.url}/ui/jobs")
     assert f"/ui/jobs/{job['id']}" not in page.content()
     httpx.post(f"{site.url}/jobs/{job['id']}/cancel", headers=bearer(KEY_A))
+    page.click("#logout")
+    page.wait_for_url(re.compile(r"/ui/login"))
+    page.goto(f"{site.url}/ui/jobs")
+    page.wait_for_url(re.compile(r"/ui/login\?next="))
