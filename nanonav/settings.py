@@ -236,11 +236,12 @@ class Settings(BaseSettings):
         "address) may have; a submit past it gets 429. 0: no limit.",
     )
     quota_robot_steps: int = Field(
-        5_000_000_000,
+        10_000_000_000,
         ge=0,
         validation_alias=_aliases("quota_robot_steps"),
         description="Most robot-steps (the budget's measure) one key or client address may have "
-        "queued and running; a submit past it gets 429. 0: no limit.",
+        "queued and running, by default ten full-budget jobs; a submit past it gets 429. "
+        "0: no limit.",
     )
     allowed_hosts: Annotated[tuple[str, ...], NoDecode] = Field(
         ("localhost", "127.0.0.1", "testserver"),

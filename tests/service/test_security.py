@@ -307,7 +307,7 @@ def test_the_default_quota_refuses_a_flood_of_full_budget_jobs(sqlite_url: str) 
     }
     with served(settings) as api:
         accepted = 0
-        for _ in range(20):
+        for _ in range(30):
             response = api.client.post("/jobs", json=full, headers=SCRIPTED)
             if response.status_code == 429:
                 break
