@@ -2,14 +2,18 @@
 
 from nanonav.store.errors import (
     JobAlreadyFinished,
+    JobInStudy,
+    JobNotFinished,
     JobNotFound,
     LeaseLost,
     ResultsUnavailable,
     StoreError,
+    StudyNotFinished,
     StudyNotFound,
 )
 from nanonav.store.models import JobStatus
 from nanonav.store.queue import Census, Claim, JobRecord, JobStore, Outcome, Page
+from nanonav.store.retention import Expired, RetentionStore
 from nanonav.store.studies import (
     StudyJob,
     StudyJobState,
@@ -22,7 +26,10 @@ from nanonav.store.studies import (
 __all__ = [
     "Census",
     "Claim",
+    "Expired",
     "JobAlreadyFinished",
+    "JobInStudy",
+    "JobNotFinished",
     "JobNotFound",
     "JobRecord",
     "JobStatus",
@@ -31,9 +38,11 @@ __all__ = [
     "Outcome",
     "Page",
     "ResultsUnavailable",
+    "RetentionStore",
     "StoreError",
     "StudyJob",
     "StudyJobState",
+    "StudyNotFinished",
     "StudyNotFound",
     "StudyPage",
     "StudyProgress",
