@@ -19,7 +19,15 @@ from sqlalchemy.exc import OperationalError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.responses import Response
 
-from nanonav.store import JobAlreadyFinished, JobNotFound, ResultsUnavailable, StudyNotFound
+from nanonav.store import (
+    JobAlreadyFinished,
+    JobInStudy,
+    JobNotFinished,
+    JobNotFound,
+    ResultsUnavailable,
+    StudyNotFinished,
+    StudyNotFound,
+)
 
 PROBLEM_JSON = "application/problem+json"
 PROBLEM_BASE = "urn:nanonav:problem:"
@@ -205,6 +213,15 @@ def install(app: FastAPI) -> None:
     async def on_finished(request: Request, exc: Exception) -> Response:
         return respond(request, 409, "job-finished", "Job already finished", str(exc))
 
+    async def on_not_finished(request: Request, exc: Exception) -> Response:
+        return respond(request, 409, "job-not-finished", "Job not finished", str(exc))
+
+    async def on_in_study(request: Request, exc: Exception) -> Response:
+        return respond(request, 409, "job-in-study", "Job belongs to a study", str(exc))
+
+    async def on_study_not_finished(request: Request, exc: Exception) -> Response:
+        return respond(request, 409, "study-not-finished", "Study not finished", str(exc))
+
     async def on_validation(request: Request, exc: Exception) -> Response:
         assert isinstance(exc, RequestValidationError)
         errors = [
@@ -278,6 +295,9 @@ def install(app: FastAPI) -> None:
     app.add_exception_handler(StudyNotFound, on_study_not_found)
     app.add_exception_handler(ResultsUnavailable, on_unavailable)
     app.add_exception_handler(JobAlreadyFinished, on_finished)
+    app.add_exception_handler(JobNotFinished, on_not_finished)
+    app.add_exception_handler(JobInStudy, on_in_study)
+    app.add_exception_handler(StudyNotFinished, on_study_not_finished)
     app.add_exception_handler(RequestValidationError, on_validation)
     app.add_exception_handler(StarletteHTTPException, on_http)
     app.add_exception_handler(OperationalError, on_database_down)

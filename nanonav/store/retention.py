@@ -100,9 +100,10 @@ class RetentionStore:
             Job.study_id == Study.id,
             or_(Job.status.not_in(FINISHED), Job.finished_at.is_(None), Job.finished_at >= before),
         )
+        has_jobs = exists().where(Job.study_id == Study.id)
         studies_query = (
             select(Study.id, Study.jobs)
-            .where(Study.created_at < before, ~still_recent)
+            .where(~still_recent, or_(has_jobs, Study.created_at < before))
             .order_by(Study.id)
             .with_for_update(skip_locked=True)
         )

@@ -1,4 +1,4 @@
-"""Jobs: submit, watch, list, cancel, and fetch results as JSON, arrays or pictures."""
+"""Jobs: submit, watch, list, cancel, delete, and fetch results as JSON, arrays or pictures."""
 
 from __future__ import annotations
 
@@ -122,6 +122,21 @@ def cancel_job(job_id: JobId, store: StoreDep) -> Job:
     200 when the job is or will be cancelled (asking twice is harmless); 409 when it already
     ended another way, succeeded or failed."""
     return Job.of(store.cancel(job_id))
+
+
+@router.delete(
+    "/{job_id}",
+    status_code=204,
+    response_class=Response,
+    responses={204: {"description": "Deleted."}, **problems(404, 409, 422)},
+)
+def delete_job(job_id: JobId, store: StoreDep) -> Response:
+    """Delete a finished job (succeeded, failed or cancelled) with its results and pictures.
+
+    409 for a queued or running job (cancel it first) and for a job of a study (delete the
+    study instead); 404 once it is gone. A webhook it has not sent yet is still sent."""
+    store.delete(job_id)
+    return Response(status_code=204)
 
 
 @router.get("/{job_id}/callback", response_model=Callback, responses=problems(404, 422))

@@ -192,6 +192,20 @@ def cancel_study(study_id: StudyId, studies: StudiesDep) -> Study:
     return study_answer(studies, studies.cancel(study_id))
 
 
+@router.delete(
+    "/{study_id}",
+    status_code=204,
+    response_class=Response,
+    responses={204: {"description": "Deleted."}, **problems(404, 409, 422)},
+)
+def delete_study(study_id: StudyId, studies: StudiesDep) -> Response:
+    """Delete an ended study with its jobs, their results, its report and its pictures.
+
+    409 while any of its jobs is queued or running (cancel it first); 404 once it is gone."""
+    studies.delete(study_id)
+    return Response(status_code=204)
+
+
 @router.get(
     "/{study_id}/results.csv",
     response_class=Response,
