@@ -15,9 +15,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from datetime import UTC, datetime
-from typing import Any
 
-from sqlalchemy import Engine, delete, exists, func, or_, select
+from sqlalchemy import Engine, Select, delete, exists, func, or_, select
 from sqlalchemy.orm import Session
 
 from nanonav.store.db import make_sessionmaker, unit_of_work
@@ -134,7 +133,7 @@ class RetentionStore:
                        deliveries=len(deliveries))  # fmt: skip
 
 
-def _delete_jobs(session: Session, job_ids: Sequence[int] | Any, *, now: datetime) -> None:
+def _delete_jobs(session: Session, job_ids: Sequence[int] | Select[int], *, now: datetime) -> None:
     """Delete these jobs (a list of ids, or a query of them) with their results and pictures,
     children first: nothing is left that points at them, whatever the foreign keys do."""
     if isinstance(job_ids, Sequence) and not job_ids:
