@@ -122,7 +122,12 @@ class RetentionStore:
                     if not fits:
                         break
             _delete_studies(session, study_ids, now=now)
-            orphans = select(Delivery.id).where(settled_orphans(before)).limit(batch)
+            orphans = (
+                select(Delivery.id)
+                .where(settled_orphans(before))
+                .limit(batch)
+                .with_for_update(skip_locked=True)
+            )
             deliveries = session.scalars(
                 delete(Delivery)
                 .where(Delivery.id.in_(orphans.scalar_subquery()))

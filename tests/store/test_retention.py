@@ -3,6 +3,7 @@ nothing a late worker could bring back."""
 
 from __future__ import annotations
 
+import threading
 from datetime import UTC, datetime, timedelta
 
 import pytest
@@ -257,3 +258,28 @@ def test_retention_forgets_settled_webhooks_of_deleted_jobs(store: JobStore) -> 
     assert retention.expire(before=T0).deliveries == 0  # settled at T0: not before it
     assert retention.expire(before=T0 + timedelta(seconds=1)).deliveries == 1
     assert rows(store)["deliveries"] == 0
+
+
+def test_workers_expiring_at_once_delete_each_job_once(store: JobStore) -> None:
+    for _ in range(40):
+        succeeded(store)
+    before = T0 + timedelta(seconds=1)
+    deleted: list[int] = []
+    errors: list[BaseException] = []
+
+    def sweep() -> None:
+        retention = RetentionStore(store.engine)
+        try:
+            while (batch := retention.expire(before=before, batch=3)).any:
+                deleted.append(batch.jobs)
+        except BaseException as error:
+            errors.append(error)
+
+    sweepers = [threading.Thread(target=sweep) for _ in range(3)]
+    for sweeper in sweepers:
+        sweeper.start()
+    for sweeper in sweepers:
+        sweeper.join(timeout=60)
+    assert errors == []
+    assert sum(deleted) == 40
+    assert rows(store) == dict.fromkeys(TABLES, 0)
