@@ -146,7 +146,7 @@ def expire(retention: RetentionStore, settings: Settings, stopped: threading.Eve
     except SQLAlchemyError as error:
         logger.warning("could not delete expired results (%s); retrying later", reason(error))
     if deleted or studies:
-        logger.info("retention: deleted %d job(s) and %d study(ies) that ended before %s",
+        logger.info("retention: deleted %d jobs and %d studies that ended before %s",
                     deleted, studies, before.isoformat(timespec="seconds"))  # fmt: skip
     return deleted
 
