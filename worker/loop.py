@@ -37,9 +37,10 @@ LOG_FORMAT = "%(asctime)s %(levelname)s [%(process)d] %(name)s: %(message)s"
 # How often a worker looks for jobs whose lease ran out (their worker died), whether it is busy
 # or not: with the default 15 s lease a killed worker's job runs again within about 20 s.
 RECOVERY_INTERVAL_S = 3.0
-# How often a worker with a retention deletes what ended before it, and how many batches (of
-# RETENTION_BATCH jobs, a transaction each) a pass may take before it lets the next pass go on.
+# How often a worker with a retention deletes what ended before it, and how long and how many
+# batches (of RETENTION_BATCH jobs, a transaction each) one pass may take before the next sweep.
 RETENTION_INTERVAL_S = 60.0
+RETENTION_PASS_S = 1.0
 RETENTION_BATCHES = 50
 
 WARM_UP = {
@@ -127,28 +128,38 @@ def _sweep(store: JobStore, settings: Settings, stopped: threading.Event) -> Non
         except SQLAlchemyError as error:
             logger.warning("could not look for stalled jobs (%s); retrying", reason(error))
         if retention is not None and time.monotonic() >= next_expiry:
-            next_expiry = time.monotonic() + RETENTION_INTERVAL_S
-            expire(retention, settings, stopped)
+            _, done = expire(retention, settings, stopped)
+            # a pass cut short goes on at the next sweep, so a backlog clears in steps
+            next_expiry = time.monotonic() + (RETENTION_INTERVAL_S if done else 0.0)
 
 
-def expire(retention: RetentionStore, settings: Settings, stopped: threading.Event) -> int:
-    """Delete, batch after batch, what ended more than ``retention_days`` ago, up to
-    RETENTION_BATCHES batches a pass (the next pass goes on); returns the jobs deleted."""
+def expire(
+    retention: RetentionStore, settings: Settings, stopped: threading.Event
+) -> tuple[int, bool]:
+    """Delete, batch after batch, what ended more than ``retention_days`` ago, for at most
+    RETENTION_PASS_S or RETENTION_BATCHES batches, so that the sweeper's other work (jobs of
+    dead workers) is never held up long; returns the jobs deleted, and whether nothing is left."""
     assert settings.retention_days is not None
     before = datetime.now(UTC) - timedelta(days=settings.retention_days)
+    deadline = time.monotonic() + RETENTION_PASS_S
     deleted = studies = 0
+    done = False
     try:
         for _ in range(RETENTION_BATCHES):
             batch = retention.expire(before=before, batch=RETENTION_BATCH)
             deleted, studies = deleted + batch.jobs, studies + batch.studies
-            if not batch.any or stopped.is_set():
+            if not batch.any:
+                done = True
+                break
+            if stopped.is_set() or time.monotonic() > deadline:
                 break
     except SQLAlchemyError as error:
         logger.warning("could not delete expired results (%s); retrying later", reason(error))
+        done = True  # tried again at the next pass, not at once
     if deleted or studies:
         logger.info("retention: deleted %d jobs and %d studies that ended before %s",
                     deleted, studies, before.isoformat(timespec="seconds"))  # fmt: skip
-    return deleted
+    return deleted, done
 
 
 def _on_signals(shutdown: threading.Event) -> None:

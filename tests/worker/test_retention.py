@@ -57,8 +57,21 @@ def test_a_pass_takes_a_bounded_number_of_batches_and_the_next_goes_on(
     settings = settings_for(store, retention_days=1)
     retention = RetentionStore(store.engine)
     passes = [loop.expire(retention, settings, threading.Event()) for _ in range(3)]
-    assert passes == [4, 1, 0]
+    assert passes == [(4, False), (1, True), (0, True)]
     assert rows(store)["jobs"] == 0
+
+
+def test_a_pass_over_its_time_stops_after_the_batch_under_way(
+    store: JobStore, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(loop, "RETENTION_BATCH", 2)
+    monkeypatch.setattr(loop, "RETENTION_PASS_S", 0.0)
+    for _ in range(3):
+        succeeded(store, at=LONG_AGO)
+    settings = settings_for(store, retention_days=1)
+    retention = RetentionStore(store.engine)
+    passes = [loop.expire(retention, settings, threading.Event()) for _ in range(3)]
+    assert passes == [(2, False), (1, False), (0, True)]
 
 
 def test_without_a_retention_nothing_is_deleted(
