@@ -219,6 +219,15 @@ class Settings(BaseSettings):
         description="Wait before a failed webhook's second try; it doubles after each failure, "
         "up to an hour (12 tries span about 3.6 hours).",
     )
+    idempotency_ttl_s: float = Field(
+        86400.0,
+        ge=1,
+        le=30 * 86400,
+        validation_alias=_aliases("idempotency_ttl_s"),
+        description="How long an Idempotency-Key names its first request: within it the same "
+        "request gets the same job or study back and another request is refused; after it the "
+        "key is free for a new one.",
+    )
 
     @field_validator("webhook_hosts", mode="before")
     @classmethod

@@ -20,6 +20,7 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.responses import Response
 
 from nanonav.store import (
+    IdempotencyKeyReused,
     JobAlreadyFinished,
     JobInStudy,
     JobNotFinished,
@@ -222,6 +223,12 @@ def install(app: FastAPI) -> None:
     async def on_study_not_finished(request: Request, exc: Exception) -> Response:
         return respond(request, 409, "study-not-finished", "Study not finished", str(exc))
 
+    async def on_key_reused(request: Request, exc: Exception) -> Response:
+        detail = str(exc)
+        error = field_error(["header", "idempotency-key"], detail, "idempotency_key_reused")
+        slug, title = "idempotency-key-reused", "Idempotency key reused"
+        return respond(request, 422, slug, title, detail, [error])
+
     async def on_validation(request: Request, exc: Exception) -> Response:
         assert isinstance(exc, RequestValidationError)
         errors = [
@@ -298,6 +305,7 @@ def install(app: FastAPI) -> None:
     app.add_exception_handler(JobNotFinished, on_not_finished)
     app.add_exception_handler(JobInStudy, on_in_study)
     app.add_exception_handler(StudyNotFinished, on_study_not_finished)
+    app.add_exception_handler(IdempotencyKeyReused, on_key_reused)
     app.add_exception_handler(RequestValidationError, on_validation)
     app.add_exception_handler(StarletteHTTPException, on_http)
     app.add_exception_handler(OperationalError, on_database_down)

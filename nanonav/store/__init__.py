@@ -1,6 +1,7 @@
 """The job store shared by the API and the worker: models, sessions and every queue query."""
 
 from nanonav.store.errors import (
+    IdempotencyKeyReused,
     JobAlreadyFinished,
     JobInStudy,
     JobNotFinished,
@@ -11,6 +12,7 @@ from nanonav.store.errors import (
     StudyNotFinished,
     StudyNotFound,
 )
+from nanonav.store.idempotency import Idempotency
 from nanonav.store.models import JobStatus
 from nanonav.store.queue import Census, Claim, JobRecord, JobStore, Outcome, Page
 from nanonav.store.retention import Expired, RetentionStore
@@ -27,6 +29,8 @@ __all__ = [
     "Census",
     "Claim",
     "Expired",
+    "Idempotency",
+    "IdempotencyKeyReused",
     "JobAlreadyFinished",
     "JobInStudy",
     "JobNotFinished",

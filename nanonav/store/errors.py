@@ -83,3 +83,14 @@ class StudyNotFinished(StoreError):
         )
         self.study_id = study_id
         self.unfinished = unfinished
+
+
+class IdempotencyKeyReused(StoreError):
+    """A key that still holds was sent again with a different request."""
+
+    def __init__(self, key: str, kind: str, made_id: int) -> None:
+        super().__init__(
+            f"the Idempotency-Key {key!r} was already used, within its lifetime, for a different "
+            f"request (it made {kind} {made_id}); send that request again or use a new key"
+        )
+        self.key = key

@@ -89,6 +89,8 @@ class Study(Base):
     spec: Mapped[dict[str, Any]] = mapped_column(JSON)
     jobs: Mapped[int] = mapped_column(Integer)
     idempotency_key: Mapped[str | None] = mapped_column(String(200), unique=True)
+    # sha256 of the request that used the key: the same key with another request is refused.
+    request_digest: Mapped[str | None] = mapped_column(String(64))
     created_at: Mapped[datetime] = mapped_column(UTCDateTime())
     cancel_requested: Mapped[bool] = mapped_column(Boolean, default=False)
     # The report of a finished study, kept once computed: its jobs never change again.
@@ -117,6 +119,8 @@ class Job(Base):
     scenario: Mapped[dict[str, Any]] = mapped_column(JSON)
     robot_steps: Mapped[int] = mapped_column(BigInteger)
     idempotency_key: Mapped[str | None] = mapped_column(String(200), unique=True)
+    # sha256 of the request that used the key: the same key with another request is refused.
+    request_digest: Mapped[str | None] = mapped_column(String(64))
     created_at: Mapped[datetime] = mapped_column(UTCDateTime())
     started_at: Mapped[datetime | None] = mapped_column(UTCDateTime())
     finished_at: Mapped[datetime | None] = mapped_column(UTCDateTime())

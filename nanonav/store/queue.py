@@ -29,6 +29,7 @@ from nanonav.store.db import (
 )
 from nanonav.store.deliveries import add_waiting
 from nanonav.store.errors import JobAlreadyFinished, JobNotFound, LeaseLost, ResultsUnavailable
+from nanonav.store.idempotency import Idempotency, earlier
 from nanonav.store.models import Job, JobPlot, JobResult, JobStatus, UTCDateTime, Worker
 from nanonav.store.retention import delete_job
 
@@ -141,38 +142,44 @@ class JobStore:
         *,
         robot_steps: int,
         episodes: int,
-        idempotency_key: str | None = None,
+        idempotency: Idempotency | None = None,
         callback_url: str | None = None,
     ) -> JobRecord:
         """A new queued job (with the webhook its end sends to ``callback_url``); with a key
-        already used, the job that key made instead."""
-        try:
-            with unit_of_work(self._sessions) as session:
-                row = Job(
-                    status=JobStatus.QUEUED,
-                    scenario=scenario,
-                    robot_steps=robot_steps,
-                    idempotency_key=idempotency_key,
-                    created_at=utcnow(),
-                    episode=0,
-                    episodes=episodes,
-                    fraction=0.0,
-                    cancel_requested=False,
-                    attempts=0,
-                )
-                session.add(row)
-                session.flush()
-                if callback_url is not None:
-                    add_waiting(session, callback_url, job_id=row.id)
-                return JobRecord.of(row)
-        except IntegrityError:
-            if idempotency_key is None:
-                raise
-            with unit_of_work(self._sessions) as session:
-                existing = session.scalars(
-                    select(Job).where(Job.idempotency_key == idempotency_key)
-                ).one()
-                return JobRecord.of(existing)
+        that still holds, the job that key made instead (``IdempotencyKeyReused`` if that was
+        made by another request)."""
+        for attempt in range(2):
+            try:
+                # Looking the key up and then inserting is read-then-write: lock up front.
+                keyed = idempotency is not None
+                with unit_of_work(self._sessions, write=keyed) as session:
+                    now = utcnow()
+                    existing = earlier(session, Job, idempotency, now)
+                    if existing is not None:
+                        return JobRecord.of(existing)
+                    row = Job(
+                        status=JobStatus.QUEUED,
+                        scenario=scenario,
+                        robot_steps=robot_steps,
+                        idempotency_key=None if idempotency is None else idempotency.key,
+                        request_digest=None if idempotency is None else idempotency.digest,
+                        created_at=now,
+                        episode=0,
+                        episodes=episodes,
+                        fraction=0.0,
+                        cancel_requested=False,
+                        attempts=0,
+                    )
+                    session.add(row)
+                    session.flush()
+                    if callback_url is not None:
+                        add_waiting(session, callback_url, job_id=row.id)
+                    return JobRecord.of(row)
+            except IntegrityError:
+                # Another request took the key between our look and our insert: look again.
+                if idempotency is None or attempt == 1:
+                    raise
+        raise AssertionError("unreachable")
 
     def get(self, job_id: int) -> JobRecord:
         with unit_of_work(self._sessions) as session:

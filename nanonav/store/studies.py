@@ -19,6 +19,7 @@ from sqlalchemy.exc import IntegrityError
 from nanonav.store.db import add_once, make_sessionmaker, unit_of_work
 from nanonav.store.deliveries import add_waiting
 from nanonav.store.errors import StudyNotFound
+from nanonav.store.idempotency import Idempotency, earlier
 from nanonav.store.models import Job, JobResult, JobStatus, Study, StudyPlot
 from nanonav.store.queue import aware, utcnow
 from nanonav.store.retention import delete_study
@@ -101,55 +102,60 @@ class StudyStore:
         name: str,
         spec: dict[str, Any],
         jobs: Sequence[StudyJob],
-        idempotency_key: str | None = None,
+        idempotency: Idempotency | None = None,
         callback_url: str | None = None,
     ) -> StudyRecord:
-        """The study and every one of its jobs, queued in one transaction; with a key already
-        used, the study that key made instead."""
-        now = utcnow()
-        try:
-            with unit_of_work(self._sessions) as session:
-                study = Study(
-                    name=name,
-                    spec=spec,
-                    jobs=len(jobs),
-                    idempotency_key=idempotency_key,
-                    created_at=now,
-                    cancel_requested=False,
-                )
-                session.add(study)
-                session.flush()
-                session.execute(
-                    insert(Job),
-                    [
-                        {
-                            "status": JobStatus.QUEUED,
-                            "scenario": job.scenario,
-                            "robot_steps": job.robot_steps,
-                            "created_at": now,
-                            "episode": 0,
-                            "episodes": job.episodes,
-                            "fraction": 0.0,
-                            "cancel_requested": False,
-                            "attempts": 0,
-                            "study_id": study.id,
-                            "study_point": job.point,
-                            "study_seed": job.seed,
-                        }
-                        for job in jobs
-                    ],
-                )
-                if callback_url is not None:
-                    add_waiting(session, callback_url, study_id=study.id)
-                return StudyRecord.of(study)
-        except IntegrityError:
-            if idempotency_key is None:
-                raise
-            with unit_of_work(self._sessions) as session:
-                existing = session.scalars(
-                    select(Study).where(Study.idempotency_key == idempotency_key)
-                ).one()
-                return StudyRecord.of(existing)
+        """The study and every one of its jobs, queued in one transaction; with a key that
+        still holds, the study that key made instead (``IdempotencyKeyReused`` if that was
+        made by another request)."""
+        for attempt in range(2):
+            try:
+                # Looking the key up and then inserting is read-then-write: lock up front.
+                keyed = idempotency is not None
+                with unit_of_work(self._sessions, write=keyed) as session:
+                    now = utcnow()
+                    existing = earlier(session, Study, idempotency, now)
+                    if existing is not None:
+                        return StudyRecord.of(existing)
+                    study = Study(
+                        name=name,
+                        spec=spec,
+                        jobs=len(jobs),
+                        idempotency_key=None if idempotency is None else idempotency.key,
+                        request_digest=None if idempotency is None else idempotency.digest,
+                        created_at=now,
+                        cancel_requested=False,
+                    )
+                    session.add(study)
+                    session.flush()
+                    session.execute(
+                        insert(Job),
+                        [
+                            {
+                                "status": JobStatus.QUEUED,
+                                "scenario": job.scenario,
+                                "robot_steps": job.robot_steps,
+                                "created_at": now,
+                                "episode": 0,
+                                "episodes": job.episodes,
+                                "fraction": 0.0,
+                                "cancel_requested": False,
+                                "attempts": 0,
+                                "study_id": study.id,
+                                "study_point": job.point,
+                                "study_seed": job.seed,
+                            }
+                            for job in jobs
+                        ],
+                    )
+                    if callback_url is not None:
+                        add_waiting(session, callback_url, study_id=study.id)
+                    return StudyRecord.of(study)
+            except IntegrityError:
+                # Another request took the key between our look and our insert: look again.
+                if idempotency is None or attempt == 1:
+                    raise
+        raise AssertionError("unreachable")
 
     def get(self, study_id: int) -> StudyRecord:
         with unit_of_work(self._sessions) as session:

@@ -9,7 +9,7 @@ from functools import partial
 from typing import Annotated, Any, Literal
 
 import numpy as np
-from fastapi import APIRouter, Body, Header, Path, Query, Response
+from fastapi import APIRouter, Body, Path, Query, Response
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import JSONResponse, StreamingResponse
 from numpy.typing import NDArray
@@ -25,6 +25,7 @@ from service.caching import IMMUTABLE
 from service.callbacks import CallbackUrl, callback_answer, check_callback
 from service.deps import DeliveriesDep, DrawerDep, JsonBody, SettingsDep, StoreDep
 from service.drawing import Drawer
+from service.idempotency import IdempotencyDep
 from service.paging import decode_cursor, encode_cursor
 from service.policy_from import check_policy_from
 from service.problems import InvalidInput, NoCallback, NoQTable, field_error, problems
@@ -63,7 +64,7 @@ def submit_job(
     store: StoreDep,
     settings: SettingsDep,
     response: Response,
-    idempotency_key: Annotated[str | None, Header(max_length=200)] = None,
+    idempotency: IdempotencyDep,
     callback_url: CallbackUrl = None,
 ) -> Job:
     """Queue a scenario to run; answers once the job is stored."""
@@ -74,7 +75,7 @@ def submit_job(
         scenario.model_dump(mode="json"),
         robot_steps=scenario.robot_steps_budget,
         episodes=scenario.episodes,
-        idempotency_key=idempotency_key,
+        idempotency=idempotency,
         callback_url=callback_url,
     )
     response.headers["Location"] = f"/jobs/{job.id}"

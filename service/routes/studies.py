@@ -7,7 +7,7 @@ from dataclasses import dataclass
 from functools import cache, partial
 from typing import Annotated, Any, Literal
 
-from fastapi import APIRouter, Body, Header, Path, Query, Response
+from fastapi import APIRouter, Body, Path, Query, Response
 from fastapi.concurrency import run_in_threadpool
 from pydantic import ValidationError
 
@@ -28,6 +28,7 @@ from service.caching import IMMUTABLE
 from service.callbacks import CallbackUrl, callback_answer, check_callback
 from service.deps import DeliveriesDep, DrawerDep, JsonBody, SettingsDep, StoreDep, StudiesDep
 from service.drawing import Drawer
+from service.idempotency import IdempotencyDep
 from service.paging import decode_cursor, encode_cursor
 from service.policy_from import check_policy_from
 from service.problems import (
@@ -80,7 +81,7 @@ def submit_study(
     store: StoreDep,
     settings: SettingsDep,
     response: Response,
-    idempotency_key: Annotated[str | None, Header(max_length=200)] = None,
+    idempotency: IdempotencyDep,
     callback_url: CallbackUrl = None,
 ) -> Study:
     """Queue every grid point x seed as a job, all in one transaction, after validating all."""
@@ -122,7 +123,7 @@ def submit_study(
         name=spec.name,
         spec=stored.model_dump(mode="json"),
         jobs=jobs,
-        idempotency_key=idempotency_key,
+        idempotency=idempotency,
         callback_url=callback_url,
     )
     response.headers["Location"] = f"/studies/{record.id}"

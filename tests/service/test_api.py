@@ -64,14 +64,6 @@ def test_a_preset_is_applied_and_explicit_fields_override_it(api: Api) -> None:
     assert api.client.get(f"/jobs/{job['id']}").json()["scenario"] == job["scenario"]
 
 
-def test_an_idempotency_key_returns_the_job_it_made(api: Api) -> None:
-    headers = {"Idempotency-Key": "k-1"}
-    first = api.client.post("/jobs", json={"seed": 1}, headers=headers).json()
-    again = api.client.post("/jobs", json={"seed": 2}, headers=headers).json()
-    assert again["id"] == first["id"]
-    assert again["scenario"]["seed"] == 1
-
-
 def test_an_invalid_field_is_422_with_its_pointer(api: Api) -> None:
     body = assert_problem(api.client.post("/jobs", json={"robots": {"count": 0}}), 422)
     assert body["errors"][0]["pointer"] == "#/robots/count"

@@ -130,11 +130,16 @@ def test_a_study_over_the_job_cap_is_422(sqlite_url: str) -> None:
         assert client.post("/studies", json=huge).json()["status"] == 422  # not expanded
 
 
-def test_an_idempotency_key_returns_the_study_it_made(api: Api) -> None:
+def test_an_idempotency_key_returns_the_study_it_made_and_refuses_another(api: Api) -> None:
     first = create(api, GRID, **{"Idempotency-Key": "study-1"})
-    again = create(api, {**GRID, "seeds": [7]}, **{"Idempotency-Key": "study-1"})
+    again = create(api, GRID, **{"Idempotency-Key": "study-1"})
     assert again["id"] == first["id"]
     assert again["jobs"]["total"] == 12
+    other = api.client.post(
+        "/studies", json={**GRID, "seeds": [7]}, headers={"Idempotency-Key": "study-1"}
+    )
+    assert other.status_code == 422
+    assert other.json()["errors"][0]["parameter"] == "idempotency-key"
     assert len(api.client.get("/jobs", params={"limit": 100}).json()["jobs"]) == 12
 
 

@@ -22,8 +22,8 @@ from nanonav.store import (
 LEASE_S = 30.0
 
 
-def enqueue(store: JobStore, seed: int = 0, key: str | None = None) -> JobRecord:
-    return store.enqueue({"seed": seed}, robot_steps=100, episodes=2, idempotency_key=key)
+def enqueue(store: JobStore, seed: int = 0) -> JobRecord:
+    return store.enqueue({"seed": seed}, robot_steps=100, episodes=2)
 
 
 def claim(store: JobStore, owner: str = "w1", now: datetime | None = None) -> Claim:
@@ -64,14 +64,6 @@ def test_enqueue_then_get_returns_the_queued_job(store: JobStore) -> None:
 def test_get_of_an_unknown_job_raises_not_found(store: JobStore) -> None:
     with pytest.raises(JobNotFound):
         store.get(12345)
-
-
-def test_an_idempotency_key_gives_back_the_job_it_made(store: JobStore) -> None:
-    first = enqueue(store, seed=1, key="abc")
-    again = enqueue(store, seed=2, key="abc")
-    assert again.id == first.id
-    assert again.scenario == {"seed": 1}
-    assert enqueue(store, key="other").id != first.id
 
 
 def test_claim_takes_the_oldest_queued_job_under_a_new_lease(store: JobStore) -> None:
