@@ -20,13 +20,13 @@ from worker.job import run_job
 
 # Schemathesis reads the schema when the module is collected, so the database is made then.
 _DIRECTORY = tempfile.TemporaryDirectory(prefix="nanonav-fuzz-")
+_URL = f"sqlite:///{Path(_DIRECTORY.name) / 'nanonav.db'}"
 
 
-def _seeded_settings(name: str = "nanonav") -> Settings:
-    url = f"sqlite:///{Path(_DIRECTORY.name) / name}.db"
-    upgrade(url)
-    settings = Settings(database_url=url, max_body_bytes=64 * 1024)
-    store = JobStore.from_url(url)
+def _seeded_settings() -> Settings:
+    upgrade(_URL)
+    settings = Settings(database_url=_URL, max_body_bytes=64 * 1024)
+    store = JobStore.from_url(_URL)
     store.enqueue({"learning": {"episodes": 1, "max_steps": 30}}, robot_steps=1, episodes=2)
     claim = store.claim("fuzz", lease_s=30)
     assert claim is not None
@@ -41,25 +41,16 @@ def _seeded_settings(name: str = "nanonav") -> Settings:
 
 
 # An event stream of an unfinished job or study never ends by design, so the event routes are
-# left out; tests/service/test_event_streams.py pins their 404 and 422 answers. Deletes go to a
-# database of their own, so that the job and study every other route reads stay.
+# left out; tests/service/test_event_streams.py pins their 404 and 422 answers. Deletes run in
+# tests/service/test_fuzz_deletes.py, so that the job and study every route here reads stay.
 schema = (
     schemathesis.openapi.from_asgi("/openapi.json", create_app(_seeded_settings()))
     .exclude(tag="events")
     .exclude(method="DELETE")
 )
-deletes = schemathesis.openapi.from_asgi(
-    "/openapi.json", create_app(_seeded_settings("deletes"))
-).include(method="DELETE")
 
 
 @schema.parametrize()
 @settings(max_examples=15, deadline=None, suppress_health_check=list(HealthCheck))
 def test_no_request_gives_a_server_error(case: schemathesis.Case) -> None:
-    case.call_and_validate(checks=[not_a_server_error])
-
-
-@deletes.parametrize()
-@settings(max_examples=15, deadline=None, suppress_health_check=list(HealthCheck))
-def test_no_delete_gives_a_server_error(case: schemathesis.Case) -> None:
     case.call_and_validate(checks=[not_a_server_error])
