@@ -12,6 +12,7 @@ import threading
 from pathlib import Path
 from typing import Any
 
+import pytest
 import schemathesis
 from hypothesis import HealthCheck, settings
 from schemathesis.specs.openapi.checks import positive_data_acceptance
@@ -39,7 +40,11 @@ STATED_RULES: dict[str, frozenset[str]] = {
     "GET /jobs/{job_id}/trajectory": frozenset({"too_large"}),
     "GET /jobs/{job_id}/heatmap.png": frozenset({"out_of_range"}),
 }
+# What schemathesis's own check takes from valid data besides 2xx and 3xx: a missing resource
+# or credentials, a conflict with the state, a limit on rate.
 ACCEPTED = {401, 403, 404, 409, 429}
+# Every operation's examples, coverage and fuzzing take well under this on two busy cores.
+pytestmark = pytest.mark.timeout(120)
 
 
 def _seeded_settings() -> Settings:
