@@ -60,6 +60,30 @@ def grid_keys() -> dict[str, type[BaseModel] | None]:
 
 GRID_KEYS = grid_keys()
 
+
+def _value_schema(key: str) -> dict[str, Any]:
+    """The JSON Schema of one grid key's values: its scenario field's type and bounds, without
+    null (a grid value is a number, a string, true or false)."""
+    model = GRID_KEYS[key] or Scenario
+    field = model.model_json_schema()["properties"][key.rpartition(".")[2]]
+    kept = {k: v for k, v in field.items() if k not in ("title", "description", "default")}
+    branches = [b for b in kept.pop("anyOf", []) if b != {"type": "null"}]
+    if len(branches) == 1:
+        kept.update(branches[0])
+    elif branches:
+        kept["anyOf"] = branches
+    return kept
+
+
+def _grid_schema() -> dict[str, Any]:
+    """What the OpenAPI document says of ``grid``: its keys, and each key's values."""
+    values = {"type": "array", "minItems": 1, "maxItems": MAX_GRID_VALUES, "uniqueItems": True}
+    return {
+        "propertyNames": {"enum": list(GRID_KEYS)},
+        "properties": {key: {**values, "items": _value_schema(key)} for key in GRID_KEYS},
+    }
+
+
 Seed = Annotated[int, Field(ge=0, le=MAX_EXACT_INT)]
 # JSON Schema's uniqueItems, as JSON compares: 1 and 1.0 are one value, 1 and true are two.
 GridValues = Annotated[
@@ -111,7 +135,7 @@ class StudySpec(BaseModel):
     grid: dict[str, GridValues] = Field(
         default_factory=dict,
         max_length=8,
-        json_schema_extra={"propertyNames": {"enum": list(GRID_KEYS)}},
+        json_schema_extra=_grid_schema(),
         description="Scenario fields to sweep, by dotted name, each with the values to try, "
         "e.g. {'robots.policy': ['q_learning', 'gradient'], 'obstacles.count': [0, 10, 30]}. "
         "Every combination is a grid point, and must be a valid scenario (422 naming the grid "

@@ -146,3 +146,22 @@ def test_ids_past_the_largest_exact_json_integer_are_422(api: Api) -> None:
     body = assert_problem(api.client.get(f"/jobs/{MAX_EXACT_INT + 1}"), 422)
     assert body["errors"][0]["parameter"] == "job_id"
     assert_problem(api.client.get(f"/jobs/{MAX_EXACT_INT}"), 404)
+
+
+def test_the_document_states_each_grid_keys_values(api: Api) -> None:
+    document = api.client.get("/openapi.json").json()
+    grid = document["components"]["schemas"]["StudySpec"]["properties"]["grid"]
+    assert "robots.count" in grid["propertyNames"]["enum"]
+    assert "seed" not in grid["propertyNames"]["enum"]
+    counts = grid["properties"]["robots.count"]
+    assert counts["uniqueItems"] is True
+    assert counts["items"] == {"type": "integer", "minimum": 1, "maximum": 10_000}
+    assert grid["properties"]["robots.policy"]["items"]["enum"][0] == "q_learning"
+    assert grid["properties"]["learning.epsilon_decay"]["items"]["type"] == "number"
+
+
+def test_a_study_lists_seeds_and_grid_values_once_as_json_compares_them(api: Api) -> None:
+    body = assert_problem(api.client.post("/studies", json={"seeds": [3, 3.0]}), 422)
+    assert body["errors"][0]["pointer"] == "#/seeds"
+    study = {"replicates": 1, "grid": {"space.walls": [True, False]}, "base": TINY}
+    assert api.client.post("/studies", json=study).status_code == 202
