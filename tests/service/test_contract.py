@@ -53,7 +53,7 @@ def test_head_of_a_streamed_download_has_its_headers(api: Api, trained: int) -> 
     ("method", "path", "allow"),
     [
         ("PUT", "/jobs", "GET, HEAD, POST"),
-        ("PATCH", "/jobs/1", "GET, HEAD"),
+        ("PATCH", "/jobs/1/qtable", "GET, HEAD"),
         ("PUT", "/jobs/1/metrics", "GET, HEAD"),
         ("GET", "/jobs/1/cancel", "POST"),
         ("HEAD", "/jobs/1/cancel", "POST"),
@@ -67,6 +67,33 @@ def test_a_405_lists_every_method_its_path_takes(
     response = api.client.request(method, path)
     assert response.status_code == 405
     assert response.headers["allow"] == allow
+
+
+def _paths(document: dict[str, Any]) -> dict[str, set[str]]:
+    """Every path of the OpenAPI document, its parameters filled in (routing reads any value),
+    with the methods it declares."""
+    return {
+        re.sub(r"\{[^}]+\}", "1", path): {method.upper() for method in operations}
+        for path, operations in document["paths"].items()
+    }
+
+
+def test_every_path_of_the_document_says_in_allow_what_it_declares(api: Api) -> None:
+    for path, declared in _paths(api.client.get("/openapi.json").json()).items():
+        response = api.client.request("PATCH" if "PATCH" not in declared else "PUT", path)
+        assert response.status_code == 405, path
+        expected = declared | ({"HEAD"} if "GET" in declared else set())
+        assert set(response.headers["allow"].split(", ")) == expected, path
+
+
+def test_every_get_path_answers_head_as_it_answers_get(api: Api) -> None:
+    for path, declared in _paths(api.client.get("/openapi.json").json()).items():
+        if "GET" not in declared:
+            continue
+        got, head = api.client.get(path), api.client.head(path)
+        assert head.status_code == got.status_code, path
+        assert head.headers["content-type"] == got.headers["content-type"], path
+        assert head.content == b"", path
 
 
 @pytest.mark.parametrize(
