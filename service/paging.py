@@ -1,8 +1,8 @@
 """Cursors for pages listed newest first: opaque to clients, an id underneath.
 
 A cursor is the id to list from, in lowercase hexadecimal. ``CURSOR_PATTERN`` says exactly which
-strings are cursors: the OpenAPI document states it, so any string it allows gets a page (an id
-no row has only moves where the page starts)."""
+strings are cursors: the OpenAPI document states it, and any string it allows gets a page (a
+cursor that names no row lists the rows older than it)."""
 
 from __future__ import annotations
 
