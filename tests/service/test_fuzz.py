@@ -81,7 +81,7 @@ CONFIG = schemathesis.Config.from_dict(
             "examples": {"enabled": True},
             "coverage": {"enabled": True},
             "fuzzing": {"enabled": True},
-            # the stateful phase runs from the CLI; tests/service/test_api.py follows links
+            # each operation is tested alone here; sequences of calls (the stateful phase) are not
             "stateful": {"enabled": False},
         },
     }
