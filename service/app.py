@@ -19,6 +19,7 @@ from service.caching import ETags
 from service.drawing import Drawer
 from service.events import Poller
 from service.limits import BodySizeLimit
+from service.methods import HeadAsGet
 from service.routes import events, jobs, meta, pages, studies
 
 STATIC = Path(__file__).resolve().parent / "static"
@@ -65,6 +66,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.state.drawer = Drawer(settings.drawing_queue)
     app.add_middleware(BodySizeLimit, max_bytes=settings.max_body_bytes)
     app.add_middleware(ETags)
+    app.add_middleware(HeadAsGet)
     problems.install(app)
     app.add_exception_handler(events.NothingNew, events.nothing_new)
     app.include_router(jobs.router)

@@ -29,6 +29,7 @@ from nanonav.store import (
     StudyNotFinished,
     StudyNotFound,
 )
+from service.methods import allowed_methods
 
 PROBLEM_JSON = "application/problem+json"
 PROBLEM_BASE = "urn:nanonav:problem:"
@@ -273,6 +274,9 @@ def install(app: FastAPI) -> None:
         response = respond(request, exc.status_code, slug, title, str(exc.detail))
         if exc.headers:
             response.headers.update(exc.headers)
+        if exc.status_code == 405:
+            # the route that raised it knows only its own methods, not its path's
+            response.headers["Allow"] = ", ".join(allowed_methods(app.router.routes, request.scope))
         return response
 
     async def on_database_down(request: Request, exc: Exception) -> Response:

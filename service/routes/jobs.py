@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 from nanonav import plots
 from nanonav.engine import SimulationResult
 from nanonav.policy import greedy_table
-from nanonav.scenario import Policy, Scenario
+from nanonav.scenario import MAX_EXACT_INT, Policy, Scenario
 from nanonav.store import JobStatus, JobStore, ResultsUnavailable
 from nanonav.store.arrays import pack
 from service.budget import check_budget
@@ -26,7 +26,7 @@ from service.callbacks import CallbackUrl, callback_answer, check_callback
 from service.deps import DeliveriesDep, DrawerDep, JsonBody, SettingsDep, StoreDep
 from service.drawing import Drawer
 from service.idempotency import IdempotencyDep
-from service.paging import decode_cursor, encode_cursor
+from service.paging import Cursor, decode_cursor, encode_cursor
 from service.policy_from import check_policy_from
 from service.problems import InvalidInput, NoCallback, NoQTable, field_error, problems
 from service.schemas import Callback, GreedyState, Job, JobPage, Metrics, QTable, Trajectory
@@ -36,7 +36,7 @@ router = APIRouter(prefix="/jobs", tags=["jobs"])
 # Pictures of what a cancelled job keeps: the episodes it finished and the table it learned.
 KEPT_PICTURES = ("learning", "qtable")
 
-JobId = Annotated[int, Path(ge=1, le=2**63 - 1, description="The job's id.")]
+JobId = Annotated[int, Path(ge=1, le=MAX_EXACT_INT, description="The job's id.")]
 PNG: dict[int | str, dict[str, Any]] = {
     200: {"content": {"image/png": {}}, "description": "A PNG picture."}
 }
@@ -67,7 +67,14 @@ def submit_job(
     idempotency: IdempotencyDep,
     callback_url: CallbackUrl = None,
 ) -> Job:
-    """Queue a scenario to run; answers once the job is stored."""
+    """Queue a scenario to run; answers once the job is stored.
+
+    A scenario the schema allows may still be refused with 422, each error typed by its rule:
+    ``scenario_rule`` (fields that must agree, as the scenario's description says),
+    ``budget_exceeded`` (more work than the server's budget), ``policy_unusable`` (a
+    ``policy_from`` naming no table this scenario can evaluate), ``refused`` (a
+    ``callback_url`` the server will not call), ``idempotency_key`` (a blank, non-UTF-8 or
+    over-long key) and ``idempotency_key_reused`` (a key already used for another request)."""
     check_callback(callback_url, settings)
     check_budget(scenario, settings)
     check_policy_from(scenario, store.qtable, ("body", "policy_from"))
@@ -87,11 +94,11 @@ def list_jobs(
     store: StoreDep,
     status: Annotated[JobStatus | None, Query(description="Only jobs in this state.")] = None,
     study: Annotated[
-        int | None, Query(ge=1, le=2**63 - 1, description="Only the jobs of this study.")
+        int | None, Query(ge=1, le=MAX_EXACT_INT, description="Only the jobs of this study.")
     ] = None,
     policy: Annotated[Policy | None, Query(description="Only jobs of this policy.")] = None,
     limit: Annotated[int, Query(ge=1, le=100, description="Jobs per page.")] = 20,
-    cursor: Annotated[str | None, Query(max_length=64, description="From `next_cursor`.")] = None,
+    cursor: Cursor = None,
 ) -> JobPage:
     """A page of jobs, newest first."""
     before = None if cursor is None else decode_cursor(cursor)
