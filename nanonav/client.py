@@ -462,6 +462,11 @@ class Client:
         has already finished)."""
         return Job.of(self._json("POST", f"/jobs/{job_id}/cancel"))
 
+    def delete(self, job_id: int) -> None:
+        """Delete a finished job with its results and pictures (409 if it is queued or running,
+        or belongs to a study; 404 if there is no such job, or no more)."""
+        self._request("DELETE", f"/jobs/{job_id}")
+
     def metrics(self, job_id: int) -> dict[str, Any]:
         """Table 1 (``summary``), one row per robot, the learning curve, the scenario."""
         return self._json("GET", f"/jobs/{job_id}/metrics")
@@ -550,6 +555,11 @@ class Client:
     def cancel_study(self, study_id: int) -> Study:
         """Cancel a study's unfinished jobs (409 if it has already finished)."""
         return Study.of(self._json("POST", f"/studies/{study_id}/cancel"))
+
+    def delete_study(self, study_id: int) -> None:
+        """Delete an ended study with its jobs and their results (409 while any of its jobs is
+        queued or running; 404 if there is no such study, or no more)."""
+        self._request("DELETE", f"/studies/{study_id}")
 
     def study_csv(self, study_id: int) -> bytes:
         """The study's table as the server writes it: a row per job, metrics empty unless the

@@ -9,7 +9,7 @@ a side), times in steps, concentrations in arbitrary units relative to ``biomark
 from __future__ import annotations
 
 import math
-from typing import Any, Literal
+from typing import Any, Literal, get_args
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 from pydantic_core import InitErrorDetails, PydanticCustomError
@@ -22,6 +22,9 @@ AlphaSchedule = Literal["constant", "visits"]
 ActionSet = Literal["behaviors", "directions"]
 
 MAX_OBSTACLE_VOLUME_FRACTION = 0.3
+# The largest seed or id: every integer up to it is exact in a JSON number whatever the client
+# (a double, as I-JSON, RFC 7493, advises), so what a client sends is what is stored.
+MAX_EXACT_INT = 2**53 - 1
 
 # What the engine's operations cost, in work units: nanoseconds of one core of the machine they
 # were fitted on (``python benchmarks/cost.py`` measures how well they track run time). Another
@@ -35,6 +38,22 @@ WORK_PLACE = 2.5  # one source moved with its cell
 # one source's term of the field at one point: an exp for these two, a division for the
 # inverse-square emitters, whose sum the compiler vectorises
 WORK_SOURCE = {"gaussian": 6.5, "diffusion": 6.5, "inverse_square": 0.55, "sampled_gaussian": 6.5}
+
+
+def whole(value: Any) -> Any:
+    """A number with no fraction, such as 5.0, as the integer JSON Schema takes it for."""
+    if isinstance(value, float) and value.is_integer():
+        return int(value)
+    return value
+
+
+def integer_fields(model: type[BaseModel]) -> frozenset[str]:
+    """The fields of ``model`` that hold an integer (or null)."""
+    return frozenset(
+        name
+        for name, field in model.model_fields.items()
+        if field.annotation is int or set(get_args(field.annotation)) == {int, type(None)}
+    )
 
 
 class ScenarioError(ValueError):
@@ -56,7 +75,18 @@ def _field_error(model: str, loc: tuple[str, ...], value: Any, message: str) -> 
 
 
 class _Part(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+    """Strict, as JSON Schema means its types: a number is not true, false or "5"; an integer
+    may stand where a decimal number is expected, and 5.0 where an integer is."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False, strict=True)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _whole_numbers(cls, data: Any) -> Any:
+        if not isinstance(data, dict):
+            return data
+        integers = integer_fields(cls)
+        return {key: whole(value) if key in integers else value for key, value in data.items()}
 
 
 class Space(_Part):
@@ -183,8 +213,19 @@ class Obstacles(_Part):
     """Spherical biological barriers (paper 2.4 and 2.6) placed at random, clear of cells and
     robot starts. A move that would end inside one is blocked and counts as a collision."""
 
-    count: int = Field(10, ge=0, le=1000, description="Number of obstacles.")
-    radius: float = Field(1.5, gt=0.0, le=100.0, description="Obstacle radius, length units.")
+    count: int = Field(
+        10,
+        ge=0,
+        le=1000,
+        description="Number of obstacles. Together they may fill at most 30% of the cube's "
+        "volume (count x 4/3 pi radius^3 <= 0.3 x space.size^3).",
+    )
+    radius: float = Field(
+        1.5,
+        gt=0.0,
+        le=100.0,
+        description="Obstacle radius, length units; less than a quarter of space.size.",
+    )
     motion_std: float = Field(
         0.0,
         ge=0.0,
@@ -278,7 +319,12 @@ class Learning(_Part):
     epsilon_start: float = Field(
         1.0, ge=0.0, le=1.0, description="Exploration rate of the first episode."
     )
-    epsilon_end: float = Field(0.05, ge=0.0, le=1.0, description="Floor of the exploration rate.")
+    epsilon_end: float = Field(
+        0.05,
+        ge=0.0,
+        le=1.0,
+        description="Floor of the exploration rate; at most epsilon_start.",
+    )
     epsilon_decay: float | None = Field(
         None,
         gt=0.0,
@@ -349,7 +395,13 @@ class Evaluation(_Part):
 
 
 class Scenario(_Part):
-    """A complete simulation run: the world, the swarm, the learning and the seed."""
+    """A complete simulation run: the world, the swarm, the learning and the seed.
+
+    Besides each field's type and bounds, rules relate fields to one another (each field's
+    description states its own; a 422 of type ``scenario_rule`` names the field to change):
+    epsilon_end at most epsilon_start; obstacles.radius under a quarter and reach_distance under
+    half of space.size; obstacles filling at most 30% of the cube; and with policy_from,
+    learning.episodes 0 and robots.policy q_learning."""
 
     preset: PresetName | None = Field(
         None,
@@ -366,7 +418,7 @@ class Scenario(_Part):
     seed: int = Field(
         0,
         ge=0,
-        le=2**63 - 1,
+        le=MAX_EXACT_INT,
         description="Seed of every random draw; the same scenario and seed give bit-identical "
         "results.",
     )
@@ -383,16 +435,17 @@ class Scenario(_Part):
         gt=0.0,
         le=100.0,
         description="A robot within this distance of a cell, length units, has reached it and "
-        "stops.",
+        "stops; less than half of space.size.",
     )
     policy_from: int | None = Field(
         None,
         ge=1,
-        le=2**63 - 1,
+        le=MAX_EXACT_INT,
         description="The id of a succeeded Q-learning job whose learned table this run starts "
         "from, to evaluate it in this scenario's worlds without training (learning.episodes "
-        "must be 0). The action set must be the job's; a shared table may drive robots that "
-        "each learn their own, a per-robot table needs as many robots.",
+        "must be 0 and robots.policy q_learning). The action set must be the job's; a shared "
+        "table may drive robots that each learn their own, a per-robot table needs as many "
+        "robots.",
     )
 
     @model_validator(mode="before")

@@ -131,6 +131,17 @@ class Settings(BaseSettings):
         description="Worker processes `nanonav worker` starts unless --concurrency says otherwise.",
     )
 
+    retention_days: float | None = Field(
+        None,
+        gt=0,
+        le=36_500,
+        allow_inf_nan=False,
+        validation_alias=_aliases("retention_days"),
+        description="Days a finished job (of no study) or an ended study is kept after it "
+        "ended; workers then delete it with its results, in batches, about once a minute. "
+        "Unset: everything is kept until deleted with DELETE /jobs/{id} or /studies/{id}.",
+    )
+
     study_max_jobs: int = Field(
         2000,
         ge=1,

@@ -7,7 +7,7 @@ from contextlib import asynccontextmanager
 from functools import partial
 from pathlib import Path
 
-from fastapi import FastAPI, Security
+from fastapi import Depends, FastAPI, Security
 from fastapi.staticfiles import StaticFiles
 from starlette.middleware.trustedhost import TrustedHostMiddleware
 
@@ -20,8 +20,9 @@ from service.caching import ETags
 from service.drawing import Drawer
 from service.events import Poller
 from service.limits import BodySizeLimit
+from service.methods import HeadAsGet
 from service.routes import events, jobs, meta, pages, studies
-from service.security import BEARER, Guard
+from service.security import BEARER, Guard, refuse_cross_site
 
 STATIC = Path(__file__).resolve().parent / "static"
 DESCRIPTION = """Submit nanorobot scenarios, watch them run, and fetch their results.
@@ -49,6 +50,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             await poller.stop()
             store.close()
 
+    keyed = bool(settings.api_keys)
     app = FastAPI(
         title="NanoNav",
         version=nanonav.__version__,
@@ -56,9 +58,13 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         lifespan=lifespan,
         docs_url=None,  # served by the dashboard, with its assets local
         redoc_url=None,
-        # With keys, the OpenAPI document says so (Swagger UI's "Authorize"); Guard checks them.
-        dependencies=[Security(BEARER)] if settings.api_keys else None,
-        responses=problems.problems(401) if settings.api_keys else None,
+        # Writes another site may have forged are refused; with keys, the OpenAPI document says
+        # so (Swagger UI's "Authorize"), and Guard checks them.
+        dependencies=[
+            Depends(refuse_cross_site),
+            *([Security(BEARER)] if settings.api_keys else []),
+        ],
+        responses=problems.problems(401) if keyed else None,
     )
     app.state.settings = settings
     app.state.store = store
@@ -70,6 +76,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.state.drawer = Drawer(settings.drawing_queue)
     app.add_middleware(BodySizeLimit, max_bytes=settings.max_body_bytes)
     app.add_middleware(ETags)
+    app.add_middleware(HeadAsGet)
     app.add_middleware(Guard, settings=settings)
     app.add_middleware(TrustedHostMiddleware, allowed_hosts=list(settings.allowed_hosts))
     problems.install(app)

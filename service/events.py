@@ -61,7 +61,7 @@ class Listener:
         self._ready.set()
 
     def close(self) -> None:
-        """No state will come any more (the poller stopped)."""
+        """No state will come any more (the poller stopped, or the thing was deleted)."""
         self._closed = True
         self._ready.set()
 
@@ -188,9 +188,13 @@ class Poller:
             logger.warning("the event poller could not read the store: %s", error)
             return
         for (_, listeners), found in zip(watched, states, strict=True):
-            for thing_id, snapshot in found.items():
-                for listener in listeners.get(thing_id, ()):
-                    listener.offer(snapshot)
+            for thing_id, watchers in listeners.items():
+                snapshot = found.get(thing_id)
+                for listener in watchers:
+                    if snapshot is None:  # deleted: its streams end; reconnecting gets 404
+                        listener.close()
+                    else:
+                        listener.offer(snapshot)
 
     async def _sleep(self, seconds: float) -> None:
         if seconds <= 0:

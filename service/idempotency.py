@@ -21,8 +21,8 @@ KEY_MAX_CHARS = 200
 LOC = ("header", "idempotency-key")
 
 
-def _refuse(detail: str, kind: str) -> InvalidInput:
-    return InvalidInput(detail, [field_error(LOC, detail, kind)])
+def _refuse(detail: str) -> InvalidInput:
+    return InvalidInput(detail, [field_error(LOC, detail, "idempotency_key")])
 
 
 def _decoded(raw: str) -> str:
@@ -30,7 +30,7 @@ def _decoded(raw: str) -> str:
     try:
         return raw.encode("latin-1").decode("utf-8")
     except UnicodeError:
-        raise _refuse("the Idempotency-Key header is not valid UTF-8", "not_utf8") from None
+        raise _refuse("the Idempotency-Key header is not valid UTF-8") from None
 
 
 def _canonical(body: bytes) -> bytes:
@@ -59,10 +59,10 @@ async def _idempotency(
         return None
     key = _decoded(idempotency_key)
     if not key.strip():
-        raise _refuse("the Idempotency-Key header is empty; leave it out or send a key", "empty")
+        raise _refuse("the Idempotency-Key header is empty; leave it out or send a key")
     if len(key) > KEY_MAX_CHARS:
         detail = f"the Idempotency-Key has {len(key)} characters, more than {KEY_MAX_CHARS}"
-        raise _refuse(detail, "too_long")
+        raise _refuse(detail)
     digest = hashlib.sha256(_canonical(await request.body()))
     digest.update(b"\0" + request.query_params.get("callback_url", "").encode())
     return Idempotency(key=key, digest=digest.hexdigest(), ttl_s=settings.idempotency_ttl_s)

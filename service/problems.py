@@ -22,11 +22,15 @@ from starlette.responses import Response
 from nanonav.store import (
     IdempotencyKeyReused,
     JobAlreadyFinished,
+    JobInStudy,
+    JobNotFinished,
     JobNotFound,
     ResultsUnavailable,
+    StudyNotFinished,
     StudyNotFound,
 )
 from nanonav.store.errors import QuotaExceeded
+from service.methods import allowed_methods
 
 PROBLEM_JSON = "application/problem+json"
 PROBLEM_BASE = "urn:nanonav:problem:"
@@ -105,6 +109,12 @@ class Unauthorized(ProblemError):
     slug = "unauthorized"
     title = "Unauthorized"
     headers = {"WWW-Authenticate": 'Bearer realm="nanonav", error="invalid_token"'}  # noqa: RUF012
+
+
+class ForbiddenOrigin(ProblemError):
+    status = 403
+    slug = "forbidden-origin"
+    title = "Forbidden origin"
 
 
 class StudyFinished(ProblemError):
@@ -227,6 +237,15 @@ def install(app: FastAPI) -> None:
         response.headers["Retry-After"] = str(QUOTA_RETRY_AFTER_S)
         return response
 
+    async def on_not_finished(request: Request, exc: Exception) -> Response:
+        return respond(request, 409, "job-not-finished", "Job not finished", str(exc))
+
+    async def on_in_study(request: Request, exc: Exception) -> Response:
+        return respond(request, 409, "job-in-study", "Job belongs to a study", str(exc))
+
+    async def on_study_not_finished(request: Request, exc: Exception) -> Response:
+        return respond(request, 409, "study-not-finished", "Study not finished", str(exc))
+
     async def on_key_reused(request: Request, exc: Exception) -> Response:
         detail = str(exc)
         error = field_error(["header", "idempotency-key"], detail, "idempotency_key_reused")
@@ -277,6 +296,9 @@ def install(app: FastAPI) -> None:
         response = respond(request, exc.status_code, slug, title, str(exc.detail))
         if exc.headers:
             response.headers.update(exc.headers)
+        if exc.status_code == 405:
+            # the route that raised it knows only its own methods, not its path's
+            response.headers["Allow"] = ", ".join(allowed_methods(app.router.routes, request.scope))
         return response
 
     async def on_database_down(request: Request, exc: Exception) -> Response:
@@ -307,6 +329,9 @@ def install(app: FastAPI) -> None:
     app.add_exception_handler(ResultsUnavailable, on_unavailable)
     app.add_exception_handler(JobAlreadyFinished, on_finished)
     app.add_exception_handler(QuotaExceeded, on_quota)
+    app.add_exception_handler(JobNotFinished, on_not_finished)
+    app.add_exception_handler(JobInStudy, on_in_study)
+    app.add_exception_handler(StudyNotFinished, on_study_not_finished)
     app.add_exception_handler(IdempotencyKeyReused, on_key_reused)
     app.add_exception_handler(RequestValidationError, on_validation)
     app.add_exception_handler(StarletteHTTPException, on_http)

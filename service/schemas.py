@@ -9,6 +9,7 @@ from typing import Any, Literal
 from pydantic import BaseModel, ConfigDict, Field
 
 from nanonav.store import JobRecord, JobStatus
+from service.paging import CURSOR_PATTERN
 
 Status = Literal["queued", "running", "succeeded", "failed", "cancelled"]
 PLOTS = ("trajectory", "concentration", "learning", "qtable")
@@ -143,13 +144,15 @@ class JobPage(BaseModel):
 
     model_config = ConfigDict(
         json_schema_extra={
-            "examples": [{"jobs": [JOB_EXAMPLE], "next_cursor": "MzA", "next": "/jobs?cursor=MzA"}]
+            "examples": [
+                {"jobs": [JOB_EXAMPLE], "next_cursor": "1e", "next": "/jobs?limit=20&cursor=1e"}
+            ]
         }
     )
 
     jobs: list[Job]
     next_cursor: str | None = Field(
-        description="Pass as ?cursor= for the next page; null at the end."
+        pattern=CURSOR_PATTERN, description="Pass as ?cursor= for the next page; null at the end."
     )
     next: str | None = Field(description="The next page's URL, or null.")
 
@@ -559,5 +562,7 @@ class StudyPage(BaseModel):
     """A page of studies, newest first."""
 
     studies: list[StudySummary]
-    next_cursor: str | None
+    next_cursor: str | None = Field(
+        pattern=CURSOR_PATTERN, description="Pass as ?cursor= for the next page; null at the end."
+    )
     next: str | None

@@ -28,7 +28,13 @@ from starlette.types import ASGIApp, Receive, Scope, Send
 from nanonav.settings import Settings
 from nanonav.store import JobNotFound, JobStore, StudyNotFound, StudyStore
 from nanonav.store.quotas import Quota
-from service.problems import PROBLEM_BASE, Problem, problem_response
+from service.problems import (
+    PROBLEM_BASE,
+    ForbiddenOrigin,
+    Problem,
+    UnsupportedMediaType,
+    problem_response,
+)
 
 # The dashboard keeps the key in this cookie (HttpOnly, SameSite=Strict) once a person logs in.
 KEY_COOKIE = "nanonav_key"
@@ -48,6 +54,22 @@ BEARER = HTTPBearer(auto_error=False, description="One of the API's keys (NANONA
 UNSAFE_METHODS = frozenset({"POST", "PUT", "PATCH", "DELETE"})
 # A header a cross-site HTML form cannot send; marks a body-less POST as made by a script.
 SCRIPT_HEADER = "x-requested-with"
+
+
+# What the OpenAPI document says of a body-less write (a cancel, a delete): ``Guard`` refuses it
+# with 415 unless it carries this header (or declares a JSON body).
+SCRIPTED_ONLY: dict[str, Any] = {
+    "parameters": [
+        {
+            "name": "X-Requested-With",
+            "in": "header",
+            "required": True,
+            "description": "Any value: marks the request as a script's, which an HTML form on "
+            "another site cannot send (else 415). A JSON Content-Type does as well.",
+            "schema": {"type": "string", "minLength": 1, "examples": ["nanonav"]},
+        }
+    ]
+}
 
 
 def owner_of(key: str) -> str:
@@ -97,12 +119,11 @@ def _problem(scope: Scope, status: int, slug: str, title: str, detail: str) -> P
 
 
 class Guard:
-    """Pure ASGI middleware: authenticates the request, then refuses cross-site writes."""
+    """Pure ASGI middleware: authenticates the request and says who made it."""
 
     def __init__(self, app: ASGIApp, settings: Settings) -> None:
         self.app = app
         self.keys = tuple(key.get_secret_value() for key in settings.api_keys)
-        self.origins = frozenset(settings.allowed_origins)
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         if scope["type"] != "http":
@@ -117,10 +138,6 @@ class Guard:
                 await self._unauthorized(scope, headers, key is not None)(scope, receive, send)
                 return
             owner = owner_of(key)
-        refusal = self._cross_site(scope, headers)
-        if refusal is not None:
-            await problem_response(refusal)(scope, receive, send)
-            return
         client = scope.get("client")
         address = client[0] if client else ""
         scope.setdefault("state", {})["caller"] = Caller(
@@ -144,31 +161,33 @@ class Guard:
         problem = _problem(scope, 401, "unauthorized", "Unauthorized", detail)
         return problem_response(problem, {"WWW-Authenticate": challenge})
 
-    def _cross_site(self, scope: Scope, headers: Headers) -> Problem | None:
-        """Why a state-changing request may have been forged by another site, if it may."""
-        if scope["method"] not in UNSAFE_METHODS:
-            return None
-        origin = headers.get("origin")
-        if origin is not None and not self._own_origin(origin.lower(), headers):
-            detail = f"requests from origin {origin!r} may not change anything here"
-            return _problem(scope, 403, "forbidden-origin", "Forbidden origin", detail)
-        media = headers.get("content-type", "").split(";")[0].strip().lower()
-        kind, _, subtype = media.partition("/")
-        json = kind == "application" and (subtype == "json" or subtype.endswith("+json"))
-        if not json and SCRIPT_HEADER not in headers:
-            detail = (
-                f"a {scope['method']} must be application/json (it is "
-                f"{media or 'undeclared'}) or carry an X-Requested-With header"
-            )
-            return _problem(scope, 415, "unsupported-media-type", "Unsupported media type",
-                            detail)  # fmt: skip
-        return None
 
-    def _own_origin(self, origin: str, headers: Headers) -> bool:
-        if origin in self.origins:
-            return True
-        parts = urlsplit(origin)
-        return bool(parts.netloc) and parts.netloc == headers.get("host", "").lower()
+def refuse_cross_site(request: Request) -> None:
+    """A write another site may have forged is refused: one from a foreign ``Origin`` with 403,
+    one neither JSON nor marked by ``X-Requested-With`` (as an HTML form's) with 415. A
+    dependency of the whole app, so a method a path does not take still gets its 405."""
+    if request.method not in UNSAFE_METHODS:
+        return
+    headers = request.headers
+    origin = headers.get("origin")
+    if origin is not None and not _own_origin(origin.lower(), headers, request):
+        raise ForbiddenOrigin(f"requests from origin {origin!r} may not change anything here")
+    media = headers.get("content-type", "").split(";")[0].strip().lower()
+    kind, _, subtype = media.partition("/")
+    json = kind == "application" and (subtype == "json" or subtype.endswith("+json"))
+    if not json and not headers.get(SCRIPT_HEADER):
+        raise UnsupportedMediaType(
+            f"a {request.method} must be application/json (it is {media or 'undeclared'}) or "
+            "carry an X-Requested-With header"
+        )
+
+
+def _own_origin(origin: str, headers: Headers, request: Request) -> bool:
+    settings: Settings = request.app.state.settings
+    if origin in settings.allowed_origins:
+        return True
+    parts = urlsplit(origin)
+    return bool(parts.netloc) and parts.netloc == headers.get("host", "").lower()
 
 
 def caller_of(request: Request) -> Caller:

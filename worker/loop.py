@@ -13,7 +13,8 @@ import os
 import signal
 import socket
 import threading
-from datetime import UTC, datetime
+import time
+from datetime import UTC, datetime, timedelta
 from types import FrameType
 from typing import Any
 
@@ -22,10 +23,11 @@ from sqlalchemy.exc import SQLAlchemyError
 from nanonav.engine import simulate
 from nanonav.scenario import Scenario
 from nanonav.settings import Settings
-from nanonav.store import JobStore
+from nanonav.store import JobStore, RetentionStore
 from nanonav.store.deliveries import DeliveryStore
 from nanonav.store.faults import reason
 from nanonav.store.queue import PRESENCE_INTERVAL_S
+from nanonav.store.retention import RETENTION_BATCH
 from worker.deliveries import run_deliveries
 from worker.job import run_job
 
@@ -35,6 +37,11 @@ LOG_FORMAT = "%(asctime)s %(levelname)s [%(process)d] %(name)s: %(message)s"
 # How often a worker looks for jobs whose lease ran out (their worker died), whether it is busy
 # or not: with the default 15 s lease a killed worker's job runs again within about 20 s.
 RECOVERY_INTERVAL_S = 3.0
+# How often a worker with a retention deletes what ended before it, and how long and how many
+# batches (of RETENTION_BATCH jobs, a transaction each) one pass may take before the next sweep.
+RETENTION_INTERVAL_S = 60.0
+RETENTION_PASS_S = 1.0
+RETENTION_BATCHES = 50
 
 WARM_UP = {
     "robots": {"count": 1},
@@ -110,13 +117,49 @@ def _announce(store: JobStore, owner: str, stopped: threading.Event) -> None:
 
 def _sweep(store: JobStore, settings: Settings, stopped: threading.Event) -> None:
     """Queue again the jobs of workers that stopped answering, on a timer of its own: a busy
-    worker sweeps as often as an idle one."""
+    worker sweeps as often as an idle one; with a retention, also delete what ended before it,
+    less often (a look at every finished job costs more than one at the running ones)."""
+    retention = None if settings.retention_days is None else RetentionStore(store.engine)
+    next_expiry = time.monotonic()
     while not stopped.wait(RECOVERY_INTERVAL_S):
         try:
             if recovered := store.recover_expired(max_attempts=settings.max_attempts):
                 logger.info("recovered %d job(s) whose worker stopped answering", recovered)
         except SQLAlchemyError as error:
             logger.warning("could not look for stalled jobs (%s); retrying", reason(error))
+        if retention is not None and time.monotonic() >= next_expiry:
+            _, done = expire(retention, settings, stopped)
+            # a pass cut short goes on at the next sweep, so a backlog clears in steps
+            next_expiry = time.monotonic() + (RETENTION_INTERVAL_S if done else 0.0)
+
+
+def expire(
+    retention: RetentionStore, settings: Settings, stopped: threading.Event
+) -> tuple[int, bool]:
+    """Delete, batch after batch, what ended more than ``retention_days`` ago, for at most
+    RETENTION_PASS_S or RETENTION_BATCHES batches, so that the sweeper's other work (jobs of
+    dead workers) is never held up long; returns the jobs deleted, and whether nothing is left."""
+    assert settings.retention_days is not None
+    before = datetime.now(UTC) - timedelta(days=settings.retention_days)
+    deadline = time.monotonic() + RETENTION_PASS_S
+    deleted = studies = 0
+    done = False
+    try:
+        for _ in range(RETENTION_BATCHES):
+            batch = retention.expire(before=before, batch=RETENTION_BATCH)
+            deleted, studies = deleted + batch.jobs, studies + batch.studies
+            if not batch.any:
+                done = True
+                break
+            if stopped.is_set() or time.monotonic() > deadline:
+                break
+    except SQLAlchemyError as error:
+        logger.warning("could not delete expired results (%s); retrying later", reason(error))
+        done = True  # tried again at the next pass, not at once
+    if deleted or studies:
+        logger.info("retention: deleted %d jobs and %d studies that ended before %s",
+                    deleted, studies, before.isoformat(timespec="seconds"))  # fmt: skip
+    return deleted, done
 
 
 def _on_signals(shutdown: threading.Event) -> None:

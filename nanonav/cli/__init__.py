@@ -2,10 +2,10 @@
 
 Each subcommand is one ``add_<name>`` function that declares its arguments and sets ``handler``
 to the function that runs it: ``run`` in ``run.py`` runs a scenario here; ``api``, ``worker`` and
-``migrate`` in ``service.py`` run the job service; ``submit``, ``study``, ``fetch`` and ``jobs``
-in ``remote.py`` talk to a running API. ``main`` parses, dispatches and turns the errors a user
-can cause into a message on stderr and an exit code. Adding a subcommand means adding one such
-function and one line in ``build_parser``.
+``migrate`` in ``service.py`` run the job service; ``submit``, ``study``, ``fetch``, ``jobs`` and
+``delete`` in ``remote.py`` talk to a running API. ``main`` parses, dispatches and turns the
+errors a user can cause into a message on stderr and an exit code. Adding a subcommand means
+adding one such function and one line in ``build_parser``.
 """
 
 from __future__ import annotations
@@ -46,6 +46,7 @@ def build_parser() -> argparse.ArgumentParser:
     remote.add_study(subcommands)
     remote.add_fetch(subcommands)
     remote.add_jobs(subcommands)
+    remote.add_delete(subcommands)
     return parser
 
 

@@ -1,5 +1,5 @@
-"""``nanonav submit``, ``study``, ``fetch`` and ``jobs``: the commands that talk to a running API
-through ``nanonav.client``.
+"""``nanonav submit``, ``study``, ``fetch``, ``jobs`` and ``delete``: the commands that talk to a
+running API through ``nanonav.client``.
 
 Waiting polls the server and draws a progress bar on stderr when it is a terminal. Ctrl-C stops
 the waiting, not the work: the job or study goes on on the server."""
@@ -257,6 +257,33 @@ def _fetch(args: argparse.Namespace) -> int:
     print(f"Wrote {len(written)} files to {args.out}:")
     for path in written:
         print(f"  {path.name:<28} {_size(path.stat().st_size):>9}")
+    return EXIT_OK
+
+
+def add_delete(subcommands: Subcommands) -> None:
+    delete = subcommands.add_parser(
+        "delete",
+        help="delete a finished job, or an ended study, with its results",
+        description="Delete a finished job (succeeded, failed or cancelled) with its results "
+        "and pictures; or, with --study, an ended study with its jobs. A queued or running one "
+        "is refused (cancel it first), and so is a job of a study (delete the study).",
+    )
+    delete.add_argument("id", nargs="?", type=_positive, metavar="ID", help="a job's id")
+    delete.add_argument("--study", type=_positive, metavar="ID", help="a study's id instead")
+    _add_url(delete)
+    delete.set_defaults(handler=_delete)
+
+
+def _delete(args: argparse.Namespace) -> int:
+    if (args.id is None) == (args.study is None):
+        raise UsageError(["give a job ID, or --study ID (not both)"])
+    with _connect(args) as api:
+        if args.study is None:
+            api.delete(args.id)
+            print(f"Deleted job {args.id}")
+        else:
+            api.delete_study(args.study)
+            print(f"Deleted study {args.study} and its jobs")
     return EXIT_OK
 
 

@@ -3,15 +3,19 @@
 from nanonav.store.errors import (
     IdempotencyKeyReused,
     JobAlreadyFinished,
+    JobInStudy,
+    JobNotFinished,
     JobNotFound,
     LeaseLost,
     ResultsUnavailable,
     StoreError,
+    StudyNotFinished,
     StudyNotFound,
 )
 from nanonav.store.idempotency import Idempotency
 from nanonav.store.models import JobStatus
 from nanonav.store.queue import Census, Claim, JobRecord, JobStore, Outcome, Page
+from nanonav.store.retention import Expired, RetentionStore
 from nanonav.store.studies import (
     StudyJob,
     StudyJobState,
@@ -24,9 +28,12 @@ from nanonav.store.studies import (
 __all__ = [
     "Census",
     "Claim",
+    "Expired",
     "Idempotency",
     "IdempotencyKeyReused",
     "JobAlreadyFinished",
+    "JobInStudy",
+    "JobNotFinished",
     "JobNotFound",
     "JobRecord",
     "JobStatus",
@@ -35,9 +42,11 @@ __all__ = [
     "Outcome",
     "Page",
     "ResultsUnavailable",
+    "RetentionStore",
     "StoreError",
     "StudyJob",
     "StudyJobState",
+    "StudyNotFinished",
     "StudyNotFound",
     "StudyPage",
     "StudyProgress",

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from datetime import UTC, datetime, timedelta
 from typing import Any
 
-from sqlalchemy import Engine, and_, exists, func, or_, select, update
+from sqlalchemy import Engine, and_, delete, exists, func, or_, select, update
 from sqlalchemy.orm import Session
 
 from nanonav.store.db import make_sessionmaker, unit_of_work
@@ -127,18 +127,7 @@ class DeliveryStore:
         with unit_of_work(self._sessions, write=True) as session:
             rows = session.scalars(query).all()
             for row in rows:
-                if row.job_id is not None:
-                    row.event, row.payload = _job_summary(session, row.job_id)
-                elif row.study_id is not None:
-                    row.event, row.payload = _study_summary(session, row.study_id)
-                else:
-                    row.state = DeliveryState.FAILED
-                    row.last_error = "its job or study was deleted before it ended"
-                    continue
-                row.payload = {"id": row.id, "event": row.event, "created_at": _iso(now),
-                               **row.payload}  # fmt: skip
-                row.state = DeliveryState.DUE
-                row.next_attempt_at = now
+                _make_due(session, row, now)
             return len(rows)
 
     def claim(self, *, lease_s: float, now: datetime | None = None) -> DeliveryClaim | None:
@@ -222,6 +211,52 @@ class DeliveryStore:
         query = select(func.count()).where(Delivery.state == DeliveryState.DUE)
         with unit_of_work(self._sessions) as session:
             return int(session.scalar(query) or 0)
+
+
+def detach(session: Session, where: Any, *, now: datetime) -> None:
+    """In the transaction that deletes the jobs or studies ``where`` selects deliveries of:
+    a webhook not sent yet gets its summary now and outlives them, detached, to be sent as
+    promised; one already delivered or given up goes with them."""
+    waiting = (
+        select(Delivery)
+        .where(where, Delivery.state == DeliveryState.WAITING)
+        .order_by(Delivery.id)
+        .with_for_update(of=Delivery)
+    )
+    for row in session.scalars(waiting).all():
+        _make_due(session, row, now)
+    session.execute(
+        delete(Delivery)
+        .where(where, Delivery.state.in_([DeliveryState.DELIVERED, DeliveryState.FAILED]))
+        .execution_options(synchronize_session=False)
+    )
+    session.flush()
+
+
+def settled_orphans(before: datetime) -> Any:
+    """Deliveries whose job or study was deleted, settled before ``before``: nothing reads
+    them any more."""
+    return and_(
+        Delivery.job_id.is_(None),
+        Delivery.study_id.is_(None),
+        Delivery.state.in_([DeliveryState.DELIVERED, DeliveryState.FAILED]),
+        func.coalesce(Delivery.last_attempt_at, Delivery.created_at) < before,
+    )
+
+
+def _make_due(session: Session, row: Delivery, now: datetime) -> None:
+    """Fix the summary a waiting delivery sends, from its ended job or study, and make it due."""
+    if row.job_id is not None:
+        row.event, payload = _job_summary(session, row.job_id)
+    elif row.study_id is not None:
+        row.event, payload = _study_summary(session, row.study_id)
+    else:
+        row.state = DeliveryState.FAILED
+        row.last_error = "its job or study was deleted before it ended"
+        return
+    row.payload = {"id": row.id, "event": row.event, "created_at": _iso(now), **payload}
+    row.state = DeliveryState.DUE
+    row.next_attempt_at = now
 
 
 def utcnow() -> datetime:

@@ -66,6 +66,41 @@ class QuotaExceeded(StoreError):
         self.limit = limit
 
 
+class JobNotFinished(StoreError):
+    """Only a finished job may be deleted: a worker may still write a queued or running one."""
+
+    def __init__(self, job_id: int, status: JobStatus) -> None:
+        super().__init__(
+            f"job {job_id} is {status.value}: cancel it first, and delete it once it has ended"
+        )
+        self.job_id = job_id
+        self.status = status
+
+
+class JobInStudy(StoreError):
+    """A study's job goes with its study, so that the study's report never loses a job."""
+
+    def __init__(self, job_id: int, study_id: int) -> None:
+        super().__init__(
+            f"job {job_id} belongs to study {study_id}: delete the study instead "
+            f"(DELETE /studies/{study_id}), which deletes its jobs"
+        )
+        self.job_id = job_id
+        self.study_id = study_id
+
+
+class StudyNotFinished(StoreError):
+    """Only an ended study may be deleted: workers may still write its jobs."""
+
+    def __init__(self, study_id: int, unfinished: int) -> None:
+        super().__init__(
+            f"study {study_id} has {unfinished} job(s) queued or running: cancel it first, and "
+            "delete it once every job has ended"
+        )
+        self.study_id = study_id
+        self.unfinished = unfinished
+
+
 class IdempotencyKeyReused(StoreError):
     """A key that still holds was sent again with a different request."""
 

@@ -32,6 +32,7 @@ from nanonav.store.errors import JobAlreadyFinished, JobNotFound, LeaseLost, Res
 from nanonav.store.idempotency import Idempotency, earlier
 from nanonav.store.models import Job, JobPlot, JobResult, JobStatus, UTCDateTime, Worker
 from nanonav.store.quotas import Quota, check_quota
+from nanonav.store.retention import delete_job
 
 # A worker says it is alive this often; it counts as present for PRESENCE_WINDOW_S after.
 PRESENCE_INTERVAL_S = 5.0
@@ -253,6 +254,12 @@ class JobStore:
             session.flush()
             return JobRecord.of(row)
 
+    def delete(self, job_id: int, *, now: datetime | None = None) -> None:
+        """Delete a finished job of no study with its results, pictures and settled webhook
+        (one not sent yet is still sent)."""
+        with unit_of_work(self._sessions, write=True) as session:
+            delete_job(session, job_id, now=now or utcnow())
+
     def metrics(self, job_id: int) -> dict[str, Any]:
         """A succeeded job's metrics, or what a cancelled one kept (its finished episodes)."""
         with unit_of_work(self._sessions) as session:
@@ -288,8 +295,13 @@ class JobStore:
             ).one_or_none()
 
     def save_plot(self, job_id: int, name: str, png: bytes) -> None:
-        """Keep a picture drawn for a succeeded job; one kept first by another process stays."""
-        add_once(self._sessions, JobPlot(job_id=job_id, name=name, png=png))
+        """Keep a picture drawn for a succeeded job; one kept first by another process stays.
+        JobNotFound if the job was deleted while it was drawn."""
+        try:
+            add_once(self._sessions, JobPlot(job_id=job_id, name=name, png=png))
+        except IntegrityError:
+            self.get(job_id)
+            raise
 
     def partial_result(self, job_id: int) -> dict[str, Any] | None:
         """The metrics a job stored whatever its status (a cancelled job keeps its episodes)."""

@@ -23,6 +23,7 @@ from nanonav.store.idempotency import Idempotency, earlier
 from nanonav.store.models import Job, JobResult, JobStatus, Study, StudyPlot
 from nanonav.store.queue import aware, utcnow
 from nanonav.store.quotas import Quota, check_quota
+from nanonav.store.retention import delete_study
 
 
 @dataclass(frozen=True)
@@ -306,6 +307,12 @@ class StudyStore:
             session.flush()
             return StudyRecord.of(study)
 
+    def delete(self, study_id: int, *, now: datetime | None = None) -> None:
+        """Delete a study whose jobs have all ended, with its jobs, their results, its report
+        and pictures."""
+        with unit_of_work(self._sessions, write=True) as session:
+            delete_study(session, study_id, now=now or utcnow())
+
     def keep_report(self, study_id: int, report: dict[str, Any]) -> None:
         """Keep the report of a finished study: its jobs will not change again."""
         with unit_of_work(self._sessions) as session:
@@ -319,8 +326,13 @@ class StudyStore:
             ).one_or_none()
 
     def keep_plot(self, study_id: int, name: str, png: bytes) -> None:
-        """Keep a picture of a finished study; one kept first by another process stays."""
-        add_once(self._sessions, StudyPlot(study_id=study_id, name=name, png=png))
+        """Keep a picture of a finished study; one kept first by another process stays.
+        StudyNotFound if the study was deleted while it was drawn."""
+        try:
+            add_once(self._sessions, StudyPlot(study_id=study_id, name=name, png=png))
+        except IntegrityError:
+            self.get(study_id)
+            raise
 
 
 def _study(session: Any, study_id: int) -> Study:

@@ -24,7 +24,7 @@ from pydantic import (
 )
 from pydantic_core import InitErrorDetails, PydanticCustomError
 
-from nanonav.scenario import Scenario
+from nanonav.scenario import MAX_EXACT_INT, Scenario, whole
 
 GridValue = bool | int | float | str
 
@@ -61,6 +61,46 @@ def grid_keys() -> dict[str, type[BaseModel] | None]:
 GRID_KEYS = grid_keys()
 
 
+def _value_schema(key: str) -> dict[str, Any]:
+    """The JSON Schema of one grid key's values: its scenario field's type and bounds, without
+    null (a grid value is a number, a string, true or false)."""
+    model = GRID_KEYS[key] or Scenario
+    field = model.model_json_schema()["properties"][key.rpartition(".")[2]]
+    kept = {k: v for k, v in field.items() if k not in ("title", "description", "default")}
+    branches = [b for b in kept.pop("anyOf", []) if b != {"type": "null"}]
+    if len(branches) == 1:
+        kept.update(branches[0])
+    elif branches:
+        kept["anyOf"] = branches
+    return kept
+
+
+def _grid_schema() -> dict[str, Any]:
+    """What the OpenAPI document says of ``grid``: its keys, and each key's values."""
+    values = {"type": "array", "minItems": 1, "maxItems": MAX_GRID_VALUES, "uniqueItems": True}
+    return {
+        "propertyNames": {"enum": list(GRID_KEYS)},
+        "properties": {key: {**values, "items": _value_schema(key)} for key in GRID_KEYS},
+    }
+
+
+Seed = Annotated[int, Field(ge=0, le=MAX_EXACT_INT)]
+# JSON Schema's uniqueItems, as JSON compares: 1 and 1.0 are one value, 1 and true are two.
+GridValues = Annotated[
+    list[GridValueField],
+    Field(min_length=1, max_length=MAX_GRID_VALUES, json_schema_extra={"uniqueItems": True}),
+]
+
+
+def _same(a: GridValue, b: GridValue) -> bool:
+    return isinstance(a, bool) == isinstance(b, bool) and a == b
+
+
+def grid_index(spec: StudySpec, key: str, value: GridValue) -> int:
+    """Where ``value`` is listed under ``key``: true is not 1 here, as in JSON."""
+    return next(i for i, listed in enumerate(spec.grid[key]) if _same(listed, value))
+
+
 def _error(loc: tuple[str | int, ...], value: Any, message: str) -> ValidationError:
     error = PydanticCustomError("study_rule", message)
     return ValidationError.from_exception_data(
@@ -71,7 +111,20 @@ def _error(loc: tuple[str | int, ...], value: Any, message: str) -> ValidationEr
 class StudySpec(BaseModel):
     """What a client asks for: ``base`` x ``grid`` x seeds, and which grid key to compare."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False, strict=True)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _whole_numbers(cls, data: Any) -> Any:
+        """5.0 is the integer 5, as in a scenario."""
+        if not isinstance(data, dict):
+            return data
+        fixed = dict(data)
+        if "replicates" in fixed:
+            fixed["replicates"] = whole(fixed["replicates"])
+        if isinstance(fixed.get("seeds"), list):
+            fixed["seeds"] = [whole(seed) for seed in fixed["seeds"]]
+        return fixed
 
     name: str = Field("", max_length=200, description="A name to recognise the study by.")
     base: dict[str, Any] = Field(
@@ -79,41 +132,43 @@ class StudySpec(BaseModel):
         description="The scenario every grid point starts from (as in POST /jobs; a preset "
         "applies). Its seed is ignored: the study's seeds replace it.",
     )
-    grid: dict[str, list[GridValueField]] = Field(
+    grid: dict[str, GridValues] = Field(
         default_factory=dict,
         max_length=8,
+        json_schema_extra=_grid_schema(),
         description="Scenario fields to sweep, by dotted name, each with the values to try, "
         "e.g. {'robots.policy': ['q_learning', 'gradient'], 'obstacles.count': [0, 10, 30]}. "
-        "Every combination is a grid point.",
+        "Every combination is a grid point, and must be a valid scenario (422 naming the grid "
+        "value otherwise): each value of the field's type and bounds in POST /jobs, and the "
+        "scenario's rules across fields hold at every point.",
     )
-    seeds: list[int] | None = Field(
+    seeds: list[Seed] | None = Field(
         None,
         min_length=1,
         max_length=MAX_SEEDS,
-        description="The seeds every grid point runs with (give this or 'replicates').",
+        json_schema_extra={"uniqueItems": True},
+        description="The seeds every grid point runs with, each once. Give exactly one of "
+        "'seeds' and 'replicates' (422 otherwise).",
     )
     replicates: int | None = Field(
         None,
         ge=1,
         le=MAX_SEEDS,
-        description="Run every grid point with seeds 0 .. replicates-1 (or 'seeds').",
+        description="Run every grid point with seeds 0 .. replicates-1 (or give 'seeds').",
     )
     compare: str | None = Field(
         None,
         description="A grid key whose values are compared pairwise, seed by seed: each value "
-        "against the first one listed, at every combination of the other grid keys.",
+        "against the first one listed, at every combination of the other grid keys. It must "
+        "be a key of 'grid', with two values or more.",
     )
 
     @model_validator(mode="after")
     def _coherent(self) -> StudySpec:
         if (self.seeds is None) == (self.replicates is None):
             raise _error(("seeds",), self.seeds, "give either 'seeds' or 'replicates'")
-        if self.seeds is not None:
-            for i, seed in enumerate(self.seeds):
-                if not 0 <= seed < 2**63:
-                    raise _error(("seeds", i), seed, "a seed is between 0 and 2**63 - 1")
-            if len(set(self.seeds)) != len(self.seeds):
-                raise _error(("seeds",), self.seeds, "seeds must not repeat")
+        if self.seeds is not None and len(set(self.seeds)) != len(self.seeds):
+            raise _error(("seeds",), self.seeds, "seeds must not repeat")
         for key, values in self.grid.items():
             if key not in GRID_KEYS:
                 raise _error(
@@ -124,7 +179,7 @@ class StudySpec(BaseModel):
             if not 1 <= len(values) <= MAX_GRID_VALUES:
                 raise _error(("grid", key), values, f"give between 1 and {MAX_GRID_VALUES} values")
             for i, value in enumerate(values):
-                if value in values[:i]:
+                if any(_same(value, seen) for seen in values[:i]):
                     raise _error(("grid", key, i), value, "this value is already listed")
         if self.compare is not None:
             if self.compare not in self.grid:
@@ -214,4 +269,4 @@ def _point_error(
     value = values[key]
     point = ", ".join(f"{k}={v!r}" for k, v in values.items())
     message = f"at the grid point {point}: {where or 'scenario'}: {first['msg']}"
-    return _error(("grid", key, spec.grid[key].index(value)), value, message)
+    return _error(("grid", key, grid_index(spec, key, value)), value, message)

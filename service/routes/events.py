@@ -164,7 +164,8 @@ async def _stream(channel: Channel, start: Start) -> AsyncIterable[ServerSentEve
     with channel.listen(start.thing_id, current.event_id) as listener:
         while not current.finished:
             found = await listener.next()
-            if found is None:  # the server is stopping: the client reconnects and resumes
+            if found is None:  # the server is stopping (a client that reconnects resumes)
+                # or the job or study was deleted (one that reconnects gets 404)
                 return
             yield _event(found, seen)
             current, seen = found, found.status

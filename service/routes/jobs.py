@@ -1,4 +1,4 @@
-"""Jobs: submit, watch, list, cancel, and fetch results as JSON, arrays or pictures."""
+"""Jobs: submit, watch, list, cancel, delete, and fetch results as JSON, arrays or pictures."""
 
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 from nanonav import plots
 from nanonav.engine import SimulationResult
 from nanonav.policy import greedy_table
-from nanonav.scenario import Policy, Scenario
+from nanonav.scenario import MAX_EXACT_INT, Policy, Scenario
 from nanonav.store import JobStatus, JobStore, ResultsUnavailable, StudyNotFound
 from nanonav.store.arrays import pack
 from service.budget import check_budget
@@ -26,18 +26,18 @@ from service.callbacks import CallbackUrl, callback_answer, check_callback
 from service.deps import DeliveriesDep, DrawerDep, JsonBody, SettingsDep, StoreDep, StudiesDep
 from service.drawing import Drawer
 from service.idempotency import IdempotencyDep
-from service.paging import decode_cursor, encode_cursor
+from service.paging import Cursor, decode_cursor, encode_cursor
 from service.policy_from import check_policy_from
 from service.problems import InvalidInput, NoCallback, NoQTable, field_error, problems
 from service.schemas import Callback, GreedyState, Job, JobPage, Metrics, QTable, Trajectory
-from service.security import CallerDep, OwnedOnly, owned_tables, quota_of
+from service.security import SCRIPTED_ONLY, CallerDep, OwnedOnly, owned_tables, quota_of
 
 router = APIRouter(prefix="/jobs", tags=["jobs"], dependencies=[OwnedOnly])
 
 # Pictures of what a cancelled job keeps: the episodes it finished and the table it learned.
 KEPT_PICTURES = ("learning", "qtable")
 
-JobId = Annotated[int, Path(ge=1, le=2**63 - 1, description="The job's id.")]
+JobId = Annotated[int, Path(ge=1, le=MAX_EXACT_INT, description="The job's id.")]
 PNG: dict[int | str, dict[str, Any]] = {
     200: {"content": {"image/png": {}}, "description": "A PNG picture."}
 }
@@ -69,7 +69,14 @@ def submit_job(
     idempotency: IdempotencyDep,
     callback_url: CallbackUrl = None,
 ) -> Job:
-    """Queue a scenario to run; answers once the job is stored."""
+    """Queue a scenario to run; answers once the job is stored.
+
+    A scenario the schema allows may still be refused with 422, each error typed by its rule:
+    ``scenario_rule`` (fields that must agree, as the scenario's description says),
+    ``budget_exceeded`` (more work than the server's budget), ``policy_unusable`` (a
+    ``policy_from`` naming no table this scenario can evaluate), ``refused`` (a
+    ``callback_url`` the server will not call), ``idempotency_key`` (a blank, non-UTF-8 or
+    over-long key) and ``idempotency_key_reused`` (a key already used for another request)."""
     check_callback(callback_url, settings)
     check_budget(scenario, settings)
     check_policy_from(scenario, owned_tables(store, caller), ("body", "policy_from"))
@@ -93,11 +100,11 @@ def list_jobs(
     caller: CallerDep,
     status: Annotated[JobStatus | None, Query(description="Only jobs in this state.")] = None,
     study: Annotated[
-        int | None, Query(ge=1, le=2**63 - 1, description="Only the jobs of this study.")
+        int | None, Query(ge=1, le=MAX_EXACT_INT, description="Only the jobs of this study.")
     ] = None,
     policy: Annotated[Policy | None, Query(description="Only jobs of this policy.")] = None,
     limit: Annotated[int, Query(ge=1, le=100, description="Jobs per page.")] = 20,
-    cursor: Annotated[str | None, Query(max_length=64, description="From `next_cursor`.")] = None,
+    cursor: Cursor = None,
 ) -> JobPage:
     """A page of jobs, newest first; with API keys, only the caller's own."""
     if caller.scoped and study is not None and studies.owner_of(study) != caller.owner:
@@ -135,6 +142,7 @@ def get_job(job_id: JobId, store: StoreDep) -> Job:
     "/{job_id}/cancel",
     response_model=Job,
     responses=problems(403, 404, 409, 415, 422),
+    openapi_extra=SCRIPTED_ONLY,
 )
 def cancel_job(job_id: JobId, store: StoreDep) -> Job:
     """Cancel a job: a queued one at once, a running one within about a second.
@@ -142,6 +150,22 @@ def cancel_job(job_id: JobId, store: StoreDep) -> Job:
     200 when the job is or will be cancelled (asking twice is harmless); 409 when it already
     ended another way, succeeded or failed."""
     return Job.of(store.cancel(job_id))
+
+
+@router.delete(
+    "/{job_id}",
+    status_code=204,
+    response_class=Response,
+    responses={204: {"description": "Deleted."}, **problems(403, 404, 409, 415, 422)},
+    openapi_extra=SCRIPTED_ONLY,
+)
+def delete_job(job_id: JobId, store: StoreDep) -> Response:
+    """Delete a finished job (succeeded, failed or cancelled) with its results and pictures.
+
+    409 for a queued or running job (cancel it first) and for a job of a study (delete the
+    study instead); 404 once it is gone. A webhook it has not sent yet is still sent."""
+    store.delete(job_id)
+    return Response(status_code=204)
 
 
 @router.get("/{job_id}/callback", response_model=Callback, responses=problems(404, 422))

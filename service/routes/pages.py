@@ -22,13 +22,13 @@ from fastapi.templating import Jinja2Templates
 from pydantic import BaseModel, ConfigDict, Field
 
 from nanonav import table1
-from nanonav.scenario import PRESETS, ActionSet, FieldModel, Policy, Scenario
+from nanonav.scenario import MAX_EXACT_INT, PRESETS, ActionSet, FieldModel, Policy, Scenario
 from nanonav.store import JobNotFound, JobStatus, StudyNotFound
 from nanonav.store.queue import PRESENCE_WINDOW_S
 from nanonav.studies.report import METRICS
 from nanonav.studies.spec import GRID_KEYS
 from service.deps import SettingsDep, StoreDep, StudiesDep
-from service.paging import decode_cursor, encode_cursor
+from service.paging import Cursor, decode_cursor, encode_cursor
 from service.problems import Unauthorized
 from service.routes.studies import list_studies, study_answer
 from service.schemas import Job
@@ -56,7 +56,7 @@ VIEW_ROWS = 400
 # A study's table shows these metrics (its CSV has them all).
 STUDY_COLUMNS = ("success_rate", "total_steps", "final_distance", "average_distance",
                  "average_concentration", "collisions", "path_efficiency")  # fmt: skip
-PageId = Annotated[int, PathParam(ge=1, le=2**63 - 1)]
+PageId = Annotated[int, PathParam(ge=1, le=MAX_EXACT_INT)]
 
 
 def _page(request: Request, name: str, status: int = 200, **context: Any) -> HTMLResponse:
@@ -107,12 +107,12 @@ def jobs_page(
     status: Annotated[str, Query(max_length=16)] = "",
     policy: Annotated[str, Query(max_length=32)] = "",
     study: Annotated[str, Query(max_length=20)] = "",
-    cursor: Annotated[str | None, Query(max_length=64)] = None,
+    cursor: Cursor = None,
 ) -> HTMLResponse:
     """Jobs, newest first, filtered by status, policy and study (unknown values are ignored)."""
     wanted_status = JobStatus(status) if status in {s.value for s in JobStatus} else None
     wanted_policy = policy if policy in get_args(Policy) else None
-    wanted_study = int(study) if study.isdigit() and 0 < int(study) < 2**63 else None
+    wanted_study = int(study) if study.isdigit() and 0 < int(study) <= MAX_EXACT_INT else None
     before = None if cursor is None else decode_cursor(cursor)
     page = store.page(
         status=wanted_status, limit=25, before_id=before, study_id=wanted_study,
@@ -163,7 +163,7 @@ def studies_page(
     request: Request,
     studies: StudiesDep,
     caller: CallerDep,
-    cursor: Annotated[str | None, Query(max_length=64)] = None,
+    cursor: Cursor = None,
 ) -> HTMLResponse:
     page = list_studies(studies, caller, limit=25, cursor=cursor)
     next_url = None if page.next_cursor is None else f"/ui/studies?cursor={page.next_cursor}"

@@ -11,6 +11,7 @@ from fastapi import APIRouter, Body, Path, Query, Response
 from fastapi.concurrency import run_in_threadpool
 from pydantic import ValidationError
 
+from nanonav.scenario import MAX_EXACT_INT
 from nanonav.store import StudyJob, StudyJobState, StudyRecord, StudyStore
 from nanonav.studies import export, pictures
 from nanonav.studies.report import (
@@ -22,14 +23,14 @@ from nanonav.studies.report import (
     table,
     table_columns,
 )
-from nanonav.studies.spec import StudySpec, point_values, points
+from nanonav.studies.spec import StudySpec, grid_index, point_values, points
 from service.budget import check_budget
 from service.caching import IMMUTABLE
 from service.callbacks import CallbackUrl, callback_answer, check_callback
 from service.deps import DeliveriesDep, DrawerDep, JsonBody, SettingsDep, StoreDep, StudiesDep
 from service.drawing import Drawer
 from service.idempotency import IdempotencyDep
-from service.paging import decode_cursor, encode_cursor
+from service.paging import Cursor, decode_cursor, encode_cursor
 from service.policy_from import check_policy_from
 from service.problems import (
     InvalidInput,
@@ -41,11 +42,11 @@ from service.problems import (
 )
 from service.routes.jobs import PNG
 from service.schemas import Callback, JobCounts, Study, StudyLinks, StudyPage, StudySummary
-from service.security import CallerDep, OwnedOnly, owned_tables, quota_of
+from service.security import SCRIPTED_ONLY, CallerDep, OwnedOnly, owned_tables, quota_of
 
 router = APIRouter(prefix="/studies", tags=["studies"], dependencies=[OwnedOnly])
 
-StudyId = Annotated[int, Path(ge=1, le=2**63 - 1, description="The study's id.")]
+StudyId = Annotated[int, Path(ge=1, le=MAX_EXACT_INT, description="The study's id.")]
 PictureName = Annotated[
     str,
     Path(
@@ -86,7 +87,13 @@ def submit_study(
     idempotency: IdempotencyDep,
     callback_url: CallbackUrl = None,
 ) -> Study:
-    """Queue every grid point x seed as a job, all in one transaction, after validating all."""
+    """Queue every grid point x seed as a job, all in one transaction, after validating all.
+
+    A study the schema allows may still be refused with 422, each error typed by its rule:
+    ``study_rule`` (a base or grid point that is not a valid scenario, or ``compare`` not a
+    grid key with two values), ``too_many_jobs`` (more grid points x seeds than the server
+    takes), and as in POST /jobs ``budget_exceeded``, ``policy_unusable``, ``refused``,
+    ``idempotency_key`` and ``idempotency_key_reused``."""
     check_callback(callback_url, settings)
     if spec.job_count > settings.study_max_jobs:
         detail = (
@@ -104,7 +111,7 @@ def submit_study(
         raise invalid_body(error) from None
     read = cache(owned_tables(store, caller))  # points that name the same job read its table once
     for point in grid:
-        blame = [("body", "grid", k, spec.grid[k].index(v)) for k, v in point.values.items()]
+        blame = [("body", "grid", k, grid_index(spec, k, v)) for k, v in point.values.items()]
         check_budget(point.scenario, settings, blame or None)
         check_policy_from(point.scenario, read, *_policy_blame(spec, point.values))
     seeds = spec.seed_list
@@ -139,7 +146,7 @@ def list_studies(
     studies: StudiesDep,
     caller: CallerDep,
     limit: Annotated[int, Query(ge=1, le=100, description="Studies per page.")] = 20,
-    cursor: Annotated[str | None, Query(max_length=64, description="From `next_cursor`.")] = None,
+    cursor: Cursor = None,
 ) -> StudyPage:
     """A page of studies, newest first; with API keys, only the caller's own."""
     before = None if cursor is None else decode_cursor(cursor)
@@ -191,6 +198,7 @@ def get_study_callback(
     "/{study_id}/cancel",
     response_model=Study,
     responses=problems(403, 404, 409, 415, 422),
+    openapi_extra=SCRIPTED_ONLY,
 )
 def cancel_study(study_id: StudyId, studies: StudiesDep) -> Study:
     """Cancel a study's unfinished jobs: queued ones at once, running ones within a second.
@@ -201,6 +209,21 @@ def cancel_study(study_id: StudyId, studies: StudiesDep) -> Study:
     if view.status in FINISHED and not view.cancel_requested:
         raise StudyFinished(f"study {study_id} has already finished: it is {view.status}")
     return study_answer(studies, studies.cancel(study_id))
+
+
+@router.delete(
+    "/{study_id}",
+    status_code=204,
+    response_class=Response,
+    responses={204: {"description": "Deleted."}, **problems(403, 404, 409, 415, 422)},
+    openapi_extra=SCRIPTED_ONLY,
+)
+def delete_study(study_id: StudyId, studies: StudiesDep) -> Response:
+    """Delete an ended study with its jobs, their results, its report and its pictures.
+
+    409 while any of its jobs is queued or running (cancel it first); 404 once it is gone."""
+    studies.delete(study_id)
+    return Response(status_code=204)
 
 
 @router.get(
@@ -336,7 +359,7 @@ def _policy_blame(spec: StudySpec, values: Mapping[str, Any]) -> tuple[tuple[str
     point it is, to name in a refusal."""
     if "policy_from" in values:
         loc: tuple[str | int, ...] = (
-            "body", "grid", "policy_from", spec.grid["policy_from"].index(values["policy_from"])
+            "body", "grid", "policy_from", grid_index(spec, "policy_from", values["policy_from"])
         )  # fmt: skip
     else:
         loc = ("body", "base", "policy_from")

@@ -290,6 +290,32 @@ def test_fetch_of_a_job_without_results_or_an_unknown_one_exits_2(
     assert not out_dir.exists()
 
 
+# ---------------------------------------------------------------- delete
+
+
+def test_delete_removes_a_finished_job_or_study_and_explains_a_refusal(
+    live_api: LiveApi, capsys: pytest.CaptureFixture[str], api: Client
+) -> None:
+    url = ["--url", live_api.url]
+    job = api.wait(api.submit({**TINY, "seed": 31}).id, poll_s=0.05, timeout_s=WAIT_S)
+    study = api.wait_study(api.submit_study(STUDY).id, poll_s=0.1, timeout_s=WAIT_S)
+    one_of_study = next(api.jobs(study=study.id)).id
+    assert main(["delete", str(one_of_study), *url]) == 2
+    assert capsys.readouterr().err.startswith(
+        f"nanonav delete: 409 Job belongs to a study: job {one_of_study} belongs to study "
+        f"{study.id}: delete the study instead"
+    )
+    assert main(["delete", str(job.id), *url]) == 0
+    assert capsys.readouterr().out == f"Deleted job {job.id}\n"
+    assert main(["delete", "--study", str(study.id), *url]) == 0
+    assert capsys.readouterr().out == f"Deleted study {study.id} and its jobs\n"
+    assert main(["delete", str(job.id), *url]) == 2
+    gone = capsys.readouterr().err
+    assert gone == f"nanonav delete: 404 Job not found: there is no job {job.id}\n"
+    assert main(["delete", *url]) == 2
+    assert "give a job ID, or --study ID" in capsys.readouterr().err
+
+
 # ---------------------------------------------------------------- jobs
 
 

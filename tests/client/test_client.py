@@ -269,6 +269,42 @@ def test_wait_times_out_and_cancel_stops_a_long_job(api: Client) -> None:
     assert ended.status == "cancelled"
 
 
+def test_a_finished_job_is_deleted_and_an_unfinished_one_refused(api: Client) -> None:
+    done = api.wait(api.submit(TINY).id, poll_s=0.05, timeout_s=WAIT_S)
+    api.delete(done.id)
+    for call in (lambda: api.job(done.id), lambda: api.delete(done.id)):
+        with pytest.raises(ApiError) as caught:
+            call()
+        assert (caught.value.status, caught.value.title) == (404, "Job not found")
+    long = api.submit(LONG)
+    with pytest.raises(ApiError) as caught:
+        api.delete(long.id)
+    assert caught.value.status == 409 and "cancel it first" in str(caught.value)
+    api.cancel(long.id)
+    api.wait(long.id, poll_s=0.05, timeout_s=WAIT_S)
+    api.delete(long.id)
+
+
+def test_an_ended_study_is_deleted_with_its_jobs(api: Client) -> None:
+    spec = {"name": "long", "base": LONG, "grid": {"robots.policy": ["random", "gradient"]},
+            "seeds": [0]}  # fmt: skip
+    study = api.submit_study(spec)
+    with pytest.raises(ApiError) as caught:
+        api.delete_study(study.id)
+    assert caught.value.status == 409 and caught.value.title == "Study not finished"
+    api.cancel_study(study.id)
+    api.wait_study(study.id, poll_s=0.05, timeout_s=WAIT_S)
+    jobs = [job.id for job in api.jobs(study=study.id)]
+    api.delete_study(study.id)
+    with pytest.raises(ApiError) as caught:
+        api.study(study.id)
+    assert caught.value.status == 404
+    assert list(api.jobs(study=study.id)) == []
+    with pytest.raises(ApiError) as caught:
+        api.job(jobs[0])
+    assert caught.value.status == 404
+
+
 def test_an_unreachable_server_is_named(live_api: LiveApi) -> None:
     url = f"http://127.0.0.1:{free_port()}"
     with Client(url, timeout=2) as api, pytest.raises(ServerUnreachable) as caught:

@@ -144,6 +144,26 @@ def test_stopping_the_poller_ends_every_listener_and_refuses_new_ones() -> None:
     run(scenario())
 
 
+def test_a_listener_of_a_thing_deleted_under_it_is_ended_and_the_others_go_on() -> None:
+    async def scenario() -> None:
+        things = Things()
+        things.set(1, "running", 0)
+        things.set(2, "running", 0)
+        poller = Poller(INTERVAL_S)
+        channel = poller.channel(things.read)
+        poller.start()
+        with channel.listen(1, None) as gone, channel.listen(2, None) as kept:
+            assert await next_state(gone) == things.states[1]
+            assert await next_state(kept) == things.states[2]
+            del things.states[1]
+            assert await next_state(gone) is None
+            finished = things.set(2, "succeeded", 1, finished=True)
+            assert await next_state(kept) == finished
+        await poller.stop()
+
+    run(scenario())
+
+
 def test_a_failed_read_is_logged_and_the_next_tick_tries_again(
     caplog: pytest.LogCaptureFixture,
 ) -> None:

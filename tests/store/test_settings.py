@@ -39,6 +39,10 @@ def test_prefixed_limits_and_port(monkeypatch: pytest.MonkeyPatch) -> None:
         ("NANONAV_PORT", "70000"),
         ("NANONAV_ROBOT_STEPS_BUDGET", "0"),
         ("NANONAV_JOB_TIME_LIMIT_S", "-1"),
+        ("NANONAV_RETENTION_DAYS", "0"),
+        ("NANONAV_RETENTION_DAYS", "-3"),
+        ("NANONAV_RETENTION_DAYS", "inf"),
+        ("NANONAV_RETENTION_DAYS", "a week"),
     ],
 )
 def test_a_bad_value_fails_at_start_up(
@@ -48,6 +52,13 @@ def test_a_bad_value_fails_at_start_up(
     monkeypatch.setenv(name, value)
     with pytest.raises(ValidationError):
         Settings()
+
+
+def test_retention_is_off_unless_set_in_days(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.delenv("NANONAV_RETENTION_DAYS", raising=False)
+    assert Settings().retention_days is None
+    monkeypatch.setenv("NANONAV_RETENTION_DAYS", "0.5")
+    assert Settings().retention_days == 0.5
 
 
 WEBHOOK_SECRET = "kq3N9vTz0bX7mR2sW5yC8dF1gH4jL6pA"
