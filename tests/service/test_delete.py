@@ -124,7 +124,7 @@ def test_the_delete_routes_document_their_answers(api: Api) -> None:
     paths = api.client.get("/openapi.json").json()["paths"]
     for path in ("/jobs/{job_id}", "/studies/{study_id}"):
         answers = paths[path]["delete"]["responses"]
-        assert set(answers) == {"204", "404", "409", "422"}
+        assert set(answers) == {"204", "403", "404", "409", "415", "422"}
         assert "content" not in answers["204"]
 
 

@@ -163,6 +163,8 @@ def test_another_key_gets_404_for_every_route_of_a_job_and_a_study_it_did_not_ma
         assert body["title"] in {"Job not found", "Study not found"}, path
     for path in (f"/jobs/{job}/cancel", f"/studies/{study}/cancel"):
         assert_problem(keyed.client.post(path, headers=bearer(KEY_B)), 404)
+    for path in (f"/jobs/{job}", f"/studies/{study}"):
+        assert_problem(keyed.client.delete(path, headers=bearer(KEY_B)), 404)
     assert keyed.store.get(job).status is JobStatus.SUCCEEDED
     assert keyed.client.get(f"/studies/{study}", headers=bearer(KEY_A)).json()["status"] == "queued"
     # a job's id that exists is answered exactly as one that does not
