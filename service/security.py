@@ -4,9 +4,10 @@
 request but ``/healthz`` and the login page's assets carries ``Authorization: Bearer <key>`` (a
 browser may carry it in the dashboard's cookie instead); the key is compared in constant time
 with every configured key, and only its SHA-256 digest is kept: it names the request's owner.
-A request that changes state (POST, PUT, PATCH, DELETE) must be JSON or carry a custom header,
-which an HTML form on another site cannot send, and an ``Origin`` it names must be this API's
-own or an allowed one.
+``refuse_cross_site``, a dependency of the whole app, makes a request that changes state (POST,
+PUT, PATCH, DELETE) be JSON or carry a custom header, which an HTML form on another site cannot
+send, and an ``Origin`` it names be this API's own or an allowed one. ``require_owner`` makes a
+job or study another key made answer 404, as one that does not exist.
 """
 
 from __future__ import annotations
@@ -52,12 +53,12 @@ OPEN_PATHS = frozenset(
 # Only documents the scheme in OpenAPI: ``Guard`` has already checked the key.
 BEARER = HTTPBearer(auto_error=False, description="One of the API's keys (NANONAV_API_KEYS).")
 UNSAFE_METHODS = frozenset({"POST", "PUT", "PATCH", "DELETE"})
-# A header a cross-site HTML form cannot send; marks a body-less POST as made by a script.
+# A header a cross-site HTML form cannot send; marks a body-less write as made by a script.
 SCRIPT_HEADER = "x-requested-with"
 
 
-# What the OpenAPI document says of a body-less write (a cancel, a delete): ``Guard`` refuses it
-# with 415 unless it carries this header (or declares a JSON body).
+# What the OpenAPI document says of a body-less write (a cancel, a delete): it is refused with
+# 415 unless it carries this header (or declares a JSON body).
 SCRIPTED_ONLY: dict[str, Any] = {
     "parameters": [
         {
