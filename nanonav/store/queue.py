@@ -30,6 +30,7 @@ from nanonav.store.db import (
 from nanonav.store.deliveries import add_waiting
 from nanonav.store.errors import JobAlreadyFinished, JobNotFound, LeaseLost, ResultsUnavailable
 from nanonav.store.models import Job, JobPlot, JobResult, JobStatus, UTCDateTime, Worker
+from nanonav.store.wakeups import announce
 
 # A worker says it is alive this often; it counts as present for PRESENCE_WINDOW_S after.
 PRESENCE_INTERVAL_S = 5.0
@@ -163,6 +164,7 @@ class JobStore:
                 session.flush()
                 if callback_url is not None:
                     add_waiting(session, callback_url, job_id=row.id)
+                announce(session)
                 return JobRecord.of(row)
         except IntegrityError:
             if idempotency_key is None:
@@ -437,7 +439,9 @@ class JobStore:
             "fraction": 0.0,
         }
         with unit_of_work(self._sessions) as session:
-            return JobRecord.of(_write_fenced(session, claim, {**values, **_lease_cleared()}))
+            row = _write_fenced(session, claim, {**values, **_lease_cleared()})
+            announce(session)
+            return JobRecord.of(row)
 
     def recover_expired(self, *, max_attempts: int, now: datetime | None = None) -> int:
         """Jobs whose lease ran out (their worker died) are queued again, or failed once they
@@ -464,11 +468,14 @@ class JobStore:
             update(Job)
             .where(Job.status == JobStatus.RUNNING, Job.lease_expires_at < now)
             .values(status=status, error=error, finished_at=finished, **_lease_cleared())
-            .returning(Job.id)
+            .returning(Job.status)
             .execution_options(synchronize_session=False)
         )
         with unit_of_work(self._sessions, write=True) as session:
-            return len(session.scalars(statement).all())
+            statuses = session.scalars(statement).all()
+            if JobStatus.QUEUED in statuses:
+                announce(session)
+            return len(statuses)
 
 
 def aware(value: datetime) -> datetime:

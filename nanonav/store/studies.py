@@ -21,6 +21,7 @@ from nanonav.store.deliveries import add_waiting
 from nanonav.store.errors import StudyNotFound
 from nanonav.store.models import Job, JobResult, JobStatus, Study, StudyPlot
 from nanonav.store.queue import aware, utcnow
+from nanonav.store.wakeups import announce
 
 
 @dataclass(frozen=True)
@@ -140,6 +141,7 @@ class StudyStore:
                 )
                 if callback_url is not None:
                     add_waiting(session, callback_url, study_id=study.id)
+                announce(session)
                 return StudyRecord.of(study)
         except IntegrityError:
             if idempotency_key is None:
