@@ -287,8 +287,11 @@ class JobStore:
             return False
         return True
 
-    def census(self, *, seen_within_s: float, now: datetime | None = None) -> Census:
-        """Jobs waiting and running, and the workers seen in the last ``seen_within_s``."""
+    def census(
+        self, *, seen_within_s: float, now: datetime | None = None, host: str | None = None
+    ) -> Census:
+        """Jobs waiting and running, and the workers seen in the last ``seen_within_s`` (only
+        those on the machine ``host``, when given)."""
         now = now or utcnow()
         counts = (
             select(Job.status, func.count(), func.min(Job.created_at))
@@ -296,6 +299,8 @@ class JobStore:
             .group_by(Job.status)
         )
         seen = select(func.count()).where(Worker.seen_at >= now - timedelta(seconds=seen_within_s))
+        if host is not None:  # a worker is named host:pid
+            seen = seen.where(Worker.name.startswith(f"{host}:", autoescape=True))
         with unit_of_work(self._sessions) as session:
             found = {
                 JobStatus(status): (n, oldest) for status, n, oldest in session.execute(counts)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import threading
+from datetime import UTC, datetime
 from typing import Any
 
 import numpy as np
@@ -12,6 +13,7 @@ import pytest
 from nanonav.engine import Progress
 from nanonav.settings import Settings
 from nanonav.store import Claim, JobRecord, JobStatus, JobStore
+from worker.health import healthy
 from worker.job import Stop, Watch, finite, run_job
 from worker.loop import work
 
@@ -161,3 +163,12 @@ def test_a_policy_from_job_whose_table_is_gone_or_unfit_fails_with_the_reason(
     assert (
         unfit.error == f"policy_from: job {baseline.id} learned no Q-table: only q_learning jobs do"
     )
+
+
+def test_the_health_check_sees_a_worker_of_this_host_only(store: JobStore) -> None:
+    settings = settings_for(store)
+    assert not healthy(settings, host="box")
+    store.worker_seen("box:12", started_at=datetime.now(UTC))
+    assert healthy(settings, host="box")
+    assert not healthy(settings, host="bo")
+    assert not healthy(Settings(database_url="postgresql://nobody@127.0.0.1:1/none"), host="box")
