@@ -6,7 +6,8 @@
 of errors (any answer but 2xx, or no answer). SQLite in a temporary directory unless
 ``--database-url`` names another store (it is migrated first, and its jobs are left there).
 
-    .venv/bin/python benchmarks/load.py [--duration 60] [--clients 50] [--database-url URL]
+    .venv/bin/python benchmarks/load.py [--duration 60] [--clients 50] [--pause 0.1]
+                                        [--api-processes 1] [--database-url URL]
 """
 
 from __future__ import annotations
@@ -49,9 +50,11 @@ def percentile(values: list[float], q: float) -> float:
 
 
 @contextmanager
-def running_service(database_url: str | None, workers: int) -> Iterator[str]:
-    """One API process and ``workers`` worker processes on ``database_url`` (a fresh SQLite
-    file if None); yields the API's base URL."""
+def running_service(
+    database_url: str | None, workers: int, api_processes: int = 1
+) -> Iterator[str]:
+    """``api_processes`` API processes (uvicorn --workers) and ``workers`` worker processes on
+    ``database_url`` (a fresh SQLite file if None); yields the API's base URL."""
     workdir = Path(tempfile.mkdtemp(prefix="nanonav-load-"))
     database_url = database_url or f"sqlite:///{workdir / 'nanonav.db'}"
     from nanonav.store.migrate import upgrade
@@ -64,8 +67,8 @@ def running_service(database_url: str | None, workers: int) -> Iterator[str]:
     }
     names = ["api", *(f"worker-{i}" for i in range(workers))]
     logs = {name: open(workdir / f"{name}.log", "wb") for name in names}  # noqa: SIM115
-    api = [sys.executable, "-m", "uvicorn", "service.app:create_app", "--factory",
-           "--port", str(port), "--log-level", "warning"]  # fmt: skip
+    api = [sys.executable, "-m", "uvicorn", "service.app:create_app", "--factory", "--port",
+           str(port), "--log-level", "warning", "--workers", str(api_processes)]  # fmt: skip
     commands = [api] + [[sys.executable, "-m", "worker"]] * workers
     children = [
         subprocess.Popen(command, env=env, stdout=logs[name], stderr=subprocess.STDOUT)
@@ -160,9 +163,10 @@ async def load(url: str, clients: int, duration: float, pause: float, cap: int) 
     return tally
 
 
-def report(tally: Tally, elapsed: float, clients: int, backend: str) -> None:
+def report(tally: Tally, elapsed: float, clients: int, backend: str, api: int = 1) -> None:
     answered = sum(len(times) for times in tally.times.values())
-    print(f"load: {clients} clients for {elapsed:.1f} s on {backend}, two workers")
+    print(f"load: {clients} clients for {elapsed:.1f} s on {backend}, {api} API process(es), "
+          "two workers")  # fmt: skip
     print(f"  {answered / elapsed:.1f} requests/s ({answered} answered), "
           f"{tally.jobs_ended} jobs ended")  # fmt: skip
     for route in (SUBMIT, POLL):
@@ -185,12 +189,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--max-requests", type=int, default=1_000_000,
                         help="stop after this many requests (1,000,000)")  # fmt: skip
     parser.add_argument("--database-url", help="the store to use (a fresh SQLite file)")
+    parser.add_argument("--api-processes", type=int, default=1,
+                        help="API processes, as uvicorn --workers (1)")  # fmt: skip
     args = parser.parse_args(argv)
     backend = "SQLite" if args.database_url is None else args.database_url.split(":", 1)[0]
-    with running_service(args.database_url, workers=2) as url:
+    with running_service(args.database_url, workers=2, api_processes=args.api_processes) as url:
         started = time.monotonic()
         tally = asyncio.run(load(url, args.clients, args.duration, args.pause, args.max_requests))
-        report(tally, time.monotonic() - started, args.clients, backend)
+        report(tally, time.monotonic() - started, args.clients, backend, args.api_processes)
     return 0 if not tally.errors else 1
 
 
