@@ -97,7 +97,9 @@ class Wakeups:
 
         args, kwargs = self._engine.dialect.create_connect_args(self._engine.url)
         try:
-            connection = psycopg.connect(*args, **{**kwargs, "autocommit": True})
+            connection = psycopg.connect(
+                *args, **{**kwargs, "autocommit": True, "application_name": "nanonav-listener"}
+            )
             (channel,) = connection.execute(f"SELECT {CHANNEL_NAME}").fetchall()[0]
             connection.execute(f'LISTEN "{channel}"')
         except psycopg.Error as error:

@@ -10,8 +10,9 @@ import pytest
 from sqlalchemy import text
 
 from nanonav.store import JobStatus, JobStore, StudyJob, StudyStore
+from nanonav.store import wakeups as wakeups_module
 from nanonav.store.db import make_engine
-from nanonav.store.wakeups import Wakeups
+from nanonav.store.wakeups import CHANNEL_NAME, Wakeups
 from tests.conftest import migrated_store, postgres_schema
 
 NEVER = threading.Event()
@@ -122,3 +123,22 @@ def test_postgresql_writes_wait_for_a_lock_as_long_as_the_busy_timeout(
         with store.engine.connect() as connection:
             assert connection.execute(text("SHOW lock_timeout")).scalar() == "250ms"
         store.close()
+
+
+def test_a_dropped_listening_connection_is_opened_again(
+    pg_store: JobStore, pg_wakeups: Wakeups, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(wakeups_module, "RECONNECT_S", 0.1)
+    with pg_store.engine.connect() as connection:
+        channel = connection.execute(text(f"SELECT {CHANNEL_NAME}")).scalar()
+        killed = connection.execute(
+            text("SELECT count(pg_terminate_backend(pid)) FROM pg_stat_activity "
+                 "WHERE application_name = 'nanonav-listener' AND query = :listen"),
+            {"listen": f'LISTEN "{channel}"'},
+        ).scalar()  # fmt: skip
+    assert killed == 1
+    assert not woken(pg_wakeups, 0.5)[0]  # the loss is noticed; the clock still wakes it
+    time.sleep(0.15)
+    assert pg_wakeups.listen()  # the next look opens another connection
+    pg_store.enqueue({"seed": 1}, robot_steps=1, episodes=1)
+    assert woken(pg_wakeups)[0]
