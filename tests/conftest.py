@@ -2,7 +2,7 @@
 
 SQLite is a file under ``tmp_path``. PostgreSQL is the local server (``NANONAV_TEST_POSTGRES_URL``,
 by default postgres@127.0.0.1:5432/test), one fresh schema per test; it is skipped when it does not
-answer, except in CI (``CI=true``), where that is a failure.
+answer, except in CI (``CI`` set to true, 1 or yes), where that is a failure.
 """
 
 from __future__ import annotations
@@ -55,7 +55,7 @@ def postgres_schema() -> Iterator[str]:
             connection.execute(text(f'CREATE SCHEMA "{schema}"'))
     except OperationalError as error:
         admin.dispose()
-        if os.environ.get("CI") == "true":
+        if os.environ.get("CI", "").lower() in {"1", "true", "yes"}:
             pytest.fail(f"PostgreSQL must answer in CI: {error}")
         pytest.skip(f"PostgreSQL is not reachable: {error}")
     url = make_url(POSTGRES_URL).update_query_dict({"options": f"-csearch_path={schema}"})
