@@ -23,6 +23,7 @@ from nanonav.store.idempotency import Idempotency, earlier
 from nanonav.store.models import Job, JobResult, JobStatus, Study, StudyPlot
 from nanonav.store.queue import aware, utcnow
 from nanonav.store.retention import delete_study
+from nanonav.store.wakeups import announce
 
 
 @dataclass(frozen=True)
@@ -150,6 +151,7 @@ class StudyStore:
                     )
                     if callback_url is not None:
                         add_waiting(session, callback_url, study_id=study.id)
+                    announce(session)
                     return StudyRecord.of(study)
             except IntegrityError:
                 # Another request took the key between our look and our insert: look again.
