@@ -91,7 +91,8 @@ class Settings(BaseSettings):
         0.2,
         gt=0,
         validation_alias=_aliases("poll_interval_s"),
-        description="How long an idle worker sleeps between two looks at the queue.",
+        description="How long an idle worker waits between two looks at the queue; on "
+        "PostgreSQL a job queued meanwhile wakes it at once (LISTEN/NOTIFY).",
     )
     lease_s: float = Field(
         15.0,
@@ -106,8 +107,9 @@ class Settings(BaseSettings):
         gt=0,
         le=3600,
         validation_alias=_aliases("store_busy_timeout_s"),
-        description="How long a SQLite write waits for another's lock before it fails; a "
-        "worker then retries it with backoff, and the job goes on.",
+        description="How long a write waits for another's lock before it fails (SQLite's busy "
+        "timeout, PostgreSQL's lock_timeout); a worker then retries it with backoff, and the "
+        "job goes on.",
     )
     max_attempts: int = Field(
         3,

@@ -1,4 +1,8 @@
-"""The dependencies routes receive, declared once as ``Annotated`` aliases."""
+"""The dependencies routes receive, declared once as ``Annotated`` aliases.
+
+The getters are ``async``: FastAPI runs a plain ``def`` dependency on its thread pool, a hop
+that costs more than the lookup and that every request would pay once per dependency.
+"""
 
 from __future__ import annotations
 
@@ -14,37 +18,37 @@ from service.events import Channel
 from service.problems import UnsupportedMediaType
 
 
-def _store(request: Request) -> JobStore:
+async def _store(request: Request) -> JobStore:
     store: JobStore = request.app.state.store
     return store
 
 
-def _settings(request: Request) -> Settings:
+async def _settings(request: Request) -> Settings:
     settings: Settings = request.app.state.settings
     return settings
 
 
-def _studies(request: Request) -> StudyStore:
+async def _studies(request: Request) -> StudyStore:
     studies: StudyStore = request.app.state.studies
     return studies
 
 
-def _deliveries(request: Request) -> DeliveryStore:
+async def _deliveries(request: Request) -> DeliveryStore:
     deliveries: DeliveryStore = request.app.state.deliveries
     return deliveries
 
 
-def _drawer(request: Request) -> Drawer:
+async def _drawer(request: Request) -> Drawer:
     drawer: Drawer = request.app.state.drawer
     return drawer
 
 
-def _job_events(request: Request) -> Channel:
+async def _job_events(request: Request) -> Channel:
     channel: Channel = request.app.state.job_events
     return channel
 
 
-def _study_events(request: Request) -> Channel:
+async def _study_events(request: Request) -> Channel:
     channel: Channel = request.app.state.study_events
     return channel
 

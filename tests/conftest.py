@@ -2,7 +2,7 @@
 
 SQLite is a file under ``tmp_path``. PostgreSQL is the local server (``NANONAV_TEST_POSTGRES_URL``,
 by default postgres@127.0.0.1:5432/test), one fresh schema per test; it is skipped when it does not
-answer, except in CI (``CI=true``), where that is a failure.
+answer, except in CI (``CI`` set to true, 1 or yes), where that is a failure.
 """
 
 from __future__ import annotations
@@ -47,8 +47,9 @@ def sqlite_url(tmp_path: Path) -> str:
     return sqlite_url_in(tmp_path)
 
 
-@pytest.fixture
-def postgres_url() -> Iterator[str]:
+@contextmanager
+def postgres_schema() -> Iterator[str]:
+    """A URL of the test server whose connections work in a fresh schema, dropped afterwards."""
     schema = f"test_{uuid.uuid4().hex[:12]}"
     admin = create_engine(POSTGRES_URL, isolation_level="AUTOCOMMIT")
     try:
@@ -56,7 +57,7 @@ def postgres_url() -> Iterator[str]:
             connection.execute(text(f'CREATE SCHEMA "{schema}"'))
     except OperationalError as error:
         admin.dispose()
-        if os.environ.get("CI") == "true":
+        if os.environ.get("CI", "").lower() in {"1", "true", "yes"}:
             pytest.fail(f"PostgreSQL must answer in CI: {error}")
         pytest.skip(f"PostgreSQL is not reachable: {error}")
     url = make_url(POSTGRES_URL).update_query_dict({"options": f"-csearch_path={schema}"})
@@ -66,6 +67,12 @@ def postgres_url() -> Iterator[str]:
         with admin.connect() as connection:
             connection.execute(text(f'DROP SCHEMA "{schema}" CASCADE'))
         admin.dispose()
+
+
+@pytest.fixture
+def postgres_url() -> Iterator[str]:
+    with postgres_schema() as url:
+        yield url
 
 
 @pytest.fixture(params=["sqlite", "postgresql"])

@@ -28,6 +28,7 @@ from nanonav.store.deliveries import DeliveryStore
 from nanonav.store.faults import reason
 from nanonav.store.queue import PRESENCE_INTERVAL_S
 from nanonav.store.retention import RETENTION_BATCH
+from nanonav.store.wakeups import Wakeups
 from worker.deliveries import run_deliveries
 from worker.job import run_job
 
@@ -56,7 +57,8 @@ def warm_up() -> None:
 
 
 def work(settings: Settings, shutdown: threading.Event, *, max_jobs: int | None = None) -> int:
-    """Claim and run jobs until ``shutdown`` is set (or ``max_jobs`` ran); returns jobs run."""
+    """Claim and run jobs until ``shutdown`` is set (or ``max_jobs`` ran); returns jobs run.
+    Idle, it waits for the queue's notification (PostgreSQL) or the poll interval."""
     owner = f"{socket.gethostname()}:{os.getpid()}"
     store = JobStore.from_url(settings.database_url, busy_timeout_s=settings.store_busy_timeout_s)
     ran = 0
@@ -73,6 +75,9 @@ def work(settings: Settings, shutdown: threading.Event, *, max_jobs: int | None 
                                              args=(deliveries, settings, stopped)))  # fmt: skip
     for thread in housekeeping:
         thread.start()
+    wakeups = Wakeups(store.engine)
+    if wakeups.listen():
+        logger.info("listening for queued jobs; polling every %g s too", settings.poll_interval_s)
     try:
         while not shutdown.is_set() and (max_jobs is None or ran < max_jobs):
             try:
@@ -82,7 +87,7 @@ def work(settings: Settings, shutdown: threading.Event, *, max_jobs: int | None 
                 shutdown.wait(max(settings.poll_interval_s, 1.0))
                 continue
             if claim is None:
-                shutdown.wait(settings.poll_interval_s)
+                wakeups.wait(settings.poll_interval_s, shutdown)
                 continue
             logger.info("job %d: claimed (attempt %d)", claim.job.id, claim.job.attempts)
             try:
@@ -95,6 +100,7 @@ def work(settings: Settings, shutdown: threading.Event, *, max_jobs: int | None 
                 logger.info("job %d: %s", record.id, record.status.value)
     finally:
         stopped.set()
+        wakeups.close()
         for thread in housekeeping:
             thread.join()
         with contextlib.suppress(SQLAlchemyError):

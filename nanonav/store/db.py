@@ -29,11 +29,13 @@ STALE_CONNECTION_WORDS = ("readonly database", "read-only transaction")
 
 
 def make_engine(url: str, *, busy_timeout_s: float = BUSY_TIMEOUT_S, **kwargs: Any) -> Engine:
-    """An engine for ``url``; for a SQLite file, its directory is created if missing, and a
-    write waits up to ``busy_timeout_s`` for another's lock before it fails (transiently)."""
+    """An engine for ``url``; for a SQLite file, its directory is created if missing. A write
+    waits up to ``busy_timeout_s`` for another's lock before it fails (transiently): SQLite's
+    busy timeout, PostgreSQL's ``lock_timeout``."""
     parsed = make_url(url)
     if parsed.get_backend_name() != "sqlite":
         engine = create_engine(parsed, pool_pre_ping=True, **kwargs)
+        event.listen(engine, "connect", partial(_postgresql_on_connect, busy_timeout_s))
         event.listen(engine, "handle_error", _recycle_stale)
         return engine
     if parsed.database and parsed.database != ":memory:":
@@ -54,6 +56,17 @@ def _recycle_stale(context: ExceptionContext) -> None:
     message = str(context.original_exception).lower()
     if any(words in message for words in STALE_CONNECTION_WORDS):
         context.is_disconnect = True
+
+
+def _postgresql_on_connect(
+    lock_timeout_s: float, dbapi_connection: Any, record: ConnectionPoolEntry
+) -> None:
+    cursor = dbapi_connection.cursor()
+    try:
+        cursor.execute(f"SET lock_timeout = {max(1, round(lock_timeout_s * 1000))}")
+    finally:
+        cursor.close()
+    dbapi_connection.commit()
 
 
 def _sqlite_on_connect(

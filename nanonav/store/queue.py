@@ -33,6 +33,7 @@ from nanonav.store.idempotency import Idempotency, earlier
 from nanonav.store.models import Job, JobPlot, JobResult, JobStatus, UTCDateTime, Worker
 from nanonav.store.quotas import Quota, check_quota
 from nanonav.store.retention import delete_job
+from nanonav.store.wakeups import announce
 
 # A worker says it is alive this often; it counts as present for PRESENCE_WINDOW_S after.
 PRESENCE_INTERVAL_S = 5.0
@@ -183,6 +184,7 @@ class JobStore:
                     session.flush()
                     if callback_url is not None:
                         add_waiting(session, callback_url, job_id=row.id)
+                    announce(session)
                     return JobRecord.of(row)
             except IntegrityError:
                 # Another request took the key between our look and our insert: look again.
@@ -323,8 +325,11 @@ class JobStore:
             return False
         return True
 
-    def census(self, *, seen_within_s: float, now: datetime | None = None) -> Census:
-        """Jobs waiting and running, and the workers seen in the last ``seen_within_s``."""
+    def census(
+        self, *, seen_within_s: float, now: datetime | None = None, host: str | None = None
+    ) -> Census:
+        """Jobs waiting and running, and the workers seen in the last ``seen_within_s`` (only
+        those on the machine ``host``, when given)."""
         now = now or utcnow()
         counts = (
             select(Job.status, func.count(), func.min(Job.created_at))
@@ -332,6 +337,8 @@ class JobStore:
             .group_by(Job.status)
         )
         seen = select(func.count()).where(Worker.seen_at >= now - timedelta(seconds=seen_within_s))
+        if host is not None:  # a worker is named host:pid
+            seen = seen.where(Worker.name.startswith(f"{host}:", autoescape=True))
         with unit_of_work(self._sessions) as session:
             found = {
                 JobStatus(status): (n, oldest) for status, n, oldest in session.execute(counts)
@@ -475,7 +482,9 @@ class JobStore:
             "fraction": 0.0,
         }
         with unit_of_work(self._sessions) as session:
-            return JobRecord.of(_write_fenced(session, claim, {**values, **_lease_cleared()}))
+            row = _write_fenced(session, claim, {**values, **_lease_cleared()})
+            announce(session)
+            return JobRecord.of(row)
 
     def recover_expired(self, *, max_attempts: int, now: datetime | None = None) -> int:
         """Jobs whose lease ran out (their worker died) are queued again, or failed once they
@@ -502,11 +511,14 @@ class JobStore:
             update(Job)
             .where(Job.status == JobStatus.RUNNING, Job.lease_expires_at < now)
             .values(status=status, error=error, finished_at=finished, **_lease_cleared())
-            .returning(Job.id)
+            .returning(Job.status)
             .execution_options(synchronize_session=False)
         )
         with unit_of_work(self._sessions, write=True) as session:
-            return len(session.scalars(statement).all())
+            statuses = session.scalars(statement).all()
+            if JobStatus.QUEUED in statuses:
+                announce(session)
+            return len(statuses)
 
 
 def aware(value: datetime) -> datetime:

@@ -24,6 +24,7 @@ from nanonav.store.models import Job, JobResult, JobStatus, Study, StudyPlot
 from nanonav.store.queue import aware, utcnow
 from nanonav.store.quotas import Quota, check_quota
 from nanonav.store.retention import delete_study
+from nanonav.store.wakeups import announce
 
 
 @dataclass(frozen=True)
@@ -162,6 +163,7 @@ class StudyStore:
                     )
                     if callback_url is not None:
                         add_waiting(session, callback_url, study_id=study.id)
+                    announce(session)
                     return StudyRecord.of(study)
             except IntegrityError:
                 # Another request took the key between our look and our insert: look again.

@@ -133,9 +133,11 @@ def list_jobs(
 
 
 @router.get("/{job_id}", response_model=Job, responses=problems(404, 422))
-def get_job(job_id: JobId, store: StoreDep) -> Job:
+async def get_job(job_id: JobId, store: StoreDep) -> Job:
     """A job's state and progress."""
-    return Job.of(store.get(job_id))
+    # What clients poll most: only the read goes to the thread pool (a plain ``def`` route
+    # would also send the answer's validation there, a second hop per request).
+    return Job.of(await run_in_threadpool(store.get, job_id))
 
 
 @router.post(

@@ -301,6 +301,10 @@ def test_the_census_counts_waiting_and_running_jobs_and_recent_workers(store: Jo
     assert store.census(seen_within_s=30, now=now).workers == 2
     store.worker_gone("host:2")
     assert store.census(seen_within_s=30, now=now).workers == 1
+    store.worker_seen("other_host:3", started_at=now, now=now)
+    assert store.census(seen_within_s=30, now=now, host="host").workers == 1
+    assert store.census(seen_within_s=30, now=now, host="other_host").workers == 1
+    assert store.census(seen_within_s=30, now=now, host="other%").workers == 0
 
 
 def test_jobs_are_listed_by_policy(store: JobStore) -> None:

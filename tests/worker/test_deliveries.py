@@ -31,10 +31,10 @@ def ended_job(store: JobStore, url: str) -> int:
     return job.id
 
 
-def test_a_webhook_is_posted_signed_with_its_event_and_summary(sqlite_store: JobStore) -> None:
-    deliveries = DeliveryStore(sqlite_store.engine)
+def test_a_webhook_is_posted_signed_with_its_event_and_summary(store: JobStore) -> None:
+    deliveries = DeliveryStore(store.engine)
     with receiving() as receiver, httpx.Client() as client:
-        job_id = ended_job(sqlite_store, receiver.url + "?who=me")
+        job_id = ended_job(store, receiver.url + "?who=me")
         assert deliver_due(deliveries, settings_for(receiver.url), client) == 1
         (got,) = receiver.wait_for(1)
     assert got.path == "/hook?who=me"
@@ -50,11 +50,11 @@ def test_a_webhook_is_posted_signed_with_its_event_and_summary(sqlite_store: Job
 
 
 def test_a_receiver_that_fails_gets_the_same_body_again_after_a_backoff(
-    sqlite_store: JobStore,
+    store: JobStore,
 ) -> None:
-    deliveries = DeliveryStore(sqlite_store.engine)
+    deliveries = DeliveryStore(store.engine)
     with receiving(statuses=[503, 500, 204]) as receiver, httpx.Client() as client:
-        job_id = ended_job(sqlite_store, receiver.url)
+        job_id = ended_job(store, receiver.url)
         settings = settings_for(receiver.url, webhook_retry_s=0.2)
         assert deliver_due(deliveries, settings, client) == 1
         record = deliveries.for_job(job_id)
@@ -73,10 +73,10 @@ def test_a_receiver_that_fails_gets_the_same_body_again_after_a_backoff(
     assert record.attempts == 3 and record.last_status == 204 and record.last_error is None
 
 
-def test_a_webhook_is_given_up_after_its_last_attempt(sqlite_store: JobStore) -> None:
-    deliveries = DeliveryStore(sqlite_store.engine)
+def test_a_webhook_is_given_up_after_its_last_attempt(store: JobStore) -> None:
+    deliveries = DeliveryStore(store.engine)
     with receiving(statuses=[500]) as receiver, httpx.Client() as client:
-        job_id = ended_job(sqlite_store, receiver.url)
+        job_id = ended_job(store, receiver.url)
         settings = settings_for(receiver.url, webhook_retry_s=0.01, webhook_attempts=2)
         deadline = time.monotonic() + 10
         while len(receiver.got) < 2 and time.monotonic() < deadline:
@@ -89,11 +89,11 @@ def test_a_webhook_is_given_up_after_its_last_attempt(sqlite_store: JobStore) ->
 
 
 def test_a_silent_receiver_times_out_and_a_closed_port_fails_without_blocking(
-    sqlite_store: JobStore,
+    store: JobStore,
 ) -> None:
-    deliveries = DeliveryStore(sqlite_store.engine)
+    deliveries = DeliveryStore(store.engine)
     with receiving(delay_s=2.0) as slow, httpx.Client(timeout=0.3) as client:
-        slow_job = ended_job(sqlite_store, slow.url)
+        slow_job = ended_job(store, slow.url)
         started = time.monotonic()
         deliver_due(deliveries, settings_for(slow.url, webhook_timeout_s=0.3), client)
         assert time.monotonic() - started < 1.5
@@ -102,17 +102,17 @@ def test_a_silent_receiver_times_out_and_a_closed_port_fails_without_blocking(
     assert record.last_error is not None and "no answer within" in record.last_error
     closed = slow.url  # the receiver has stopped: nothing listens there now
     with httpx.Client(timeout=1) as client:
-        job_id = ended_job(sqlite_store, closed.replace("/hook", "/other"))
+        job_id = ended_job(store, closed.replace("/hook", "/other"))
         deliver_due(deliveries, settings_for(closed, webhook_retry_s=3600), client)
     record = deliveries.for_job(job_id)
     assert record is not None and record.last_error is not None
     assert record.last_error.startswith("could not connect")
 
 
-def test_a_host_taken_off_the_allow_list_is_never_called(sqlite_store: JobStore) -> None:
-    deliveries = DeliveryStore(sqlite_store.engine)
+def test_a_host_taken_off_the_allow_list_is_never_called(store: JobStore) -> None:
+    deliveries = DeliveryStore(store.engine)
     with receiving() as receiver, httpx.Client() as client:
-        job_id = ended_job(sqlite_store, receiver.url)
+        job_id = ended_job(store, receiver.url)
         deliver_due(deliveries, settings_for("http://hooks.example.org"), client)
     assert receiver.got == []
     record = deliveries.for_job(job_id)

@@ -1,9 +1,10 @@
-"""The worker's pieces in one process, over a real SQLite store and the real engine."""
+"""The worker's pieces in one process, over a real store (SQLite, PostgreSQL) and engine."""
 
 from __future__ import annotations
 
 import math
 import threading
+from datetime import UTC, datetime
 from typing import Any
 
 import numpy as np
@@ -12,6 +13,7 @@ import pytest
 from nanonav.engine import Progress
 from nanonav.settings import Settings
 from nanonav.store import Claim, JobRecord, JobStatus, JobStore
+from worker.health import healthy
 from worker.job import Stop, Watch, finite, run_job
 from worker.loop import work
 
@@ -38,79 +40,79 @@ def settings_for(store: JobStore, **overrides: Any) -> Settings:
     return Settings(database_url=url, **overrides)
 
 
-def test_progress_is_written_at_most_once_per_interval(sqlite_store: JobStore) -> None:
-    claim = claimed(sqlite_store)
+def test_progress_is_written_at_most_once_per_interval(store: JobStore) -> None:
+    claim = claimed(store)
     clock = Clock()
-    settings = settings_for(sqlite_store, progress_interval_s=0.25)
-    watch = Watch(sqlite_store, claim, settings, threading.Event(), clock)
+    settings = settings_for(store, progress_interval_s=0.25)
+    watch = Watch(store, claim, settings, threading.Event(), clock)
     assert watch(Progress(0, 2, 10, 40))
-    assert sqlite_store.get(claim.job.id).fraction == pytest.approx(10 / 80)
+    assert store.get(claim.job.id).fraction == pytest.approx(10 / 80)
     clock.now += 0.1
     assert watch(Progress(0, 2, 30, 40))
-    assert sqlite_store.get(claim.job.id).fraction == pytest.approx(10 / 80)
+    assert store.get(claim.job.id).fraction == pytest.approx(10 / 80)
     clock.now += 0.2
     assert watch(Progress(1, 2, 0, 40))
-    job = sqlite_store.get(claim.job.id)
+    job = store.get(claim.job.id)
     assert (job.episode, job.fraction) == (1, pytest.approx(0.5))
 
 
-def test_a_cancel_request_stops_the_run_at_the_next_write(sqlite_store: JobStore) -> None:
-    claim = claimed(sqlite_store)
+def test_a_cancel_request_stops_the_run_at_the_next_write(store: JobStore) -> None:
+    claim = claimed(store)
     clock = Clock()
-    watch = Watch(sqlite_store, claim, settings_for(sqlite_store), threading.Event(), clock)
+    watch = Watch(store, claim, settings_for(store), threading.Event(), clock)
     assert watch(Progress(0, 2, 1, 40))
-    sqlite_store.cancel(claim.job.id)
+    store.cancel(claim.job.id)
     clock.now += 1
     assert watch(Progress(0, 2, 2, 40)) is False
     assert watch.stop is Stop.CANCELLED
 
 
-def test_the_time_limit_and_shutdown_stop_the_run(sqlite_store: JobStore) -> None:
-    claim = claimed(sqlite_store)
+def test_the_time_limit_and_shutdown_stop_the_run(store: JobStore) -> None:
+    claim = claimed(store)
     clock = Clock()
     shutdown = threading.Event()
-    settings = settings_for(sqlite_store, job_time_limit_s=5)
-    watch = Watch(sqlite_store, claim, settings, shutdown, clock)
+    settings = settings_for(store, job_time_limit_s=5)
+    watch = Watch(store, claim, settings, shutdown, clock)
     clock.now += 5.5
     assert watch(Progress(0, 2, 1, 40)) is False
     assert watch.stop is Stop.TIME_LIMIT
-    other = Watch(sqlite_store, claim, settings, shutdown, clock)
+    other = Watch(store, claim, settings, shutdown, clock)
     shutdown.set()
     assert other(Progress(0, 2, 1, 40)) is False
     assert other.stop is Stop.SHUTDOWN
 
 
-def test_a_lost_lease_stops_the_run(sqlite_store: JobStore) -> None:
-    claim = claimed(sqlite_store)
+def test_a_lost_lease_stops_the_run(store: JobStore) -> None:
+    claim = claimed(store)
     stale = Claim(job=claim.job, token="stolen", owner="x")
-    watch = Watch(sqlite_store, stale, settings_for(sqlite_store), threading.Event(), Clock())
+    watch = Watch(store, stale, settings_for(store), threading.Event(), Clock())
     assert watch(Progress(0, 2, 1, 40)) is False
     assert watch.stop is Stop.LEASE_LOST
 
 
-def test_run_job_stores_a_finished_run(sqlite_store: JobStore) -> None:
-    claim = claimed(sqlite_store)
-    record = run_job(sqlite_store, claim, settings_for(sqlite_store), threading.Event())
+def test_run_job_stores_a_finished_run(store: JobStore) -> None:
+    claim = claimed(store)
+    record = run_job(store, claim, settings_for(store), threading.Event())
     assert record is not None and record.status is JobStatus.SUCCEEDED
-    assert set(sqlite_store.trajectory(claim.job.id)) >= {"robots", "cells", "distance"}
-    assert sqlite_store.qtable(claim.job.id)["values"].ndim == 2
-    assert sqlite_store.plot(claim.job.id, "heatmap_all") is None  # drawn when first asked for
+    assert set(store.trajectory(claim.job.id)) >= {"robots", "cells", "distance"}
+    assert store.qtable(claim.job.id)["values"].ndim == 2
+    assert store.plot(claim.job.id, "heatmap_all") is None  # drawn when first asked for
 
 
-def test_run_job_fails_an_invalid_scenario_with_its_reason(sqlite_store: JobStore) -> None:
-    claim = claimed(sqlite_store, {"robots": {"count": 0}})
-    record = run_job(sqlite_store, claim, settings_for(sqlite_store), threading.Event())
+def test_run_job_fails_an_invalid_scenario_with_its_reason(store: JobStore) -> None:
+    claim = claimed(store, {"robots": {"count": 0}})
+    record = run_job(store, claim, settings_for(store), threading.Event())
     assert record is not None and record.status is JobStatus.FAILED
     assert record.error is not None and "robots.count" in record.error
 
 
-def test_a_shutdown_gives_the_job_back(sqlite_store: JobStore) -> None:
+def test_a_shutdown_gives_the_job_back(store: JobStore) -> None:
     long_run = {"learning": {"episodes": 200, "max_steps": 2000}, "robots": {"policy": "random"}}
-    claim = claimed(sqlite_store, long_run)
+    claim = claimed(store, long_run)
     shutdown = threading.Event()
     shutdown.set()
-    assert run_job(sqlite_store, claim, settings_for(sqlite_store), shutdown) is None
-    job = sqlite_store.get(claim.job.id)
+    assert run_job(store, claim, settings_for(store), shutdown) is None
+    job = store.get(claim.job.id)
     assert (job.status, job.attempts) == (JobStatus.QUEUED, 0)
 
 
@@ -136,28 +138,37 @@ def run_claimed(store: JobStore, scenario: dict[str, Any]) -> JobRecord:
 
 
 def test_a_policy_from_job_evaluates_the_named_table_without_learning(
-    sqlite_store: JobStore,
+    store: JobStore,
 ) -> None:
-    source = run_claimed(sqlite_store, TINY)
+    source = run_claimed(store, TINY)
     assert source.status is JobStatus.SUCCEEDED
     evaluation = {**TINY, "seed": 5, "learning": {"episodes": 0, "max_steps": 40}}
-    evaluated = run_claimed(sqlite_store, {**evaluation, "policy_from": source.id})
+    evaluated = run_claimed(store, {**evaluation, "policy_from": source.id})
     assert evaluated.status is JobStatus.SUCCEEDED, evaluated.error
-    learned = sqlite_store.qtable(source.id)["values"]
+    learned = store.qtable(source.id)["values"]
     assert np.any(learned != 0.0)
-    np.testing.assert_array_equal(sqlite_store.qtable(evaluated.id)["values"], learned)
+    np.testing.assert_array_equal(store.qtable(evaluated.id)["values"], learned)
 
 
 def test_a_policy_from_job_whose_table_is_gone_or_unfit_fails_with_the_reason(
-    sqlite_store: JobStore,
+    store: JobStore,
 ) -> None:
-    baseline = run_claimed(sqlite_store, {**TINY, "robots": {"count": 2, "policy": "gradient"}})
+    baseline = run_claimed(store, {**TINY, "robots": {"count": 2, "policy": "gradient"}})
     evaluation = {**TINY, "learning": {"episodes": 0, "max_steps": 40}}
-    missing = run_claimed(sqlite_store, {**evaluation, "policy_from": 999})
+    missing = run_claimed(store, {**evaluation, "policy_from": 999})
     assert missing.status is JobStatus.FAILED
     assert missing.error == "policy_from: there is no job 999"
-    unfit = run_claimed(sqlite_store, {**evaluation, "policy_from": baseline.id})
+    unfit = run_claimed(store, {**evaluation, "policy_from": baseline.id})
     assert unfit.status is JobStatus.FAILED
     assert (
         unfit.error == f"policy_from: job {baseline.id} learned no Q-table: only q_learning jobs do"
     )
+
+
+def test_the_health_check_sees_a_worker_of_this_host_only(store: JobStore) -> None:
+    settings = settings_for(store)
+    assert not healthy(settings, host="box")
+    store.worker_seen("box:12", started_at=datetime.now(UTC))
+    assert healthy(settings, host="box")
+    assert not healthy(settings, host="bo")
+    assert not healthy(Settings(database_url="postgresql://nobody@127.0.0.1:1/none"), host="box")

@@ -1,0 +1,204 @@
+"""The API under load, on real processes: one uvicorn API and two workers on loopback.
+
+``--clients`` concurrent clients (50) each submit a small job, poll ``GET /jobs/{id}`` every
+``--pause`` seconds until it ends, and start again, for ``--duration`` seconds (60) or until
+``--max-requests`` were sent. Prints requests per second, p50/p99/max per route and the number
+of errors (any answer but 2xx, or no answer). SQLite in a temporary directory unless
+``--database-url`` names another store (it is migrated first, and its jobs are left there).
+
+    .venv/bin/python benchmarks/load.py [--duration 60] [--clients 50] [--pause 0.1]
+                                        [--api-processes 1] [--database-url URL]
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import os
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from collections import defaultdict
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import httpx
+
+# A small job: tens of milliseconds of simulation, so the two workers are always busy.
+SMALL: dict[str, Any] = {"robots": {"count": 2}, "learning": {"episodes": 3, "max_steps": 100},
+                         "evaluation": {"worlds": 2}}  # fmt: skip
+ENDED = {"succeeded", "failed", "cancelled"}
+SUBMIT, POLL = "POST /jobs", "GET /jobs/{id}"
+
+
+def free_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        port: int = sock.getsockname()[1]
+        return port
+
+
+def percentile(values: list[float], q: float) -> float:
+    ordered = sorted(values)
+    return ordered[min(len(ordered) - 1, max(0, round(q / 100 * (len(ordered) - 1))))]
+
+
+@contextmanager
+def running_service(
+    database_url: str | None, workers: int, api_processes: int = 1
+) -> Iterator[str]:
+    """``api_processes`` API processes (uvicorn --workers) and ``workers`` worker processes on
+    ``database_url`` (a fresh SQLite file if None); yields the API's base URL."""
+    workdir = Path(tempfile.mkdtemp(prefix="nanonav-load-"))
+    database_url = database_url or f"sqlite:///{workdir / 'nanonav.db'}"
+    from nanonav.store.migrate import upgrade
+
+    upgrade(database_url)
+    port = free_port()
+    env = {
+        **{k: v for k, v in os.environ.items() if k not in {"DATABASE_URL", "HOST", "PORT"}},
+        "NANONAV_DATABASE_URL": database_url,
+    }
+    names = ["api", *(f"worker-{i}" for i in range(workers))]
+    logs = {name: open(workdir / f"{name}.log", "wb") for name in names}  # noqa: SIM115
+    api = [sys.executable, "-m", "uvicorn", "service.app:create_app", "--factory", "--port",
+           str(port), "--log-level", "warning", "--workers", str(api_processes)]  # fmt: skip
+    commands = [api] + [[sys.executable, "-m", "worker"]] * workers
+    children = [
+        subprocess.Popen(command, env=env, stdout=logs[name], stderr=subprocess.STDOUT)
+        for name, command in zip(names, commands, strict=True)
+    ]
+    url = f"http://127.0.0.1:{port}"
+    try:
+        deadline = time.monotonic() + 180
+        while not all(b" ready on " in (workdir / f"{n}.log").read_bytes() for n in names[1:]):
+            if time.monotonic() > deadline or any(c.poll() is not None for c in children):
+                raise RuntimeError(f"the workers did not start; see {workdir}")
+            time.sleep(0.1)
+        while True:
+            try:
+                if httpx.get(f"{url}/healthz", timeout=5).status_code == 200:
+                    break
+            except httpx.TransportError:
+                pass
+            if time.monotonic() > deadline:
+                raise RuntimeError(f"the API did not start; see {workdir}")
+            time.sleep(0.1)
+        yield url
+    finally:
+        for child in children:
+            child.send_signal(signal.SIGTERM)
+        for child in children:
+            try:
+                child.wait(timeout=30)
+            except subprocess.TimeoutExpired:
+                child.kill()
+        for log in logs.values():
+            log.close()
+
+
+@dataclass
+class Tally:
+    """What the clients saw: the time of every answer per route, and what went wrong."""
+
+    times: dict[str, list[float]] = field(default_factory=lambda: defaultdict(list))
+    errors: dict[str, int] = field(default_factory=lambda: defaultdict(int))
+    jobs_ended: int = 0
+    sent: int = 0
+
+
+async def client_loop(
+    http: httpx.AsyncClient, tally: Tally, seed: int, stop_at: float, pause: float, cap: int
+) -> None:
+    async def call(route: str, method: str, path: str, **kwargs: Any) -> httpx.Response | None:
+        tally.sent += 1
+        started = time.perf_counter()
+        try:
+            response = await http.request(method, path, **kwargs)
+        except httpx.HTTPError as error:
+            tally.errors[f"{route}: {type(error).__name__}"] += 1
+            return None
+        tally.times[route].append(time.perf_counter() - started)
+        if not response.is_success:
+            tally.errors[f"{route}: {response.status_code}"] += 1
+            return None
+        return response
+
+    def going() -> bool:
+        return time.monotonic() < stop_at and tally.sent < cap
+
+    while going():
+        submitted = await call(SUBMIT, "POST", "/jobs", json={**SMALL, "seed": seed})
+        seed += 1_000
+        if submitted is None:
+            await asyncio.sleep(pause)
+            continue
+        path = f"/jobs/{submitted.json()['id']}"
+        while going():
+            await asyncio.sleep(pause)
+            polled = await call(POLL, "GET", path)
+            if polled is not None and polled.json()["status"] in ENDED:
+                tally.jobs_ended += 1
+                break
+
+
+async def load(url: str, clients: int, duration: float, pause: float, cap: int) -> Tally:
+    """Every client with a connection of its own, as separate programs would be (one shared
+    pool of 50 connections costs httpx more CPU per request than the API spends)."""
+    tally = Tally()
+    https = [httpx.AsyncClient(base_url=url, timeout=30) for _ in range(clients)]
+    try:
+        stop_at = time.monotonic() + duration
+        await asyncio.gather(*(client_loop(http, tally, seed, stop_at, pause, cap)
+                               for seed, http in enumerate(https)))  # fmt: skip
+    finally:
+        for http in https:
+            await http.aclose()
+    return tally
+
+
+def report(tally: Tally, elapsed: float, clients: int, backend: str, api: int = 1) -> None:
+    answered = sum(len(times) for times in tally.times.values())
+    print(f"load: {clients} clients for {elapsed:.1f} s on {backend}, {api} API process(es), "
+          "two workers")  # fmt: skip
+    print(f"  {answered / elapsed:.1f} requests/s ({answered} answered), "
+          f"{tally.jobs_ended} jobs ended")  # fmt: skip
+    for route in (SUBMIT, POLL):
+        times = tally.times.get(route) or [float("nan")]
+        print(f"  {route:<16} n {len(tally.times.get(route, [])):>6}   "
+              f"p50 {1000 * percentile(times, 50):.1f} ms   "
+              f"p99 {1000 * percentile(times, 99):.1f} ms   "
+              f"max {1000 * max(times):.1f} ms")  # fmt: skip
+    print(f"  errors: {sum(tally.errors.values())}")
+    for what, count in sorted(tally.errors.items()):
+        print(f"    {what}: {count}")
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--duration", type=float, default=60.0, help="seconds of load (60)")
+    parser.add_argument("--clients", type=int, default=50, help="concurrent clients (50)")
+    parser.add_argument("--pause", type=float, default=0.1,
+                        help="seconds a client waits between two polls (0.1)")  # fmt: skip
+    parser.add_argument("--max-requests", type=int, default=1_000_000,
+                        help="stop after this many requests (1,000,000)")  # fmt: skip
+    parser.add_argument("--database-url", help="the store to use (a fresh SQLite file)")
+    parser.add_argument("--api-processes", type=int, default=1,
+                        help="API processes, as uvicorn --workers (1)")  # fmt: skip
+    args = parser.parse_args(argv)
+    backend = "SQLite" if args.database_url is None else args.database_url.split(":", 1)[0]
+    with running_service(args.database_url, workers=2, api_processes=args.api_processes) as url:
+        started = time.monotonic()
+        tally = asyncio.run(load(url, args.clients, args.duration, args.pause, args.max_requests))
+        report(tally, time.monotonic() - started, args.clients, backend, args.api_processes)
+    return 0 if not tally.errors else 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
