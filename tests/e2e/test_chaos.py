@@ -11,6 +11,7 @@ import threading
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
+from itertools import islice
 from pathlib import Path
 from typing import Any
 
@@ -86,17 +87,28 @@ def test_killed_workers_and_a_held_write_lock_lose_and_fail_nothing(
         try:
             for worker in workers:
                 worker.wait_ready()
-            jobs = [store.enqueue({**JOB, "seed": seed}, robot_steps=1, episodes=152).id
-                    for seed in range(JOBS)]  # fmt: skip
+            # Jobs are fed as the chaos needs them, so that a fast machine cannot finish the
+            # queue before every kill is made: half at first, more whenever it runs dry.
+            seeds = iter(range(JOBS))
+            jobs: list[int] = []
+
+            def feed(count: int) -> None:
+                for seed in islice(seeds, count):
+                    jobs.append(store.enqueue({**JOB, "seed": seed}, robot_steps=1,
+                                              episodes=152).id)  # fmt: skip
+
+            feed(JOBS // 2)
             kills = 0
             locked = False
             while kills < KILLS:
-                time.sleep(rng.uniform(1.0, 3.0))
+                time.sleep(rng.uniform(0.3, 1.5))
                 owners = running_owners(store)
                 busy = [w for w in workers if any(o.endswith(f":{w.process.pid}") for o in owners)]
                 if not busy:
                     if store.census(seen_within_s=60).queued == 0:
-                        break  # the queue ran dry before every kill was made
+                        if len(jobs) == JOBS:
+                            break  # every job ran before every kill was made
+                        feed(WORKERS * 3)
                     continue
                 victim = rng.choice(busy)
                 victim.process.send_signal(signal.SIGKILL)
@@ -108,6 +120,7 @@ def test_killed_workers_and_a_held_write_lock_lose_and_fail_nothing(
                     with write_lock_held(database_url):
                         time.sleep(LOCK_HELD_S)
                     locked = True
+            feed(JOBS)
             assert kills == KILLS and locked, "the jobs ran out before the chaos was made"
 
             deadline = started + TIME_LIMIT_S
