@@ -39,7 +39,7 @@ WORKER_SETTINGS = {
 # About a tenth of a second of simulation each on an idle core, writing progress as it goes.
 JOB: dict[str, Any] = {"preset": "paper-swarm", "learning": {"episodes": 150},
                        "evaluation": {"worlds": 2}}  # fmt: skip
-TIME_LIMIT_S = 120.0  # 35-65 s a database here; the limit only stops a hang
+TIME_LIMIT_S = 120.0  # 15 s a database on a quiet machine, 35-65 s on a busy one
 
 
 @contextmanager
