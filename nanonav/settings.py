@@ -257,7 +257,7 @@ class Settings(BaseSettings):
         "0: no limit.",
     )
     allowed_hosts: Annotated[tuple[str, ...], NoDecode] = Field(
-        ("localhost", "127.0.0.1", "testserver"),
+        ("localhost", "127.0.0.1"),
         validation_alias=_aliases("allowed_hosts"),
         description="Comma-separated Host names the API answers ('*.example.org' for "
         "subdomains, '*' for any); another gets 400, against DNS rebinding. A deployment sets "

@@ -33,6 +33,9 @@ from tests.processes import ApiServer, Worker
 
 # What a script sends so that a body-less POST (a cancel) is not taken for a cross-site form.
 SCRIPTED = {"X-Requested-With": "nanonav-tests"}
+# In-process test clients (httpx's ASGI transport, schemathesis) send ``Host: testserver``.
+os.environ.setdefault("NANONAV_ALLOWED_HOSTS", "localhost,127.0.0.1,testserver")
+
 POSTGRES_URL = os.environ.get(
     "NANONAV_TEST_POSTGRES_URL", "postgresql+psycopg://postgres@127.0.0.1:5432/test"
 )
