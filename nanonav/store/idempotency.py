@@ -7,13 +7,16 @@ key is free again: the old row forgets it in the same transaction that makes the
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from datetime import datetime, timedelta
+from datetime import UTC, datetime, timedelta
 from typing import TypeVar
 
 from sqlalchemy import select, update
-from sqlalchemy.orm import Session
+from sqlalchemy.exc import IntegrityError
+from sqlalchemy.orm import Session, sessionmaker
 
+from nanonav.store.db import unit_of_work
 from nanonav.store.errors import IdempotencyKeyReused
 from nanonav.store.models import Job, Study
 
@@ -58,3 +61,29 @@ def earlier(
         kind = "job" if model is Job else "study"
         raise IdempotencyKeyReused(idempotency.key, kind, row.id)
     return row
+
+
+def insert_once(
+    sessions: sessionmaker[Session],
+    model: type[Keyed],
+    idempotency: Idempotency | None,
+    insert: Callable[[Session, datetime], Keyed],
+    *,
+    owner: str,
+    reads_first: bool,
+) -> Keyed:
+    """The row ``insert`` makes in one transaction, unless ``owner``'s key still names one: then
+    that row. Of two requests racing for one key, the loser finds the winner's row."""
+    # Looking up the key (or counting a quota: ``reads_first``) and then inserting reads before
+    # it writes: take SQLite's write lock up front.
+    write = reads_first or idempotency is not None
+    for attempt in range(2):
+        try:
+            with unit_of_work(sessions, write=write) as session:
+                now = datetime.now(UTC)
+                existing = earlier(session, model, idempotency, now, owner=owner)
+                return existing if existing is not None else insert(session, now)
+        except IntegrityError:
+            if idempotency is None or attempt == 1:
+                raise
+    raise AssertionError("unreachable")

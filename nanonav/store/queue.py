@@ -29,7 +29,7 @@ from nanonav.store.db import (
 )
 from nanonav.store.deliveries import add_waiting
 from nanonav.store.errors import JobAlreadyFinished, JobNotFound, LeaseLost, ResultsUnavailable
-from nanonav.store.idempotency import Idempotency, earlier
+from nanonav.store.idempotency import Idempotency, insert_once
 from nanonav.store.models import Job, JobPlot, JobResult, JobStatus, UTCDateTime, Worker
 from nanonav.store.quotas import Quota, check_quota
 from nanonav.store.retention import delete_job
@@ -155,42 +155,34 @@ class JobStore:
         with a key of ``owner`` that still holds, the job that key made instead
         (``IdempotencyKeyReused`` if that was made by another request). Past ``quota``,
         ``QuotaExceeded``."""
-        for attempt in range(2):
-            try:
-                # Looking the key up and then inserting is read-then-write: lock up front.
-                locked = idempotency is not None or not (quota is None or quota.unlimited)
-                with unit_of_work(self._sessions, write=locked) as session:
-                    now = utcnow()
-                    existing = earlier(session, Job, idempotency, now, owner=owner)
-                    if existing is not None:
-                        return JobRecord.of(existing)
-                    check_quota(session, quota, jobs=1, robot_steps=robot_steps)
-                    row = Job(
-                        status=JobStatus.QUEUED,
-                        scenario=scenario,
-                        robot_steps=robot_steps,
-                        owner=owner,
-                        quota_key=owner if quota is None else quota.key,
-                        idempotency_key=None if idempotency is None else idempotency.key,
-                        request_digest=None if idempotency is None else idempotency.digest,
-                        created_at=now,
-                        episode=0,
-                        episodes=episodes,
-                        fraction=0.0,
-                        cancel_requested=False,
-                        attempts=0,
-                    )
-                    session.add(row)
-                    session.flush()
-                    if callback_url is not None:
-                        add_waiting(session, callback_url, job_id=row.id)
-                    announce(session)
-                    return JobRecord.of(row)
-            except IntegrityError:
-                # Another request took the key between our look and our insert: look again.
-                if idempotency is None or attempt == 1:
-                    raise
-        raise AssertionError("unreachable")
+
+        def make(session: Session, now: datetime) -> Job:
+            check_quota(session, quota, jobs=1, robot_steps=robot_steps)
+            row = Job(
+                status=JobStatus.QUEUED,
+                scenario=scenario,
+                robot_steps=robot_steps,
+                owner=owner,
+                quota_key=owner if quota is None else quota.key,
+                idempotency_key=None if idempotency is None else idempotency.key,
+                request_digest=None if idempotency is None else idempotency.digest,
+                created_at=now,
+                episode=0,
+                episodes=episodes,
+                fraction=0.0,
+                cancel_requested=False,
+                attempts=0,
+            )
+            session.add(row)
+            session.flush()
+            if callback_url is not None:
+                add_waiting(session, callback_url, job_id=row.id)
+            announce(session)
+            return row
+
+        limited = not (quota is None or quota.unlimited)
+        row = insert_once(self._sessions, Job, idempotency, make, owner=owner, reads_first=limited)
+        return JobRecord.of(row)
 
     def get(self, job_id: int) -> JobRecord:
         with unit_of_work(self._sessions) as session:

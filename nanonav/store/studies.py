@@ -15,11 +15,12 @@ from typing import Any
 
 from sqlalchemy import JSON, Engine, func, insert, literal, select, update
 from sqlalchemy.exc import IntegrityError
+from sqlalchemy.orm import Session
 
 from nanonav.store.db import add_once, make_sessionmaker, unit_of_work
 from nanonav.store.deliveries import add_waiting
 from nanonav.store.errors import StudyNotFound
-from nanonav.store.idempotency import Idempotency, earlier
+from nanonav.store.idempotency import Idempotency, insert_once
 from nanonav.store.models import Job, JobResult, JobStatus, Study, StudyPlot
 from nanonav.store.queue import aware, utcnow
 from nanonav.store.quotas import Quota, check_quota
@@ -116,60 +117,54 @@ class StudyStore:
         (``IdempotencyKeyReused`` if that was made by another request). Past ``quota`` (which
         counts every job of the study), ``QuotaExceeded``."""
         quota_key = owner if quota is None else quota.key
-        for attempt in range(2):
-            try:
-                # Looking the key up and then inserting is read-then-write: lock up front.
-                locked = idempotency is not None or not (quota is None or quota.unlimited)
-                with unit_of_work(self._sessions, write=locked) as session:
-                    now = utcnow()
-                    existing = earlier(session, Study, idempotency, now, owner=owner)
-                    if existing is not None:
-                        return StudyRecord.of(existing)
-                    steps = sum(job.robot_steps for job in jobs)
-                    check_quota(session, quota, jobs=len(jobs), robot_steps=steps)
-                    study = Study(
-                        name=name,
-                        spec=spec,
-                        jobs=len(jobs),
-                        owner=owner,
-                        idempotency_key=None if idempotency is None else idempotency.key,
-                        request_digest=None if idempotency is None else idempotency.digest,
-                        created_at=now,
-                        cancel_requested=False,
-                    )
-                    session.add(study)
-                    session.flush()
-                    session.execute(
-                        insert(Job),
-                        [
-                            {
-                                "status": JobStatus.QUEUED,
-                                "scenario": job.scenario,
-                                "robot_steps": job.robot_steps,
-                                "owner": owner,
-                                "quota_key": quota_key,
-                                "created_at": now,
-                                "episode": 0,
-                                "episodes": job.episodes,
-                                "fraction": 0.0,
-                                "cancel_requested": False,
-                                "attempts": 0,
-                                "study_id": study.id,
-                                "study_point": job.point,
-                                "study_seed": job.seed,
-                            }
-                            for job in jobs
-                        ],
-                    )
-                    if callback_url is not None:
-                        add_waiting(session, callback_url, study_id=study.id)
-                    announce(session)
-                    return StudyRecord.of(study)
-            except IntegrityError:
-                # Another request took the key between our look and our insert: look again.
-                if idempotency is None or attempt == 1:
-                    raise
-        raise AssertionError("unreachable")
+
+        def make(session: Session, now: datetime) -> Study:
+            steps = sum(job.robot_steps for job in jobs)
+            check_quota(session, quota, jobs=len(jobs), robot_steps=steps)
+            study = Study(
+                name=name,
+                spec=spec,
+                jobs=len(jobs),
+                owner=owner,
+                idempotency_key=None if idempotency is None else idempotency.key,
+                request_digest=None if idempotency is None else idempotency.digest,
+                created_at=now,
+                cancel_requested=False,
+            )
+            session.add(study)
+            session.flush()
+            session.execute(
+                insert(Job),
+                [
+                    {
+                        "status": JobStatus.QUEUED,
+                        "scenario": job.scenario,
+                        "robot_steps": job.robot_steps,
+                        "owner": owner,
+                        "quota_key": quota_key,
+                        "created_at": now,
+                        "episode": 0,
+                        "episodes": job.episodes,
+                        "fraction": 0.0,
+                        "cancel_requested": False,
+                        "attempts": 0,
+                        "study_id": study.id,
+                        "study_point": job.point,
+                        "study_seed": job.seed,
+                    }
+                    for job in jobs
+                ],
+            )
+            if callback_url is not None:
+                add_waiting(session, callback_url, study_id=study.id)
+            announce(session)
+            return study
+
+        limited = not (quota is None or quota.unlimited)
+        study = insert_once(
+            self._sessions, Study, idempotency, make, owner=owner, reads_first=limited
+        )
+        return StudyRecord.of(study)
 
     def get(self, study_id: int) -> StudyRecord:
         with unit_of_work(self._sessions) as session:

@@ -17,7 +17,7 @@ import pytest
 from playwright.sync_api import Browser, Page, Route, sync_playwright
 
 from nanonav.store.migrate import upgrade
-from tests.conftest import sqlite_url_in
+from tests.conftest import in_ci, sqlite_url_in
 from tests.processes import ApiServer, Worker
 
 CHROMIUM = os.environ.get("NANONAV_CHROMIUM", "/usr/bin/chromium")
@@ -54,7 +54,7 @@ def site(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Site]:
 def require_chromium() -> None:
     """Skip without Chromium, with the reason; in CI, fail instead."""
     if shutil.which(CHROMIUM) is None and not Path(CHROMIUM).exists():
-        if os.environ.get("CI") == "true":
+        if in_ci():
             pytest.fail(f"Chromium must be installed in CI ({CHROMIUM}); .ci/run installs it")
         pytest.skip(f"no Chromium at {CHROMIUM} (apt-get install chromium)")
 
