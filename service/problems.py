@@ -192,6 +192,18 @@ def invalid_body(error: ValidationError) -> InvalidInput:
     return InvalidInput(f"{first.pointer}: {first.detail}", errors)
 
 
+# The store's refusals a client reads as they are: status, problem slug and title for each.
+STORE_ERRORS: dict[type[Exception], tuple[int, str, str]] = {
+    JobNotFound: (404, "job-not-found", "Job not found"),
+    StudyNotFound: (404, "study-not-found", "Study not found"),
+    ResultsUnavailable: (409, "results-unavailable", "Results unavailable"),
+    JobAlreadyFinished: (409, "job-finished", "Job already finished"),
+    JobNotFinished: (409, "job-not-finished", "Job not finished"),
+    JobInStudy: (409, "job-in-study", "Job belongs to a study"),
+    StudyNotFinished: (409, "study-not-finished", "Study not finished"),
+}
+
+
 def install(app: FastAPI) -> None:
     """Map every error type to its problem document, once for the whole app."""
 
@@ -219,32 +231,15 @@ def install(app: FastAPI) -> None:
         response.headers.update(exc.headers)
         return response
 
-    async def on_not_found(request: Request, exc: Exception) -> Response:
-        return respond(request, 404, "job-not-found", "Job not found", str(exc))
-
-    async def on_study_not_found(request: Request, exc: Exception) -> Response:
-        return respond(request, 404, "study-not-found", "Study not found", str(exc))
-
-    async def on_unavailable(request: Request, exc: Exception) -> Response:
-        return respond(request, 409, "results-unavailable", "Results unavailable", str(exc))
-
-    async def on_finished(request: Request, exc: Exception) -> Response:
-        return respond(request, 409, "job-finished", "Job already finished", str(exc))
+    async def on_store_error(request: Request, exc: Exception) -> Response:
+        status, slug, title = next(STORE_ERRORS[t] for t in type(exc).__mro__ if t in STORE_ERRORS)
+        return respond(request, status, slug, title, str(exc))
 
     async def on_quota(request: Request, exc: Exception) -> Response:
         assert isinstance(exc, QuotaExceeded)
         response = respond(request, 429, "quota-exceeded", "Quota exceeded", str(exc))
         response.headers["Retry-After"] = str(QUOTA_RETRY_AFTER_S)
         return response
-
-    async def on_not_finished(request: Request, exc: Exception) -> Response:
-        return respond(request, 409, "job-not-finished", "Job not finished", str(exc))
-
-    async def on_in_study(request: Request, exc: Exception) -> Response:
-        return respond(request, 409, "job-in-study", "Job belongs to a study", str(exc))
-
-    async def on_study_not_finished(request: Request, exc: Exception) -> Response:
-        return respond(request, 409, "study-not-finished", "Study not finished", str(exc))
 
     async def on_key_reused(request: Request, exc: Exception) -> Response:
         detail = str(exc)
@@ -324,14 +319,9 @@ def install(app: FastAPI) -> None:
         )
 
     app.add_exception_handler(ProblemError, on_problem)
-    app.add_exception_handler(JobNotFound, on_not_found)
-    app.add_exception_handler(StudyNotFound, on_study_not_found)
-    app.add_exception_handler(ResultsUnavailable, on_unavailable)
-    app.add_exception_handler(JobAlreadyFinished, on_finished)
+    for store_error in STORE_ERRORS:
+        app.add_exception_handler(store_error, on_store_error)
     app.add_exception_handler(QuotaExceeded, on_quota)
-    app.add_exception_handler(JobNotFinished, on_not_finished)
-    app.add_exception_handler(JobInStudy, on_in_study)
-    app.add_exception_handler(StudyNotFinished, on_study_not_finished)
     app.add_exception_handler(IdempotencyKeyReused, on_key_reused)
     app.add_exception_handler(RequestValidationError, on_validation)
     app.add_exception_handler(StarletteHTTPException, on_http)
