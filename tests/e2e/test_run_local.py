@@ -77,15 +77,19 @@ def test_worker_concurrency_runs_jobs_in_several_processes(tmp_path: Path) -> No
     env = clean_environment(NANONAV_DATABASE_URL=url, NANONAV_POLL_INTERVAL_S="0.05")
     with running(command, log, env) as process:
         deadline = time.monotonic() + 180
-        while any(store.get(i).status is not JobStatus.SUCCEEDED for i in ids):
+
+        def ready() -> set[str]:
+            return set(re.findall(r"worker (\d+) ready", log.read_text()))
+
+        # One child may finish all six jobs before the other is ready: wait for both.
+        while len(ready()) < 2 or any(store.get(i).status is not JobStatus.SUCCEEDED for i in ids):
             assert process.poll() is None, log.read_text()
             assert time.monotonic() < deadline, log.read_text()
             time.sleep(0.2)
         process.send_signal(signal.SIGTERM)
         assert process.wait(timeout=30) == 0
     store.close()
-    ready = set(re.findall(r"worker (\d+) ready", log.read_text()))
-    assert len(ready) == 2
+    assert len(ready()) == 2
 
 
 def test_the_nanonav_migrate_api_and_worker_commands(
