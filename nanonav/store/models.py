@@ -84,7 +84,8 @@ class JobStatus(enum.StrEnum):
 
 class Study(Base):
     __tablename__ = "studies"
-    __table_args__ = (UniqueConstraint("owner", "idempotency_key"),)
+    # On SQLite, an id is never handed out again after its row is deleted (migration 0006).
+    __table_args__ = (UniqueConstraint("owner", "idempotency_key"), {"sqlite_autoincrement": True})
 
     id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
     name: Mapped[str] = mapped_column(String(200))
@@ -109,7 +110,9 @@ class Job(Base):
         Index(None, "study_id", "id"),
         Index(None, "owner", "id"),
         Index(None, "quota_key", "status"),
+        Index(None, "finished_at"),  # what retention looks for
         UniqueConstraint("owner", "idempotency_key"),
+        {"sqlite_autoincrement": True},  # no id is handed out twice (migration 0006)
     )
 
     id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)

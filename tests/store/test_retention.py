@@ -72,6 +72,18 @@ def test_deleting_a_finished_job_removes_it_and_all_it_has(store: JobStore) -> N
     assert store.metrics(kept)["summary"] == {"total_steps": 7}
 
 
+def test_the_id_of_a_deleted_job_or_study_is_never_given_again(store: JobStore) -> None:
+    # SQLite would hand the newest row's id to the next row once it is deleted, and a client,
+    # a browser cache or a webhook receiver holding that id would take one for the other.
+    studies = StudyStore(store.engine)
+    study_id = finish_study(store, studies, 1)
+    studies.delete(study_id)
+    newest = succeeded(store)
+    store.delete(newest)
+    assert enqueue(store).id > newest
+    assert study(studies, 1) > study_id
+
+
 def test_failed_and_cancelled_jobs_can_be_deleted(store: JobStore) -> None:
     failed = enqueue(store)
     store.fail(claim(store), "the scenario raised")
