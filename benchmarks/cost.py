@@ -3,7 +3,7 @@ scenarios (1 to 1,000 robots, 2 to 100,000 field sources, 0 to 1,000 obstacles, 
 every policy), measured in one run.
 
     python benchmarks/cost.py            # the full table (about a minute)
-    python benchmarks/cost.py --quick    # a smoke run with small workloads
+    python benchmarks/cost.py --quick    # a smoke run: a tenth of the episodes and steps
 
 ``Scenario.work`` is a bound: every robot active for every step. Runs end early when robots reach
 their cells, so each row divides the engine's time by the work of what actually ran
@@ -121,8 +121,10 @@ class Row:
 
 
 def measure(fields: dict[str, Any], seed: int, shrink: int) -> Row:
+    """One run of ``fields`` with ``seed``; ``shrink`` divides its episodes and steps."""
     learning = dict(fields.get("learning", {}))
     learning["episodes"] = learning.get("episodes", 50) // shrink
+    learning["max_steps"] = max(20, learning.get("max_steps", 1000) // shrink)
     scenario = Scenario.model_validate({**fields, "learning": learning, "seed": seed})
     result = simulate(scenario)
     evaluation_steps = int(result.summary["total_steps"])
@@ -135,7 +137,9 @@ def measure(fields: dict[str, Any], seed: int, shrink: int) -> Row:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="a tenth of the episodes, one seed")
+    parser.add_argument(
+        "--quick", action="store_true", help="a tenth of the episodes and steps, one seed"
+    )
     args = parser.parse_args(argv)
     shrink, seeds = (10, 1) if args.quick else (1, 7)
 

@@ -8,6 +8,7 @@ answer, except in CI (``CI`` set to true, 1 or yes), where that is a failure.
 from __future__ import annotations
 
 import os
+import signal
 import socket
 import threading
 import time
@@ -39,6 +40,13 @@ os.environ.setdefault("NANONAV_ALLOWED_HOSTS", "localhost,127.0.0.1,testserver")
 POSTGRES_URL = os.environ.get(
     "NANONAV_TEST_POSTGRES_URL", "postgresql+psycopg://postgres@127.0.0.1:5432/test"
 )
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """A suite started in the background (``make test &``) inherits Ctrl-C ignored, and so would
+    every process it starts: the tests that press Ctrl-C need it to reach them."""
+    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 def in_ci() -> bool:
