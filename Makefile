@@ -4,6 +4,9 @@ VENV := .venv
 BIN := $(VENV)/bin
 HOST ?= 127.0.0.1
 PORT ?= 8000
+# Test processes: most tests wait on processes, browsers and the network, so two share a pair of
+# cores well; `make test TEST_PROCESSES=0` runs them all in one.
+TEST_PROCESSES ?= 2
 export HOST PORT
 
 .PHONY: run test lint typecheck pytest bench clean
@@ -34,7 +37,7 @@ typecheck: $(VENV)/.installed-test
 	$(BIN)/mypy
 
 pytest: $(VENV)/.installed-test
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n $(TEST_PROCESSES)
 
 bench: $(VENV)/.installed
 	$(BIN)/python benchmarks/engine.py
