@@ -13,6 +13,21 @@ const nanonav = {
     return { ok: response.ok, status: response.status, document };
   },
 
+  // Delete `url` once the person confirms, then go to `then`; a refusal (409 while it still
+  // runs, 404 once gone) is shown in #delete-error.
+  deleteButton(button, url, what, then) {
+    button.addEventListener("click", async () => {
+      if (!window.confirm(`Delete ${what} for good? This cannot be undone.`)) return;
+      button.disabled = true;
+      const answer = await nanonav.send("DELETE", url);
+      if (answer.ok) { window.location.assign(then); return; }
+      button.disabled = false;
+      const error = document.getElementById("delete-error");
+      error.textContent = (answer.document && answer.document.detail) || `The server answered ${answer.status}.`;
+      error.hidden = false;
+    });
+  },
+
   // Put each problem's field errors next to the input whose data-pointer matches; the rest,
   // and the problem's detail, go to the form's error list.
   showProblem(form, problem, pointerFor) {

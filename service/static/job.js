@@ -1,4 +1,4 @@
-// A job's page: live progress with a time estimate, cancel, and the interactive 3-D view.
+// A job's page: live progress with a time estimate, cancel, delete, and the interactive 3-D view.
 "use strict";
 (() => {
   const root = document.getElementById("job");
@@ -48,6 +48,9 @@
       else cancel.disabled = false;
     });
   }
+
+  const remove = document.getElementById("delete");
+  if (remove) nanonav.deleteButton(remove, `/jobs/${jobId}`, `job #${jobId}`, "/ui/jobs");
 
   // ------------------------------------------------------------ the 3-D view
   const open = document.getElementById("open-3d");

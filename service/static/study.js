@@ -61,5 +61,10 @@
   function hideCancel() {
     const cancel = document.getElementById("cancel");
     if (cancel) cancel.hidden = true;
+    document.getElementById("delete-row").hidden = false;
   }
+
+  nanonav.deleteButton(
+    document.getElementById("delete"), `/studies/${studyId}`, `study #${studyId}`, "/ui/studies"
+  );
 })();

@@ -99,6 +99,34 @@ def test_a_running_job_is_cancelled_from_its_page(page: Page, site: Site) -> Non
     assert httpx.get(f"{site.url}/jobs/{job['id']}").json()["status"] == "cancelled"
 
 
+QUICK = {"robots": {"count": 1}, "learning": {"episodes": 1, "max_steps": 40},
+         "evaluation": {"worlds": 1}}  # fmt: skip
+
+
+def test_a_finished_job_and_study_are_deleted_from_their_pages(page: Page, site: Site) -> None:
+    job_id = httpx.post(f"{site.url}/jobs", json=QUICK).json()["id"]
+    page.goto(f"{site.url}/ui/jobs/{job_id}")
+    expect(page.locator("#job-status")).to_have_text("succeeded", timeout=60_000)
+    page.once("dialog", lambda dialog: dialog.dismiss())
+    page.click("#delete")  # the page has reloaded with its results and the button
+    expect(page.locator("#delete")).to_be_enabled()
+    assert httpx.get(f"{site.url}/jobs/{job_id}").status_code == 200  # not confirmed: kept
+    page.once("dialog", lambda dialog: dialog.accept())
+    page.click("#delete")
+    page.wait_for_url(re.compile(r"/ui/jobs$"))
+    assert httpx.get(f"{site.url}/jobs/{job_id}").status_code == 404
+
+    study = {"name": "to delete", "base": QUICK, "grid": {"robots.policy": ["gradient"]},
+             "seeds": [1]}  # fmt: skip
+    study_id = httpx.post(f"{site.url}/studies", json=study).json()["id"]
+    page.goto(f"{site.url}/ui/studies/{study_id}")
+    expect(page.locator("#delete")).to_be_visible(timeout=60_000)  # shown once it has ended
+    page.once("dialog", lambda dialog: dialog.accept())
+    page.click("#delete")
+    page.wait_for_url(re.compile(r"/ui/studies$"))
+    assert httpx.get(f"{site.url}/studies/{study_id}").status_code == 404
+
+
 def test_a_study_launched_from_the_form_fills_in_its_table(page: Page, site: Site) -> None:
     page.goto(site.url + "/ui/studies/new")
     page.fill("input[name=name]", "browser study")
