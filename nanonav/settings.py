@@ -257,11 +257,11 @@ class Settings(BaseSettings):
         "0: no limit.",
     )
     allowed_hosts: Annotated[tuple[str, ...], NoDecode] = Field(
-        ("localhost", "127.0.0.1"),
+        ("localhost", "127.0.0.1", "::1"),
         validation_alias=_aliases("allowed_hosts"),
         description="Comma-separated Host names the API answers ('*.example.org' for "
-        "subdomains, '*' for any); another gets 400, against DNS rebinding. A deployment sets "
-        "its own name.",
+        "subdomains, '*' for any, '::1' or '[::1]' for an IPv6 address); another gets 400, "
+        "against DNS rebinding. A deployment sets its own name.",
     )
     allowed_origins: Annotated[tuple[str, ...], NoDecode] = Field(
         (),
@@ -276,6 +276,14 @@ class Settings(BaseSettings):
         if isinstance(value, str):
             return tuple(part.strip() for part in value.split(",") if part.strip())
         return value
+
+    @field_validator("allowed_hosts")
+    @classmethod
+    def _allowed_host_patterns(cls, hosts: tuple[str, ...]) -> tuple[str, ...]:
+        for host in hosts:
+            if "*" in host and host != "*" and not (host.startswith("*.") and "*" not in host[1:]):
+                raise ValueError(f"{host!r}: '*' stands alone, or as '*.' before a domain")
+        return hosts
 
     @field_validator("api_keys")
     @classmethod

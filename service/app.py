@@ -9,7 +9,6 @@ from pathlib import Path
 
 from fastapi import Depends, FastAPI, Security
 from fastapi.staticfiles import StaticFiles
-from starlette.middleware.trustedhost import TrustedHostMiddleware
 
 import nanonav
 from nanonav.settings import Settings
@@ -78,7 +77,6 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.add_middleware(ETags)
     app.add_middleware(HeadAsGet)
     app.add_middleware(Guard, settings=settings)
-    app.add_middleware(TrustedHostMiddleware, allowed_hosts=list(settings.allowed_hosts))
     problems.install(app)
     app.add_exception_handler(events.NothingNew, events.nothing_new)
     app.include_router(jobs.router)

@@ -119,18 +119,45 @@ def _problem(scope: Scope, status: int, slug: str, title: str, detail: str) -> P
                    instance=scope.get("path"))  # fmt: skip
 
 
+def host_name(header: str) -> str:
+    """The name a ``Host`` header gives, without its port: ``[::1]:8000`` gives ``::1``."""
+    if header.startswith("["):
+        return header[1:].partition("]")[0].lower()
+    return header.partition(":")[0].lower()
+
+
+def host_allowed(name: str, allowed: tuple[str, ...]) -> bool:
+    """Whether ``name`` is one of ``allowed``: a name, ``*.parent`` for its subdomains, or ``*``."""
+    for pattern in allowed:
+        pattern = pattern.lower().strip("[]")
+        if pattern in ("*", name) or (pattern.startswith("*.") and name.endswith(pattern[1:])):
+            return True
+    return False
+
+
 class Guard:
-    """Pure ASGI middleware: authenticates the request and says who made it."""
+    """Pure ASGI middleware: checks the ``Host`` (against DNS rebinding), authenticates the
+    request and says who made it; what it refuses is a problem document like any other."""
 
     def __init__(self, app: ASGIApp, settings: Settings) -> None:
         self.app = app
         self.keys = tuple(key.get_secret_value() for key in settings.api_keys)
+        self.hosts = settings.allowed_hosts
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
-        if scope["type"] != "http":
+        if scope["type"] not in ("http", "websocket"):
             await self.app(scope, receive, send)
             return
         headers = Headers(scope=scope)
+        host = headers.get("host", "")
+        if not host_allowed(host_name(host), self.hosts):
+            detail = f"this API does not answer to the host {host!r}: see NANONAV_ALLOWED_HOSTS"
+            problem = _problem(scope, 400, "host-not-allowed", "Host not allowed", detail)
+            await problem_response(problem)(scope, receive, send)
+            return
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
         path: str = scope["path"]
         owner = ""
         if self.keys and path not in OPEN_PATHS:

@@ -355,11 +355,22 @@ def test_allowed_origins_may_send_writes(sqlite_url: str) -> None:
 
 
 def test_an_unknown_host_header_gets_400(sqlite_url: str) -> None:
-    with served(Settings(database_url=sqlite_url)) as api:
-        assert api.client.get("/healthz", headers={"Host": "rebound.example"}).status_code == 400
-        assert api.client.get("/healthz", headers={"Host": "localhost:8000"}).status_code == 200
-    settings = Settings(database_url=sqlite_url, allowed_hosts="nanonav.example.org")
+    default = Settings.model_fields["allowed_hosts"].default
+    with served(Settings(database_url=sqlite_url, allowed_hosts=default)) as api:
+        refused = api.client.get("/healthz", headers={"Host": "rebound.example"})
+        problem = assert_problem(refused, 400)
+        assert problem["type"].endswith(":host-not-allowed")
+        assert "rebound.example" in problem["detail"]
+        assert_problem(api.client.get("/jobs", headers={"Host": "localhost.evil.example"}), 400)
+        for host in ("localhost:8000", "127.0.0.1", "[::1]:8000", "LOCALHOST"):
+            assert api.client.get("/healthz", headers={"Host": host}).status_code == 200, host
+    settings = Settings(database_url=sqlite_url, allowed_hosts="nanonav.example.org,*.lab.org")
     with served(settings) as api:
-        assert api.client.get("/healthz").status_code == 400
-        named = {"Host": "nanonav.example.org"}
-        assert api.client.get("/healthz", headers=named).status_code == 200
+        assert_problem(api.client.get("/healthz"), 400)
+        for host in ("nanonav.example.org", "a.lab.org:443", "b.a.lab.org"):
+            assert api.client.get("/healthz", headers={"Host": host}).status_code == 200, host
+        for host in ("lab.org", "evil-lab.org", "nanonav.example.org.evil"):
+            assert_problem(api.client.get("/healthz", headers={"Host": host}), 400)
+    for pattern in ("example.*", "*example.org", "a.*.org"):
+        with pytest.raises(ValidationError, match="stands alone"):
+            Settings(database_url=sqlite_url, allowed_hosts=pattern)
