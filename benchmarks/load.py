@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import os
+import resource
 import signal
 import socket
 import subprocess
@@ -49,12 +50,58 @@ def percentile(values: list[float], q: float) -> float:
     return ordered[min(len(ordered) - 1, max(0, round(q / 100 * (len(ordered) - 1))))]
 
 
+def cpu_seconds(roots: list[int]) -> float | None:
+    """CPU time (user + system) so far of the processes ``roots`` and all they started, from
+    ``/proc``; None where there is no ``/proc``."""
+    tree: dict[int, list[int]] = defaultdict(list)
+    used: dict[int, int] = {}
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            line = stat.read_text()
+        except OSError:  # it ended meanwhile
+            continue
+        fields = line[line.rfind(")") + 2 :].split()  # after "pid (name) "
+        pid = int(stat.parent.name)
+        tree[int(fields[1])].append(pid)
+        used[pid] = int(fields[11]) + int(fields[12])
+    if not used:
+        return None
+    ticks, pending = 0, list(roots)
+    while pending:
+        pid = pending.pop()
+        ticks += used.get(pid, 0)
+        pending.extend(tree.get(pid, []))
+    return ticks / os.sysconf("SC_CLK_TCK")
+
+
+def own_cpu_seconds() -> float:
+    """CPU time of this process: the clients."""
+    usage = resource.getrusage(resource.RUSAGE_SELF)
+    return usage.ru_utime + usage.ru_stime
+
+
+@dataclass
+class Service:
+    """A running API with its workers: where to reach it, and which processes are whose."""
+
+    url: str
+    api: list[int]
+    workers: list[int]
+
+    def cpu(self) -> dict[str, float] | None:
+        """CPU seconds so far of the API, the workers and the clients (None without /proc)."""
+        api, workers = cpu_seconds(self.api), cpu_seconds(self.workers)
+        if api is None or workers is None:
+            return None
+        return {"API": api, "workers": workers, "clients": own_cpu_seconds()}
+
+
 @contextmanager
 def running_service(
     database_url: str | None, workers: int, api_processes: int = 1
-) -> Iterator[str]:
+) -> Iterator[Service]:
     """``api_processes`` API processes (uvicorn --workers) and ``workers`` worker processes on
-    ``database_url`` (a fresh SQLite file if None); yields the API's base URL."""
+    ``database_url`` (a fresh SQLite file if None)."""
     workdir = Path(tempfile.mkdtemp(prefix="nanonav-load-"))
     database_url = database_url or f"sqlite:///{workdir / 'nanonav.db'}"
     from nanonav.store.migrate import upgrade
@@ -90,7 +137,7 @@ def running_service(
             if time.monotonic() > deadline:
                 raise RuntimeError(f"the API did not start; see {workdir}")
             time.sleep(0.1)
-        yield url
+        yield Service(url, api=[children[0].pid], workers=[c.pid for c in children[1:]])
     finally:
         for child in children:
             child.send_signal(signal.SIGTERM)
@@ -163,7 +210,14 @@ async def load(url: str, clients: int, duration: float, pause: float, cap: int) 
     return tally
 
 
-def report(tally: Tally, elapsed: float, clients: int, backend: str, api: int = 1) -> None:
+def report(
+    tally: Tally,
+    elapsed: float,
+    clients: int,
+    backend: str,
+    api: int = 1,
+    cpu: dict[str, float] | None = None,
+) -> None:
     answered = sum(len(times) for times in tally.times.values())
     print(f"load: {clients} clients for {elapsed:.1f} s on {backend}, {api} API process(es), "
           "two workers")  # fmt: skip
@@ -175,6 +229,11 @@ def report(tally: Tally, elapsed: float, clients: int, backend: str, api: int = 
               f"p50 {1000 * percentile(times, 50):.1f} ms   "
               f"p99 {1000 * percentile(times, 99):.1f} ms   "
               f"max {1000 * max(times):.1f} ms")  # fmt: skip
+    if cpu is not None:
+        # What each part kept busy, in cores: the clients, the API and the workers share the
+        # machine, and an answer waits while the API has no core.
+        shares = ", ".join(f"{name} {seconds / elapsed:.2f}" for name, seconds in cpu.items())
+        print(f"  cores busy on average, of {os.cpu_count()}: {shares}")
     print(f"  errors: {sum(tally.errors.values())}")
     for what, count in sorted(tally.errors.items()):
         print(f"    {what}: {count}")
@@ -193,10 +252,18 @@ def main(argv: list[str] | None = None) -> int:
                         help="API processes, as uvicorn --workers (1)")  # fmt: skip
     args = parser.parse_args(argv)
     backend = "SQLite" if args.database_url is None else args.database_url.split(":", 1)[0]
-    with running_service(args.database_url, workers=2, api_processes=args.api_processes) as url:
+    with running_service(args.database_url, workers=2, api_processes=args.api_processes) as service:
+        before = service.cpu()
         started = time.monotonic()
-        tally = asyncio.run(load(url, args.clients, args.duration, args.pause, args.max_requests))
-        report(tally, time.monotonic() - started, args.clients, backend, args.api_processes)
+        tally = asyncio.run(
+            load(service.url, args.clients, args.duration, args.pause, args.max_requests)
+        )
+        elapsed = time.monotonic() - started
+        after = service.cpu()
+        used = None
+        if before is not None and after is not None:
+            used = {name: after[name] - before[name] for name in after}
+        report(tally, elapsed, args.clients, backend, args.api_processes, used)
     return 0 if not tally.errors else 1
 
 

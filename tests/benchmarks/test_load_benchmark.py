@@ -27,4 +27,7 @@ def test_load_benchmark_prints_rates_and_latencies_without_errors(
                          out, re.M)  # fmt: skip
         assert line is not None and int(line.group(1)) > 0, out
         assert 0 < float(line.group(2)) <= float(line.group(3))
+    cores = re.search(r"^  cores busy on average, of \d+: API ([\d.]+), workers ([\d.]+), "
+                      r"clients ([\d.]+)$", out, re.M)  # fmt: skip
+    assert cores is not None and all(float(share) > 0 for share in cores.groups()), out
     assert re.search(r"^  errors: 0$", out, re.M), out
