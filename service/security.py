@@ -146,7 +146,7 @@ class Guard:
         self.hosts = settings.allowed_hosts
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
-        if scope["type"] not in ("http", "websocket"):
+        if scope["type"] != "http":  # the lifespan; the API serves no websockets
             await self.app(scope, receive, send)
             return
         headers = Headers(scope=scope)
@@ -155,9 +155,6 @@ class Guard:
             detail = f"this API does not answer to the host {host!r}: see NANONAV_ALLOWED_HOSTS"
             problem = _problem(scope, 400, "host-not-allowed", "Host not allowed", detail)
             await problem_response(problem)(scope, receive, send)
-            return
-        if scope["type"] != "http":
-            await self.app(scope, receive, send)
             return
         path: str = scope["path"]
         owner = ""
