@@ -125,6 +125,14 @@ class Settings(BaseSettings):
         description="Niceness a worker process adds to itself, so that on a shared machine the "
         "API answers promptly while simulations run; 0 leaves the priority alone.",
     )
+    api_processes: int = Field(
+        1,
+        ge=1,
+        le=64,
+        validation_alias=_aliases("api_processes"),
+        description="API processes `nanonav api` serves with (uvicorn's workers) unless "
+        "--processes says otherwise; all share the store, so any one may answer any request.",
+    )
     worker_concurrency: int = Field(
         1,
         ge=1,

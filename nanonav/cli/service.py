@@ -34,6 +34,12 @@ def add_api(subcommands: Subcommands) -> None:
     )
     api.add_argument("--host", help="bind address (default: $HOST or 127.0.0.1)")
     api.add_argument("--port", type=int, help="port (default: $PORT or 8000)")
+    api.add_argument(
+        "--processes",
+        type=int,
+        metavar="N",
+        help="API processes sharing the port (default: $NANONAV_API_PROCESSES or 1)",
+    )
     api.set_defaults(handler=_api)
 
 
@@ -44,12 +50,16 @@ def _api(args: argparse.Namespace) -> int:
     port = settings.port if args.port is None else args.port
     if not 1 <= port <= 65535:
         raise UsageError([f"--port must be between 1 and 65535, not {port}"])
+    processes = settings.api_processes if args.processes is None else args.processes
+    if not 1 <= processes <= 64:
+        raise UsageError([f"--processes must be between 1 and 64, not {processes}"])
     host = args.host or settings.host
     uvicorn.run(
         "service.app:create_app",
         factory=True,
         host=host,
         port=port,
+        workers=processes,
         timeout_graceful_shutdown=settings.shutdown_grace_s,
     )
     return EXIT_OK

@@ -107,6 +107,7 @@ def test_the_nanonav_migrate_api_and_worker_commands(
     assert at_head(engine)
     engine.dispose()
     assert main(["api", "--port", "70000"]) == 2
+    assert main(["api", "--processes", "0"]) == 2
     assert main(["worker", "--concurrency", "0"]) == 2
 
     port = free_port()
@@ -114,7 +115,10 @@ def test_the_nanonav_migrate_api_and_worker_commands(
     env = clean_environment(DATABASE_URL=url, NANONAV_POLL_INTERVAL_S="0.05")
     api_log = (tmp_path / "api.log").open("wb")
     api = subprocess.Popen(
-        [nanonav, "api", "--port", str(port)], env=env, stdout=api_log, stderr=subprocess.STDOUT
+        [nanonav, "api", "--port", str(port), "--processes", "2"],
+        env=env,
+        stdout=api_log,
+        stderr=subprocess.STDOUT,
     )
     worker = subprocess.Popen(
         [nanonav, "worker", "--concurrency", "1"],
@@ -142,4 +146,6 @@ def test_the_nanonav_migrate_api_and_worker_commands(
         api_log.close()
     # uvicorn shuts down gracefully, then re-raises the signal it caught.
     assert codes in ([0, 0], [-signal.SIGTERM, 0])
-    assert "Application shutdown complete" in (tmp_path / "api.log").read_text()
+    text = (tmp_path / "api.log").read_text()
+    assert len(set(re.findall(r"Started server process \[(\d+)\]", text))) == 2, text
+    assert text.count("Application shutdown complete") == 2, text
