@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import asyncio
 import gc
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
@@ -21,6 +22,7 @@ from service.drawing import Drawer
 from service.events import Poller
 from service.limits import BodySizeLimit
 from service.methods import HeadAsGet
+from service.orphans import stop_when_orphaned
 from service.routes import events, jobs, meta, pages, studies
 from service.security import BEARER, Guard, refuse_cross_site
 
@@ -49,9 +51,11 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         gc.collect()
         gc.freeze()
         poller.start()
+        orphan_check = asyncio.create_task(stop_when_orphaned(), name="orphan-check")
         try:
             yield
         finally:
+            orphan_check.cancel()
             await poller.stop()
             store.close()
             gc.unfreeze()  # an app served in a process that goes on (tests) can be collected
