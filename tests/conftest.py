@@ -180,19 +180,26 @@ class LiveApi:
     database_url: str
 
 
-@pytest.fixture(scope="session")
-def live_api(tmp_path_factory: pytest.TempPathFactory) -> Iterator[LiveApi]:
-    """Started once per test session, with the worker's engine loaded, so the client and
-    command tests that share it run their jobs in milliseconds."""
-    directory = tmp_path_factory.mktemp("live")
+@contextmanager
+def api_with_worker(directory: Path, **api_env: str) -> Iterator[tuple[ApiServer, str]]:
+    """An API process and a worker process over a migrated SQLite file in ``directory``, both
+    ready; yields the API and the database URL, and stops both afterwards."""
     url = sqlite_url_in(directory)
     upgrade(url)
-    api = ApiServer(url, directory / "api.log")
+    api = ApiServer(url, directory / "api.log", **api_env)
     worker = Worker(url, directory / "worker.log")
     try:
         api.wait_ready()
         worker.wait_ready()
-        yield LiveApi(url=api.url, database_url=url)
+        yield api, url
     finally:
         api.terminate()
         worker.terminate()
+
+
+@pytest.fixture(scope="session")
+def live_api(tmp_path_factory: pytest.TempPathFactory) -> Iterator[LiveApi]:
+    """Started once per test session, with the worker's engine loaded, so the client and
+    command tests that share it run their jobs in milliseconds."""
+    with api_with_worker(tmp_path_factory.mktemp("live")) as (api, url):
+        yield LiveApi(url=api.url, database_url=url)

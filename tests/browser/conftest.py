@@ -16,9 +16,7 @@ from pathlib import Path
 import pytest
 from playwright.sync_api import Browser, Page, Route, sync_playwright
 
-from nanonav.store.migrate import upgrade
-from tests.conftest import in_ci, sqlite_url_in
-from tests.processes import ApiServer, Worker
+from tests.conftest import api_with_worker, in_ci
 
 CHROMIUM = os.environ.get("NANONAV_CHROMIUM", "/usr/bin/chromium")
 # The flags a sandboxed machine needs: no sandbox as root, no GPU, no calls home.
@@ -37,18 +35,8 @@ class Site:
 
 @pytest.fixture(scope="module")
 def site(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Site]:
-    directory = tmp_path_factory.mktemp("dashboard")
-    url = sqlite_url_in(directory)
-    upgrade(url)
-    api = ApiServer(url, directory / "api.log")
-    worker = Worker(url, directory / "worker.log")
-    try:
-        api.wait_ready()
-        worker.wait_ready()
+    with api_with_worker(tmp_path_factory.mktemp("dashboard")) as (api, url):
         yield Site(url=api.url, database_url=url)
-    finally:
-        api.terminate()
-        worker.terminate()
 
 
 def require_chromium() -> None:

@@ -10,10 +10,8 @@ import httpx
 import pytest
 from playwright.sync_api import Page, expect
 
-from nanonav.store.migrate import upgrade
 from tests.browser.conftest import Site, screenshot
-from tests.conftest import sqlite_url_in
-from tests.processes import ApiServer, Worker
+from tests.conftest import api_with_worker
 from tests.service.test_security import KEY_A, KEY_B, bearer
 
 pytestmark = pytest.mark.timeout(180)
@@ -22,18 +20,10 @@ pytestmark = pytest.mark.timeout(180)
 @pytest.fixture(scope="module")
 def site(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Site]:
     """An API with two keys, and a worker, over a SQLite file."""
+    keys = f"{KEY_A},{KEY_B}"
     directory = tmp_path_factory.mktemp("keyed-dashboard")
-    url = sqlite_url_in(directory)
-    upgrade(url)
-    api = ApiServer(url, directory / "api.log", NANONAV_API_KEYS=f"{KEY_A},{KEY_B}")
-    worker = Worker(url, directory / "worker.log")
-    try:
-        api.wait_ready()
-        worker.wait_ready()
+    with api_with_worker(directory, NANONAV_API_KEYS=keys) as (api, url):
         yield Site(url=api.url, database_url=url)
-    finally:
-        api.terminate()
-        worker.terminate()
     assert KEY_A not in api.text() and KEY_B not in api.text()
 
 
