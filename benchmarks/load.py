@@ -6,7 +6,12 @@
 of errors (any answer but 2xx, or no answer). SQLite in a temporary directory unless
 ``--database-url`` names another store (it is migrated first, and its jobs are left there).
 
+The clients are Python too, on the same cores: ``--client-processes`` spreads them over several
+processes, as separate programs would be, and ``--floor`` first runs the same clients against a
+server that does nothing, to show what the clients and the machine alone cost.
+
     .venv/bin/python benchmarks/load.py [--duration 60] [--clients 50] [--pause 0.1]
+                                        [--client-processes 1] [--floor]
                                         [--api-processes 1] [--database-url URL]
 """
 
@@ -14,6 +19,9 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import itertools
+import json
+import multiprocessing
 import os
 import resource
 import signal
@@ -23,9 +31,10 @@ import sys
 import tempfile
 import time
 from collections import defaultdict
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
+from multiprocessing.synchronize import Barrier
 from pathlib import Path
 from typing import Any
 
@@ -89,11 +98,11 @@ class Service:
     workers: list[int]
 
     def cpu(self) -> dict[str, float] | None:
-        """CPU seconds so far of the API, the workers and the clients (None without /proc)."""
+        """CPU seconds so far of the API and the workers (None without /proc)."""
         api, workers = cpu_seconds(self.api), cpu_seconds(self.workers)
         if api is None or workers is None:
             return None
-        return {"API": api, "workers": workers, "clients": own_cpu_seconds()}
+        return {"API": api, "workers": workers}
 
 
 @contextmanager
@@ -159,6 +168,15 @@ class Tally:
     jobs_ended: int = 0
     sent: int = 0
 
+    def add(self, other: Tally) -> None:
+        """Count in what another process's clients saw."""
+        for route, times in other.times.items():
+            self.times[route].extend(times)
+        for what, count in other.errors.items():
+            self.errors[what] += count
+        self.jobs_ended += other.jobs_ended
+        self.sent += other.sent
+
 
 async def client_loop(
     http: httpx.AsyncClient, tally: Tally, seed: int, stop_at: float, pause: float, cap: int
@@ -195,32 +213,134 @@ async def client_loop(
                 break
 
 
-async def load(url: str, clients: int, duration: float, pause: float, cap: int) -> Tally:
-    """Every client with a connection of its own, as separate programs would be (one shared
-    pool of 50 connections costs httpx more CPU per request than the API spends)."""
+async def load(
+    url: str, seeds: Sequence[int], duration: float, pause: float, cap: int
+) -> tuple[Tally, float, float]:
+    """One client per seed, each with a connection of its own, as separate programs would be
+    (one shared pool of 50 connections costs httpx more CPU per request than the API spends).
+    What they saw, and the seconds and CPU seconds the load took, once the clients were made."""
     tally = Tally()
-    https = [httpx.AsyncClient(base_url=url, timeout=30) for _ in range(clients)]
+    https = [httpx.AsyncClient(base_url=url, timeout=30) for _ in seeds]
     try:
-        stop_at = time.monotonic() + duration
+        started, cpu = time.monotonic(), own_cpu_seconds()
+        stop_at = started + duration
         await asyncio.gather(*(client_loop(http, tally, seed, stop_at, pause, cap)
-                               for seed, http in enumerate(https)))  # fmt: skip
+                               for seed, http in zip(seeds, https, strict=True)))  # fmt: skip
+        return tally, time.monotonic() - started, own_cpu_seconds() - cpu
     finally:
         for http in https:
             await http.aclose()
-    return tally
 
 
-def report(
-    tally: Tally,
-    elapsed: float,
-    clients: int,
-    backend: str,
-    api: int = 1,
-    cpu: dict[str, float] | None = None,
+def client_process(
+    url: str,
+    seeds: Sequence[int],
+    duration: float,
+    pause: float,
+    cap: int,
+    start: Barrier,
+    results: multiprocessing.Queue[tuple[Tally, float, float]],
 ) -> None:
+    """Some of the clients, in a process of their own; they start when every process can."""
+    start.wait()
+    results.put(asyncio.run(load(url, seeds, duration, pause, cap)))
+
+
+def drive(
+    url: str, clients: int, processes: int, duration: float, pause: float, cap: int
+) -> tuple[Tally, float, float]:
+    """``clients`` clients over ``processes`` processes: what they saw, the seconds it took,
+    and the CPU seconds the clients used."""
+    if processes == 1:
+        return asyncio.run(load(url, range(clients), duration, pause, cap))
+    spawn = multiprocessing.get_context("spawn")
+    start = spawn.Barrier(processes + 1)
+    results: multiprocessing.Queue[tuple[Tally, float, float]] = spawn.Queue()
+    children = [
+        spawn.Process(
+            target=client_process,
+            args=(url, seeds, duration, pause, cap // processes, start, results),
+        )
+        for seeds in (range(clients)[i::processes] for i in range(processes))
+    ]
+    for child in children:
+        child.start()
+    try:
+        start.wait(timeout=120)
+        tally, elapsed, cpu = Tally(), 0.0, 0.0
+        for _ in children:
+            part, seconds, cpu_seconds = results.get(timeout=duration + 120)
+            tally.add(part)
+            elapsed, cpu = max(elapsed, seconds), cpu + cpu_seconds
+    finally:
+        for child in children:
+            child.join(timeout=30)
+            if child.is_alive():
+                child.kill()
+    return tally, elapsed, cpu
+
+
+async def nothing(scope: dict[str, Any], receive: Any, send: Any) -> None:
+    """An ASGI server that does nothing: a job is queued at once and ends on its tenth poll,
+    answered with a body the size of a real job's."""
+    if scope["type"] == "lifespan":
+        while (await receive())["type"] != "lifespan.shutdown":
+            await send({"type": "lifespan.startup.complete"})
+        await send({"type": "lifespan.shutdown.complete"})
+        return
+    while (await receive()).get("more_body", False):
+        pass
+    if scope["method"] == "POST":
+        job = next(_IDS)
+        _POLLS[job] = 0
+        status, answer = 202, {"id": job, "status": "queued"}
+    else:
+        status = 200
+        job = int(scope["path"].rsplit("/", 1)[-1])
+        _POLLS[job] = _POLLS.get(job, 0) + 1
+        ended = _POLLS[job] >= 10
+        answer = {"id": job, "status": "succeeded" if ended else "queued", "padding": "x" * 1100}
+    body = json.dumps(answer).encode()
+    headers = [(b"content-type", b"application/json"), (b"content-length", b"%d" % len(body))]
+    await send({"type": "http.response.start", "status": status, "headers": headers})
+    await send({"type": "http.response.body", "body": body})
+
+
+_IDS = itertools.count(1)
+_POLLS: dict[int, int] = {}
+
+
+@contextmanager
+def null_service() -> Iterator[Service]:
+    """:func:`nothing`, served by uvicorn as the API is."""
+    port = free_port()
+    here = Path(__file__).resolve().parent
+    command = [sys.executable, "-m", "uvicorn", f"{Path(__file__).stem}:nothing", "--app-dir",
+               str(here), "--port", str(port), "--log-level", "warning"]  # fmt: skip
+    child = subprocess.Popen(command)
+    url = f"http://127.0.0.1:{port}"
+    try:
+        deadline = time.monotonic() + 60
+        while True:
+            try:
+                httpx.get(f"{url}/jobs/0", timeout=5)
+                break
+            except httpx.TransportError:
+                if time.monotonic() > deadline or child.poll() is not None:
+                    raise RuntimeError("the null server did not start") from None
+                time.sleep(0.1)
+        yield Service(url, api=[child.pid], workers=[])
+    finally:
+        child.send_signal(signal.SIGTERM)
+        try:
+            child.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            child.kill()
+
+
+def report(tally: Tally, elapsed: float, title: str, cpu: dict[str, float] | None) -> None:
     answered = sum(len(times) for times in tally.times.values())
-    print(f"load: {clients} clients for {elapsed:.1f} s on {backend}, {api} API process(es), "
-          "two workers")  # fmt: skip
+    print(title)
     print(f"  {answered / elapsed:.1f} requests/s ({answered} answered), "
           f"{tally.jobs_ended} jobs ended")  # fmt: skip
     for route in (SUBMIT, POLL):
@@ -239,6 +359,18 @@ def report(
         print(f"    {what}: {count}")
 
 
+def measure(service: Service, args: argparse.Namespace) -> tuple[Tally, float, dict[str, float]]:
+    """The clients' load on ``service``: what they saw, how long, and the cores each part used."""
+    before = service.cpu()
+    tally, elapsed, clients_cpu = drive(service.url, args.clients, args.client_processes,
+                                        args.duration, args.pause, args.max_requests)  # fmt: skip
+    after = service.cpu()
+    cpu = {}
+    if before is not None and after is not None:
+        cpu = {name: after[name] - before[name] for name in after}
+    return tally, elapsed, {**cpu, "clients": clients_cpu}
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--duration", type=float, default=60.0, help="seconds of load (60)")
@@ -247,24 +379,31 @@ def main(argv: list[str] | None = None) -> int:
                         help="seconds a client waits between two polls (0.1)")  # fmt: skip
     parser.add_argument("--max-requests", type=int, default=1_000_000,
                         help="stop after this many requests (1,000,000)")  # fmt: skip
+    parser.add_argument("--client-processes", type=int, default=1,
+                        help="processes the clients are spread over (1)")  # fmt: skip
+    parser.add_argument("--floor", action="store_true",
+                        help="first load a server that does nothing, same clients")  # fmt: skip
     parser.add_argument("--database-url", help="the store to use (a fresh SQLite file)")
     parser.add_argument("--api-processes", type=int, default=1,
                         help="API processes, as uvicorn --workers (1)")  # fmt: skip
     args = parser.parse_args(argv)
+    if not 1 <= args.client_processes <= args.clients:
+        parser.error("--client-processes must be between 1 and --clients")
+    clients = f"{args.clients} clients in {args.client_processes} process(es)"
+    failed = False
+    if args.floor:
+        with null_service() as service:
+            tally, elapsed, cpu = measure(service, args)
+        del cpu["workers"]
+        report(tally, elapsed, f"floor: {clients} for {elapsed:.1f} s on a server that does "
+               "nothing", cpu)  # fmt: skip
+        failed = bool(tally.errors)
     backend = "SQLite" if args.database_url is None else args.database_url.split(":", 1)[0]
     with running_service(args.database_url, workers=2, api_processes=args.api_processes) as service:
-        before = service.cpu()
-        started = time.monotonic()
-        tally = asyncio.run(
-            load(service.url, args.clients, args.duration, args.pause, args.max_requests)
-        )
-        elapsed = time.monotonic() - started
-        after = service.cpu()
-        used = None
-        if before is not None and after is not None:
-            used = {name: after[name] - before[name] for name in after}
-        report(tally, elapsed, args.clients, backend, args.api_processes, used)
-    return 0 if not tally.errors else 1
+        tally, elapsed, cpu = measure(service, args)
+    report(tally, elapsed, f"load: {clients} for {elapsed:.1f} s on {backend}, "
+           f"{args.api_processes} API process(es), two workers", cpu)  # fmt: skip
+    return 0 if not (tally.errors or failed) else 1
 
 
 if __name__ == "__main__":

@@ -1,18 +1,15 @@
 """The load benchmark still runs end to end, and every request it sends is answered."""
 
-import importlib.util
 import re
 import sys
 from pathlib import Path
 
 import pytest
 
-_PATH = Path(__file__).resolve().parents[2] / "benchmarks" / "load.py"
-_SPEC = importlib.util.spec_from_file_location("load_benchmark", _PATH)
-assert _SPEC is not None and _SPEC.loader is not None
-load_benchmark = importlib.util.module_from_spec(_SPEC)
-sys.modules["load_benchmark"] = load_benchmark
-_SPEC.loader.exec_module(load_benchmark)
+# Imported by its own name from its directory, as the client processes it spawns import it.
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
+
+import load as load_benchmark
 
 
 def test_load_benchmark_prints_rates_and_latencies_without_errors(
@@ -31,3 +28,33 @@ def test_load_benchmark_prints_rates_and_latencies_without_errors(
                       r"clients ([\d.]+)$", out, re.M)  # fmt: skip
     assert cores is not None and all(float(share) > 0 for share in cores.groups()), out
     assert re.search(r"^  errors: 0$", out, re.M), out
+
+
+def test_load_benchmark_spreads_clients_over_processes_and_measures_its_floor(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    argv = ["--duration", "3", "--clients", "4", "--client-processes", "2", "--floor",
+            "--max-requests", "200"]  # fmt: skip
+    assert load_benchmark.main(argv) == 0
+    out = capsys.readouterr().out
+    floor, _, real = out.partition("\nload: ")
+    assert floor.startswith("floor: 4 clients in 2 process(es) for "), out
+    assert "on a server that does nothing" in floor.splitlines()[0]
+    assert real.startswith("4 clients in 2 process(es) for "), out
+    for part in (floor, real):
+        rate = re.search(r"^  ([\d.]+) requests/s \((\d+) answered\), (\d+) jobs ended$", part,
+                         re.M)  # fmt: skip
+        # each process stops at its half of the cap
+        assert rate is not None and float(rate.group(1)) > 0 and int(rate.group(2)) <= 200, out
+        assert int(rate.group(3)) > 0, out
+        assert re.search(r"^  errors: 0$", part, re.M), out
+    assert re.search(r"^  cores busy on average, of \d+: API [\d.]+, clients [\d.]+$",
+                     floor, re.M), out  # fmt: skip
+    assert re.search(r"^  cores busy on average, of \d+: API [\d.]+, workers [\d.]+, "
+                     r"clients [\d.]+$", real, re.M), out  # fmt: skip
+
+
+def test_load_benchmark_refuses_more_client_processes_than_clients() -> None:
+    with pytest.raises(SystemExit) as refused:
+        load_benchmark.main(["--clients", "2", "--client-processes", "3"])
+    assert refused.value.code == 2
