@@ -10,6 +10,7 @@ from functools import partial
 from pathlib import Path
 
 from fastapi import Depends, FastAPI, Security
+from fastapi.middleware.cors import CORSMiddleware
 from fastapi.staticfiles import StaticFiles
 
 import nanonav
@@ -24,7 +25,14 @@ from service.limits import BodySizeLimit
 from service.methods import HeadAsGet
 from service.orphans import stop_when_orphaned
 from service.routes import events, jobs, meta, pages, studies
-from service.security import BEARER, Guard, refuse_cross_site
+from service.security import (
+    BEARER,
+    CORS_EXPOSED_HEADERS,
+    CORS_METHODS,
+    CORS_REQUEST_HEADERS,
+    Guard,
+    refuse_cross_site,
+)
 
 STATIC = Path(__file__).resolve().parent / "static"
 DESCRIPTION = """Submit nanorobot scenarios, watch them run, and fetch their results.
@@ -88,6 +96,16 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.add_middleware(ETags)
     app.add_middleware(HeadAsGet)
     app.add_middleware(Guard, settings=settings)
+    if settings.allowed_origins:
+        # Pages of the allowed origins may call the API from a browser: their preflights are
+        # answered outside Guard, since a browser never sends the key with a preflight.
+        app.add_middleware(
+            CORSMiddleware,
+            allow_origins=settings.allowed_origins,
+            allow_methods=CORS_METHODS,
+            allow_headers=CORS_REQUEST_HEADERS,
+            expose_headers=CORS_EXPOSED_HEADERS,
+        )
     problems.install(app)
     app.add_exception_handler(events.NothingNew, events.nothing_new)
     app.include_router(jobs.router)

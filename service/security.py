@@ -58,6 +58,26 @@ UNSAFE_METHODS = frozenset({"POST", "PUT", "PATCH", "DELETE"})
 SCRIPT_HEADER = "x-requested-with"
 
 
+# What a page of an allowed origin (NANONAV_ALLOWED_ORIGINS) may do from a browser: the methods
+# and request headers its preflight may ask for, and the answer headers its script may read.
+CORS_METHODS = ("GET", "HEAD", "POST", "DELETE")
+CORS_REQUEST_HEADERS = (
+    "Authorization",
+    "Content-Type",
+    "Idempotency-Key",
+    "If-None-Match",
+    "Last-Event-ID",
+    "X-Requested-With",
+)
+CORS_EXPOSED_HEADERS = (
+    "ETag",
+    "Location",
+    "Retry-After",
+    "Content-Disposition",
+    "WWW-Authenticate",
+)
+
+
 # What the OpenAPI document says of a body-less write (a cancel, a delete): it is refused with
 # 415 unless it carries this header (or declares a JSON body).
 SCRIPTED_ONLY: dict[str, Any] = {

@@ -354,6 +354,54 @@ def test_allowed_origins_may_send_writes(sqlite_url: str) -> None:
         Settings(database_url=sqlite_url, allowed_origins="lab.example.org")
 
 
+def test_pages_of_allowed_origins_may_call_the_api_from_a_browser(sqlite_url: str) -> None:
+    lab, evil = "https://lab.example.org", "https://evil.example"
+    settings = Settings(database_url=sqlite_url, api_keys=KEY_A, allowed_origins=lab)
+    with served(settings) as api:
+
+        def preflight(origin: str) -> httpx.Response:
+            return api.client.options("/jobs", headers={
+                "Origin": origin,
+                "Access-Control-Request-Method": "POST",
+                "Access-Control-Request-Headers": "authorization, content-type, idempotency-key",
+            })  # fmt: skip
+
+        # a browser sends no key with its preflight: it is answered, not refused with 401
+        allowed = preflight(lab)
+        assert allowed.status_code == 200, allowed.text
+        assert allowed.headers["access-control-allow-origin"] == lab
+        assert "POST" in allowed.headers["access-control-allow-methods"].split(", ")
+        asked = allowed.headers["access-control-allow-headers"].lower()
+        assert {"authorization", "content-type", "idempotency-key"} <= set(asked.split(", "))
+        refused = preflight(evil)
+        assert refused.status_code == 400
+        assert "access-control-allow-origin" not in refused.headers
+        # the request itself still needs the key, and its answer may be read by the page
+        origin = {"Origin": lab}
+        assert api.client.post("/jobs", json={}, headers=origin).status_code == 401
+        made = api.client.post("/jobs", json={}, headers={**origin, **bearer(KEY_A)})
+        assert made.status_code == 202
+        assert made.headers["access-control-allow-origin"] == lab
+        read = api.client.get(f"/jobs/{made.json()['id']}", headers={**origin, **bearer(KEY_A)})
+        assert read.headers["access-control-allow-origin"] == lab
+        exposed = read.headers["access-control-expose-headers"].lower().split(", ")
+        assert {"etag", "retry-after", "location"} <= set(exposed)
+        # another origin's page gets no leave to read, and still may not write
+        foreign = api.client.get("/healthz", headers={"Origin": evil})
+        assert "access-control-allow-origin" not in foreign.headers
+        forged = api.client.post("/jobs", json={}, headers={"Origin": evil, **bearer(KEY_A)})
+        assert_problem(forged, 403)
+
+
+def test_without_allowed_origins_no_preflight_is_answered(sqlite_url: str) -> None:
+    with served(Settings(database_url=sqlite_url)) as api:
+        asked = api.client.options("/jobs", headers={
+            "Origin": "https://lab.example.org", "Access-Control-Request-Method": "POST"
+        })  # fmt: skip
+        assert asked.status_code == 405
+        assert "access-control-allow-origin" not in asked.headers
+
+
 def test_an_unknown_host_header_gets_400(sqlite_url: str) -> None:
     default = Settings.model_fields["allowed_hosts"].default
     with served(Settings(database_url=sqlite_url, allowed_hosts=default)) as api:
