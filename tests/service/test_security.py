@@ -299,6 +299,18 @@ def test_each_key_has_its_own_quota(sqlite_url: str) -> None:
         submit(api, KEY_B, {})
 
 
+def test_behind_a_local_proxy_each_forwarded_client_has_its_own_quota(sqlite_url: str) -> None:
+    # uvicorn trusts X-Forwarded-For from a proxy on this machine (FORWARDED_ALLOW_IPS)
+    with served(Settings(database_url=sqlite_url, quota_active_jobs=1)) as api:
+
+        def from_client(address: str) -> httpx.Response:
+            return api.client.post("/jobs", json={}, headers={"X-Forwarded-For": address})
+
+        assert from_client("203.0.113.7").status_code == 202
+        assert_problem(from_client("203.0.113.7"), 429)
+        assert from_client("198.51.100.2").status_code == 202
+
+
 def test_the_default_quota_refuses_a_flood_of_full_budget_jobs(sqlite_url: str) -> None:
     settings = Settings(database_url=sqlite_url)
     full = {
