@@ -207,6 +207,8 @@ async def client_loop(
         path = f"/jobs/{submitted.json()['id']}"
         while going():
             await asyncio.sleep(pause)
+            if not going():  # the cap may have been reached while this client slept
+                break
             polled = await call(POLL, "GET", path)
             if polled is not None and polled.json()["status"] in ENDED:
                 tally.jobs_ended += 1
