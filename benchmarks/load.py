@@ -98,11 +98,37 @@ class Service:
     workers: list[int]
 
     def cpu(self) -> dict[str, float] | None:
-        """CPU seconds so far of the API and the workers (None without /proc)."""
+        """CPU seconds so far of the API and the workers, if any (None without /proc)."""
         api, workers = cpu_seconds(self.api), cpu_seconds(self.workers)
         if api is None or workers is None:
             return None
-        return {"API": api, "workers": workers}
+        return {"API": api, "workers": workers} if self.workers else {"API": api}
+
+
+def wait_until_answering(
+    url: str, deadline: float, children: list[subprocess.Popen[bytes]]
+) -> None:
+    """Until ``url`` answers 200; RuntimeError past ``deadline`` or once a child has ended."""
+    while True:
+        try:
+            if httpx.get(url, timeout=5).status_code == 200:
+                return
+        except httpx.TransportError:
+            pass
+        if time.monotonic() > deadline or any(c.poll() is not None for c in children):
+            raise RuntimeError(f"{url} did not answer")
+        time.sleep(0.1)
+
+
+def stop(children: list[subprocess.Popen[bytes]]) -> None:
+    """SIGTERM each child, and SIGKILL those still running 30 s later."""
+    for child in children:
+        child.send_signal(signal.SIGTERM)
+    for child in children:
+        try:
+            child.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            child.kill()
 
 
 @contextmanager
@@ -137,24 +163,10 @@ def running_service(
             if time.monotonic() > deadline or any(c.poll() is not None for c in children):
                 raise RuntimeError(f"the workers did not start; see {workdir}")
             time.sleep(0.1)
-        while True:
-            try:
-                if httpx.get(f"{url}/healthz", timeout=5).status_code == 200:
-                    break
-            except httpx.TransportError:
-                pass
-            if time.monotonic() > deadline:
-                raise RuntimeError(f"the API did not start; see {workdir}")
-            time.sleep(0.1)
+        wait_until_answering(f"{url}/healthz", deadline, children)
         yield Service(url, api=[children[0].pid], workers=[c.pid for c in children[1:]])
     finally:
-        for child in children:
-            child.send_signal(signal.SIGTERM)
-        for child in children:
-            try:
-                child.wait(timeout=30)
-            except subprocess.TimeoutExpired:
-                child.kill()
+        stop(children)
         for log in logs.values():
             log.close()
 
@@ -322,22 +334,10 @@ def null_service() -> Iterator[Service]:
     child = subprocess.Popen(command)
     url = f"http://127.0.0.1:{port}"
     try:
-        deadline = time.monotonic() + 60
-        while True:
-            try:
-                httpx.get(f"{url}/jobs/0", timeout=5)
-                break
-            except httpx.TransportError:
-                if time.monotonic() > deadline or child.poll() is not None:
-                    raise RuntimeError("the null server did not start") from None
-                time.sleep(0.1)
+        wait_until_answering(f"{url}/jobs/0", time.monotonic() + 60, [child])
         yield Service(url, api=[child.pid], workers=[])
     finally:
-        child.send_signal(signal.SIGTERM)
-        try:
-            child.wait(timeout=30)
-        except subprocess.TimeoutExpired:
-            child.kill()
+        stop([child])
 
 
 def report(tally: Tally, elapsed: float, title: str, cpu: dict[str, float] | None) -> None:
@@ -367,7 +367,7 @@ def measure(service: Service, args: argparse.Namespace) -> tuple[Tally, float, d
     tally, elapsed, clients_cpu = drive(service.url, args.clients, args.client_processes,
                                         args.duration, args.pause, args.max_requests)  # fmt: skip
     after = service.cpu()
-    cpu = {}
+    cpu: dict[str, float] = {}
     if before is not None and after is not None:
         cpu = {name: after[name] - before[name] for name in after}
     return tally, elapsed, {**cpu, "clients": clients_cpu}
@@ -396,7 +396,6 @@ def main(argv: list[str] | None = None) -> int:
     if args.floor:
         with null_service() as service:
             tally, elapsed, cpu = measure(service, args)
-        del cpu["workers"]
         report(tally, elapsed, f"floor: {clients} for {elapsed:.1f} s on a server that does "
                "nothing", cpu)  # fmt: skip
         failed = bool(tally.errors)

@@ -90,7 +90,8 @@ class JobRecord:
 
 # The columns a JobRecord is made of, and the read of one job by id, built once.
 RECORD_COLUMNS = tuple(Job.__table__.c[name] for name in JobRecord.__dataclass_fields__)
-_RECORD_BY_ID = select(*RECORD_COLUMNS).where(Job.id == bindparam("job_id"))
+_RECORDS = select(*RECORD_COLUMNS)
+_RECORD_BY_ID = _RECORDS.where(Job.id == bindparam("job_id"))
 
 
 @dataclass(frozen=True)
@@ -210,7 +211,7 @@ class JobStore:
         watching many jobs for their clients reads every tick."""
         if not job_ids:
             return {}
-        query = select(*RECORD_COLUMNS).where(Job.id.in_(sorted(job_ids)))
+        query = _RECORDS.where(Job.id.in_(sorted(job_ids)))
         with self.engine.connect() as connection:
             return {row.id: JobRecord.of(row) for row in connection.execute(query)}
 
