@@ -14,8 +14,10 @@ const nanonav = {
   },
 
   // Delete `url` once the person confirms, then go to `then`; a refusal (409 while it still
-  // runs, 404 once gone) is shown in #delete-error.
+  // runs, 404 once gone) is shown in #delete-error. The page sends the button disabled, so a
+  // click before this script has run is not silently lost.
   deleteButton(button, url, what, then) {
+    button.disabled = false;
     button.addEventListener("click", async () => {
       if (!window.confirm(`Delete ${what} for good? This cannot be undone.`)) return;
       button.disabled = true;

@@ -107,8 +107,10 @@ def test_a_finished_job_and_study_are_deleted_from_their_pages(page: Page, site:
     job_id = httpx.post(f"{site.url}/jobs", json=QUICK).json()["id"]
     page.goto(f"{site.url}/ui/jobs/{job_id}")
     expect(page.locator("#job-status")).to_have_text("succeeded", timeout=60_000)
+    # the page reloads with its results and the button, enabled once its script can take a click
+    expect(page.locator("#delete")).to_be_enabled(timeout=30_000)
     page.once("dialog", lambda dialog: dialog.dismiss())
-    page.click("#delete")  # the page has reloaded with its results and the button
+    page.click("#delete")
     expect(page.locator("#delete")).to_be_enabled()
     assert httpx.get(f"{site.url}/jobs/{job_id}").status_code == 200  # not confirmed: kept
     page.once("dialog", lambda dialog: dialog.accept())
@@ -121,6 +123,7 @@ def test_a_finished_job_and_study_are_deleted_from_their_pages(page: Page, site:
     study_id = httpx.post(f"{site.url}/studies", json=study).json()["id"]
     page.goto(f"{site.url}/ui/studies/{study_id}")
     expect(page.locator("#delete")).to_be_visible(timeout=60_000)  # shown once it has ended
+    expect(page.locator("#delete")).to_be_enabled()
     page.once("dialog", lambda dialog: dialog.accept())
     page.click("#delete")
     page.wait_for_url(re.compile(r"/ui/studies$"))
