@@ -6,7 +6,7 @@ browser may carry it in the dashboard's cookie instead); the key is compared in 
 with every configured key, and only its SHA-256 digest is kept: it names the request's owner.
 ``refuse_cross_site``, a dependency of the whole app, makes a request that changes state (POST,
 PUT, PATCH, DELETE) be JSON or carry a custom header, which an HTML form on another site cannot
-send, and an ``Origin`` it names be this API's own or an allowed one. ``require_owner`` makes a
+send, and an ``Origin`` it names be this API's own or an allowed one. ``service.ids`` makes a
 job or study another key made answer 404, as one that does not exist.
 """
 
@@ -20,7 +20,6 @@ from typing import Annotated, Any
 from urllib.parse import quote, urlsplit
 
 from fastapi import Depends, Request
-from fastapi.concurrency import run_in_threadpool
 from fastapi.security import HTTPBearer
 from numpy.typing import NDArray
 from starlette.datastructures import Headers
@@ -28,7 +27,7 @@ from starlette.responses import RedirectResponse
 from starlette.types import ASGIApp, Receive, Scope, Send
 
 from nanonav.settings import Settings
-from nanonav.store import JobNotFound, JobStore, StudyNotFound, StudyStore
+from nanonav.store import JobNotFound, JobStore
 from nanonav.store.quotas import Quota
 from service.problems import (
     PROBLEM_BASE,
@@ -251,39 +250,6 @@ async def _caller(request: Request) -> Caller:
 
 
 CallerDep = Annotated[Caller, Depends(_caller)]
-
-
-def _path_id(request: Request, name: str) -> int | None:
-    """The path parameter ``name`` as a valid id, or None (then the route's own validation
-    answers for it)."""
-    raw = request.path_params.get(name)
-    if not isinstance(raw, str) or not raw.isdigit():
-        return None
-    value = int(raw)
-    return value if 1 <= value < 2**63 else None
-
-
-async def require_owner(request: Request, caller: CallerDep) -> None:
-    """A job or study named in the path that another key made is, to this caller, not there.
-    Without keys there is nothing to read, and no thread-pool hop is taken."""
-    if caller.scoped:
-        await run_in_threadpool(_check_owner, request, caller)
-
-
-def _check_owner(request: Request, caller: Caller) -> None:
-    job_id = _path_id(request, "job_id")
-    if job_id is not None:
-        store: JobStore = request.app.state.store
-        if store.owner_of(job_id) not in {None, caller.owner}:
-            raise JobNotFound(job_id)
-    study_id = _path_id(request, "study_id")
-    if study_id is not None:
-        studies: StudyStore = request.app.state.studies
-        if studies.owner_of(study_id) not in {None, caller.owner}:
-            raise StudyNotFound(study_id)
-
-
-OwnedOnly = Depends(require_owner)
 
 
 def owned_tables(store: JobStore, caller: Caller) -> Callable[[int], dict[str, NDArray[Any]]]:

@@ -11,7 +11,6 @@ from fastapi import APIRouter, Body, Path, Query, Response
 from fastapi.concurrency import run_in_threadpool
 from pydantic import ValidationError
 
-from nanonav.scenario import MAX_EXACT_INT
 from nanonav.store import StudyJob, StudyJobState, StudyRecord, StudyStore
 from nanonav.studies import export, pictures
 from nanonav.studies.report import (
@@ -30,6 +29,7 @@ from service.callbacks import CallbackUrl, callback_answer, check_callback
 from service.deps import DeliveriesDep, DrawerDep, JsonBody, SettingsDep, StoreDep, StudiesDep
 from service.drawing import Drawer
 from service.idempotency import IdempotencyDep
+from service.ids import StudyId
 from service.paging import Cursor, decode_cursor, encode_cursor
 from service.policy_from import check_policy_from
 from service.problems import (
@@ -42,11 +42,10 @@ from service.problems import (
 )
 from service.routes.jobs import PNG
 from service.schemas import Callback, JobCounts, Study, StudyLinks, StudyPage, StudySummary
-from service.security import SCRIPTED_ONLY, CallerDep, OwnedOnly, owned_tables, quota_of
+from service.security import SCRIPTED_ONLY, CallerDep, owned_tables, quota_of
 
-router = APIRouter(prefix="/studies", tags=["studies"], dependencies=[OwnedOnly])
+router = APIRouter(prefix="/studies", tags=["studies"])
 
-StudyId = Annotated[int, Path(ge=1, le=MAX_EXACT_INT, description="The study's id.")]
 PictureName = Annotated[
     str,
     Path(
