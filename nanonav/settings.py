@@ -249,20 +249,37 @@ class Settings(BaseSettings):
         "no placeholder; jobs and studies then belong to the key that made them. Empty (the "
         "default): no keys, every job is everyone's.",
     )
+    session_secret: SecretStr | None = Field(
+        None,
+        validation_alias=_aliases("session_secret"),
+        description="The key the dashboard's session tokens are signed with (HMAC-SHA256), at "
+        f"least {MIN_WEBHOOK_SECRET_LENGTH} characters and no placeholder; rotating it logs "
+        "every browser out. Unset: derived from the API keys, so every API process agrees and "
+        "changing any key logs every browser out.",
+    )
+    session_ttl_s: float = Field(
+        8 * 3600.0,
+        ge=60,
+        le=30 * 86400,
+        validation_alias=_aliases("session_ttl_s"),
+        description="How long a dashboard login lasts, seconds: its token is refused after it, "
+        "and the person logs in again.",
+    )
     quota_active_jobs: int = Field(
-        1000,
+        2000,
         ge=0,
         validation_alias=_aliases("quota_active_jobs"),
         description="Most queued and running jobs one key (or, without keys, one client "
-        "address) may have; a submit past it gets 429. 0: no limit.",
+        "address) may have, by default as many as the largest study makes; a submit past it "
+        "gets 429, one that alone is larger gets 422. 0: no limit.",
     )
     quota_robot_steps: int = Field(
         10_000_000_000,
         ge=0,
         validation_alias=_aliases("quota_robot_steps"),
         description="Most robot-steps (the budget's measure) one key or client address may have "
-        "queued and running, by default ten full-budget jobs; a submit past it gets 429. "
-        "0: no limit.",
+        "queued and running, by default ten full-budget jobs; a submit past it gets 429, one "
+        "that alone is larger gets 422. 0: no limit.",
     )
     allowed_hosts: Annotated[tuple[str, ...], NoDecode] = Field(
         ("localhost", "127.0.0.1", "::1"),
@@ -340,6 +357,13 @@ class Settings(BaseSettings):
     def _real_secret(cls, secret: SecretStr | None) -> SecretStr | None:
         if secret is not None:
             _check_secret(secret.get_secret_value(), "the webhook secret")
+        return secret
+
+    @field_validator("session_secret")
+    @classmethod
+    def _real_session_secret(cls, secret: SecretStr | None) -> SecretStr | None:
+        if secret is not None:
+            _check_secret(secret.get_secret_value(), "the session secret")
         return secret
 
     @model_validator(mode="after")

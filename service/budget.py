@@ -1,4 +1,5 @@
-"""The work a scenario may ask for, checked before it is queued, alone or in a study."""
+"""The work a scenario may ask for, checked before it is queued, alone or in a study: against
+the server's budget for one job, and against the quota of the key that asks."""
 
 from __future__ import annotations
 
@@ -6,7 +7,8 @@ from collections.abc import Sequence
 
 from nanonav.scenario import Scenario
 from nanonav.settings import Settings
-from service.problems import BudgetExceeded, FieldError, field_error
+from nanonav.store.quotas import Quota
+from service.problems import BudgetExceeded, FieldError, InvalidInput, field_error
 
 STEPS_FIELDS = (
     ("robots", "count"),
@@ -57,3 +59,24 @@ def check_budget(
     where = blame
     errors: list[FieldError] = [field_error(loc, detail, "budget_exceeded") for loc in where]
     raise BudgetExceeded(detail, errors)
+
+
+def check_quota_fits(
+    quota: Quota, *, jobs: int, robot_steps: int, blame: Sequence[Sequence[str | int]]
+) -> None:
+    """Refuse with 422 a submit larger than its quota allows even when nothing else is active:
+    a 429 would tell the client to retry, and no retry could ever succeed."""
+    details = []
+    if quota.active_jobs and jobs > quota.active_jobs:
+        details.append(
+            f"it makes {jobs:,} jobs and the active_jobs quota (NANONAV_QUOTA_ACTIVE_JOBS) "
+            f"allows {quota.active_jobs:,} queued and running at once"
+        )
+    if quota.robot_steps and robot_steps > quota.robot_steps:
+        details.append(
+            f"it asks for {robot_steps:,} robot-steps and the robot_steps quota "
+            f"(NANONAV_QUOTA_ROBOT_STEPS) allows {quota.robot_steps:,} queued and running"
+        )
+    if details:
+        detail = "this submit can never fit its quota: " + "; ".join(details) + ": make it smaller"
+        raise InvalidInput(detail, [field_error(loc, detail, "quota_never_fits") for loc in blame])

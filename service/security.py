@@ -2,8 +2,9 @@
 
 ``Guard`` is one pure ASGI middleware for the whole app. With ``NANONAV_API_KEYS`` set, every
 request but ``/healthz`` and the login page's assets carries ``Authorization: Bearer <key>`` (a
-browser may carry it in the dashboard's cookie instead); the key is compared in constant time
-with every configured key, and only its SHA-256 digest is kept: it names the request's owner.
+browser may carry the dashboard's session cookie instead: ``service.sessions``); the key is
+compared in constant time with every configured key, and only its SHA-256 digest is kept: it
+names the request's owner.
 ``refuse_cross_site``, a dependency of the whole app, makes a request that changes state (POST,
 PUT, PATCH, DELETE) be JSON or carry a custom header, which an HTML form on another site cannot
 send, and an ``Origin`` it names be this API's own or an allowed one. ``service.ids`` makes a
@@ -14,6 +15,7 @@ from __future__ import annotations
 
 import hashlib
 import hmac
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Annotated, Any
@@ -36,9 +38,8 @@ from service.problems import (
     UnsupportedMediaType,
     problem_response,
 )
+from service.sessions import SESSION_COOKIE, owner_of_token, session_secret
 
-# The dashboard keeps the key in this cookie (HttpOnly, SameSite=Strict) once a person logs in.
-KEY_COOKIE = "nanonav_key"
 # Reachable without a key: the health check, and what the login page needs to show itself.
 OPEN_PATHS = frozenset(
     {
@@ -123,13 +124,18 @@ def matching_key(candidate: str, keys: tuple[str, ...]) -> bool:
 
 
 def presented_key(headers: Headers) -> str | None:
-    """The key a request carries: a Bearer token, else the dashboard's cookie."""
+    """The key a request carries as a Bearer token."""
     scheme, _, token = headers.get("authorization", "").partition(" ")
     if scheme.lower() == "bearer" and token.strip():
         return token.strip()
+    return None
+
+
+def presented_session(headers: Headers) -> str | None:
+    """The dashboard's session token, if the request carries its cookie."""
     for part in headers.get("cookie", "").split(";"):
         name, _, value = part.strip().partition("=")
-        if name == KEY_COOKIE and value:
+        if name == SESSION_COOKIE and value:
             return value
     return None
 
@@ -162,6 +168,8 @@ class Guard:
     def __init__(self, app: ASGIApp, settings: Settings) -> None:
         self.app = app
         self.keys = tuple(key.get_secret_value() for key in settings.api_keys)
+        self.owners = frozenset(owner_of(key) for key in self.keys)
+        self.session_secret = session_secret(settings)
         self.hosts = settings.allowed_hosts
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
@@ -178,17 +186,30 @@ class Guard:
         path: str = scope["path"]
         owner = ""
         if self.keys and path not in OPEN_PATHS:
-            key = presented_key(headers)
-            if key is None or not matching_key(key, self.keys):
-                await self._unauthorized(scope, headers, key is not None)(scope, receive, send)
+            found = self._owner(headers)
+            if not found:
+                presented = found is not None
+                await self._unauthorized(scope, headers, presented)(scope, receive, send)
                 return
-            owner = owner_of(key)
+            owner = found
         client = scope.get("client")
         address = client[0] if client else ""
         scope.setdefault("state", {})["caller"] = Caller(
             owner=owner, scoped=bool(self.keys), quota_key=owner if self.keys else address
         )
         await self.app(scope, receive, send)
+
+    def _owner(self, headers: Headers) -> str | None:
+        """The owner a request's key or session token names; '' for one that names none,
+        None when it carries neither."""
+        key = presented_key(headers)
+        if key is not None:
+            return owner_of(key) if matching_key(key, self.keys) else ""
+        token = presented_session(headers)
+        if token is not None:
+            found = owner_of_token(token, self.session_secret, self.owners, now=time.time())
+            return found or ""
+        return None
 
     def _unauthorized(self, scope: Scope, headers: Headers, presented: bool) -> ASGIApp:
         """401 with a challenge; a person's browser opening a page is sent to the login page."""
@@ -266,9 +287,3 @@ def owned_tables(store: JobStore, caller: Caller) -> Callable[[int], dict[str, N
 def quota_of(caller: Caller, settings: Settings) -> Quota:
     """The quota a submit by ``caller`` counts against."""
     return Quota(caller.quota_key, settings.quota_active_jobs, settings.quota_robot_steps)
-
-
-def login_cookie(key: str, *, secure: bool) -> str:
-    """The Set-Cookie value that keeps ``key`` for the dashboard until the browser closes."""
-    flags = "; Secure" if secure else ""
-    return f"{KEY_COOKIE}={key}; Path=/; HttpOnly; SameSite=Strict{flags}"

@@ -20,7 +20,7 @@ from nanonav.policy import greedy_table
 from nanonav.scenario import MAX_EXACT_INT, Policy, Scenario
 from nanonav.store import JobStatus, JobStore, ResultsUnavailable, StudyNotFound
 from nanonav.store.arrays import pack
-from service.budget import check_budget
+from service.budget import check_budget, check_quota_fits
 from service.caching import IMMUTABLE
 from service.callbacks import CallbackUrl, callback_answer, check_callback
 from service.deps import DeliveriesDep, DrawerDep, JsonBody, SettingsDep, StoreDep, StudiesDep
@@ -80,6 +80,8 @@ def submit_job(
     check_callback(callback_url, settings)
     check_budget(scenario, settings)
     check_policy_from(scenario, owned_tables(store, caller), ("body", "policy_from"))
+    quota = quota_of(caller, settings)
+    check_quota_fits(quota, jobs=1, robot_steps=scenario.robot_steps_budget, blame=[["body"]])
     job = store.enqueue(
         scenario.model_dump(mode="json"),
         robot_steps=scenario.robot_steps_budget,
@@ -87,7 +89,7 @@ def submit_job(
         idempotency=idempotency,
         callback_url=callback_url,
         owner=caller.owner,
-        quota=quota_of(caller, settings),
+        quota=quota,
     )
     response.headers["Location"] = f"/jobs/{job.id}"
     return Job.of(job)

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import math
+import time
 from importlib import resources
 from pathlib import Path
 from typing import Annotated, Any, get_args
@@ -32,14 +33,8 @@ from service.paging import Cursor, decode_cursor, encode_cursor
 from service.problems import Unauthorized
 from service.routes.studies import list_studies, study_answer
 from service.schemas import Job
-from service.security import (
-    KEY_COOKIE,
-    Caller,
-    CallerDep,
-    caller_of,
-    login_cookie,
-    matching_key,
-)
+from service.security import Caller, CallerDep, caller_of, matching_key, owner_of
+from service.sessions import cleared_cookie, issue, same_site_path, session_cookie, session_secret
 
 router = APIRouter(include_in_schema=False)
 templates = Jinja2Templates(directory=Path(__file__).resolve().parents[1] / "templates")
@@ -231,8 +226,9 @@ def study_results(
 def login_page(
     request: Request, next: Annotated[str, Query(max_length=2000)] = "/"
 ) -> HTMLResponse:
-    """Where a person pastes an API key, for the dashboard to send with every request."""
-    target = next if next.startswith("/") and not next.startswith("//") else "/"
+    """Where a person pastes an API key; once in, the page goes back to ``next`` if that is a
+    path of this site, else to the dashboard."""
+    target = same_site_path(next) or "/"
     return templates.TemplateResponse(request, "login.html", {"next": target, "health": None})
 
 
@@ -244,23 +240,26 @@ class Login(BaseModel):
 
 @router.post("/ui/login", status_code=204, response_class=Response)
 def login(login: Login, request: Request, settings: SettingsDep) -> Response:
-    """Check the key and keep it in an HttpOnly, SameSite=Strict cookie until the browser
-    closes: script cannot read it and another site's requests do not carry it."""
+    """Check the key and answer with a signed session token in an HttpOnly, SameSite=Strict
+    cookie that lasts NANONAV_SESSION_TTL_S: script cannot read it, another site's requests
+    do not carry it, and it is not the key."""
     keys = tuple(key.get_secret_value() for key in settings.api_keys)
     if keys and not matching_key(login.key, keys):
         raise Unauthorized("the key is not one this API accepts")
     response = Response(status_code=204)
     if keys:
+        ttl_s = settings.session_ttl_s
+        token = issue(owner_of(login.key), session_secret(settings), now=time.time(), ttl_s=ttl_s)
         secure = request.url.scheme == "https"
-        response.headers["Set-Cookie"] = login_cookie(login.key, secure=secure)
+        response.headers["Set-Cookie"] = session_cookie(token, secure=secure, max_age_s=ttl_s)
     return response
 
 
 @router.post("/ui/logout", status_code=204, response_class=Response)
 def logout() -> Response:
-    """Forget the dashboard's key."""
+    """Forget the dashboard's session."""
     response = Response(status_code=204)
-    response.headers["Set-Cookie"] = f"{KEY_COOKIE}=; Path=/; Max-Age=0; HttpOnly; SameSite=Strict"
+    response.headers["Set-Cookie"] = cleared_cookie()
     return response
 
 

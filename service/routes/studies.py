@@ -23,7 +23,7 @@ from nanonav.studies.report import (
     table_columns,
 )
 from nanonav.studies.spec import StudySpec, grid_index, point_values, points
-from service.budget import check_budget
+from service.budget import check_budget, check_quota_fits
 from service.caching import IMMUTABLE
 from service.callbacks import CallbackUrl, callback_answer, check_callback
 from service.deps import DeliveriesDep, DrawerDep, JsonBody, SettingsDep, StoreDep, StudiesDep
@@ -92,7 +92,8 @@ def submit_study(
     ``study_rule`` (a base or grid point that is not a valid scenario, or ``compare`` not a
     grid key with two values), ``too_many_jobs`` (more grid points x seeds than the server
     takes), and as in POST /jobs ``budget_exceeded``, ``policy_unusable``, ``refused``,
-    ``idempotency_key`` and ``idempotency_key_reused``."""
+    ``idempotency_key``, ``idempotency_key_reused`` and ``quota_never_fits`` (more jobs or
+    robot-steps than the caller's quota allows even with nothing else active)."""
     check_callback(callback_url, settings)
     if spec.job_count > settings.study_max_jobs:
         detail = (
@@ -114,6 +115,10 @@ def submit_study(
         check_budget(point.scenario, settings, blame or None)
         check_policy_from(point.scenario, read, *_policy_blame(spec, point.values))
     seeds = spec.seed_list
+    quota = quota_of(caller, settings)
+    size = [("body", "grid"), ("body", "seeds" if spec.seeds is not None else "replicates")]
+    steps = sum(point.scenario.robot_steps_budget for point in grid) * len(seeds)
+    check_quota_fits(quota, jobs=spec.job_count, robot_steps=steps, blame=size)
     jobs = [
         StudyJob(
             scenario=point.with_seed(seed).model_dump(mode="json"),
@@ -134,7 +139,7 @@ def submit_study(
         idempotency=idempotency,
         callback_url=callback_url,
         owner=caller.owner,
-        quota=quota_of(caller, settings),
+        quota=quota,
     )
     response.headers["Location"] = f"/studies/{record.id}"
     return study_answer(studies, record)

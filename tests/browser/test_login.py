@@ -75,3 +75,16 @@ def test_another_key_does_not_see_the_job(page: Page, site: Site) -> None:
     page.wait_for_url(re.compile(r"/ui/login"))
     page.goto(f"{site.url}/ui/jobs")
     page.wait_for_url(re.compile(r"/ui/login\?next="))
+
+
+def test_a_login_never_leaves_the_site_whatever_next_says(page: Page, site: Site) -> None:
+    for target in ("/%5Cevil.example/x", "//evil.example/x", "/%09/evil.example/x"):
+        page.context.clear_cookies()
+        page.goto(f"{site.url}/ui/login?next={target}")
+        page.fill("#key", KEY_A)
+        page.click("button[type=submit]")
+        page.wait_for_url(site.url + "/")
+    page.goto(f"{site.url}/ui/login?next=%2Fui%2Fstudies")
+    page.fill("#key", KEY_A)
+    page.click("button[type=submit]")
+    page.wait_for_url(site.url + "/ui/studies")

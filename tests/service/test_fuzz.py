@@ -35,10 +35,24 @@ _URL = f"sqlite:///{Path(_DIRECTORY.name) / 'nanonav.db'}"
 IDEMPOTENCY_RULES = frozenset({"idempotency_key", "idempotency_key_reused"})
 STATED_RULES: dict[str, frozenset[str]] = {
     "POST /jobs": frozenset(
-        {"scenario_rule", "budget_exceeded", "policy_unusable", "refused", *IDEMPOTENCY_RULES}
+        {
+            "scenario_rule",
+            "budget_exceeded",
+            "policy_unusable",
+            "refused",
+            "quota_never_fits",
+            *IDEMPOTENCY_RULES,
+        }
     ),
     "POST /studies": frozenset(
-        {"study_rule", "budget_exceeded", "policy_unusable", "refused", "too_many_jobs"}
+        {
+            "study_rule",
+            "budget_exceeded",
+            "policy_unusable",
+            "refused",
+            "too_many_jobs",
+            "quota_never_fits",
+        }
         | IDEMPOTENCY_RULES
     ),
     "GET /jobs/{job_id}/trajectory": frozenset({"too_large"}),

@@ -259,16 +259,20 @@ def test_submits_past_the_active_jobs_quota_get_429_with_retry_after(sqlite_url:
         body = assert_problem(response, 429)
         assert int(response.headers["retry-after"]) > 0
         assert "active_jobs" in body["detail"] and "3" in body["detail"]
-        assert_problem(api.client.post("/studies", json=STUDY, headers=SCRIPTED), 429)
+        small_study = {**STUDY, "seeds": [1]}
+        assert_problem(api.client.post("/studies", json=small_study, headers=SCRIPTED), 429)
         api.client.post(f"/jobs/{ids[0]}/cancel", headers=SCRIPTED)
         submit(api, None, {})  # a finished job frees its place
 
 
 def test_a_study_counts_all_its_jobs_and_robot_steps_are_a_quota_too(sqlite_url: str) -> None:
-    settings = Settings(database_url=sqlite_url, quota_active_jobs=3)
+    settings = Settings(database_url=sqlite_url, quota_active_jobs=5)
     with served(settings) as api:
+        queued = [submit(api, None, {})["id"] for _ in range(2)]
         body = assert_problem(api.client.post("/studies", json=STUDY, headers=SCRIPTED), 429)
         assert "adds 4" in body["detail"]
+        for job in queued:
+            api.client.post(f"/jobs/{job}/cancel", headers=SCRIPTED)
     budget = 2 * 60 * (2 + 20)  # robots x max_steps x (episodes + evaluation worlds)
     settings = Settings(database_url=sqlite_url, quota_robot_steps=budget * 2)
     with served(settings) as api:
@@ -276,6 +280,35 @@ def test_a_study_counts_all_its_jobs_and_robot_steps_are_a_quota_too(sqlite_url:
         submit(api, None, TINY)
         body = assert_problem(api.client.post("/jobs", json=TINY, headers=SCRIPTED), 429)
         assert "robot_steps" in body["detail"]
+
+
+def test_a_submit_larger_than_its_quota_is_422_naming_the_quota_not_a_429(
+    sqlite_url: str,
+) -> None:
+    settings = Settings(database_url=sqlite_url, quota_active_jobs=3)
+    with served(settings) as api:
+        response = api.client.post("/studies", json=STUDY, headers=SCRIPTED)
+        body = assert_problem(response, 422)
+        assert "retry-after" not in response.headers
+        assert "active_jobs" in body["detail"] and "NANONAV_QUOTA_ACTIVE_JOBS" in body["detail"]
+        assert {tuple(e["loc"]) for e in body["errors"]} == {("body", "grid"), ("body", "seeds")}
+        assert {e["type"] for e in body["errors"]} == {"quota_never_fits"}
+    budget = 2 * 60 * (2 + 20)  # robots x max_steps x (episodes + evaluation worlds)
+    settings = Settings(database_url=sqlite_url, quota_robot_steps=budget - 1)
+    with served(settings) as api:
+        body = assert_problem(api.client.post("/jobs", json=TINY, headers=SCRIPTED), 422)
+        assert "robot_steps" in body["detail"] and f"{budget:,}" in body["detail"]
+        assert api.store.page(status=None, limit=10, before_id=None).jobs == []
+
+
+def test_the_largest_study_the_server_takes_fits_the_default_quota(sqlite_url: str) -> None:
+    settings = Settings(database_url=sqlite_url)
+    assert settings.quota_active_jobs >= settings.study_max_jobs
+    seeds = list(range(settings.study_max_jobs // 2))
+    largest = {**STUDY, "base": {"learning": {"episodes": 1, "max_steps": 10}}, "seeds": seeds}
+    with served(settings) as api:
+        study = submit(api, None, largest, "/studies")
+        assert study["jobs"]["total"] == settings.study_max_jobs
 
 
 def test_concurrent_submits_never_pass_the_quota_together(sqlite_url: str) -> None:
