@@ -20,10 +20,11 @@ from nanonav.store.deliveries import DeliveryStore
 from service import problems
 from service.caching import ETags
 from service.drawing import Drawer
-from service.events import Poller
+from service.events import Poller, StreamLimits
 from service.limits import BodySizeLimit
 from service.methods import HeadAsGet
 from service.orphans import stop_when_orphaned
+from service.reports import Reports
 from service.routes import events, jobs, meta, pages, studies
 from service.security import (
     BEARER,
@@ -87,10 +88,14 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.state.settings = settings
     app.state.store = store
     app.state.studies = study_store
+    app.state.reports = Reports()
     app.state.deliveries = DeliveryStore(store.engine)
     app.state.poller = poller
     app.state.job_events = poller.channel(partial(events.job_snapshots, store))
     app.state.study_events = poller.channel(partial(events.study_snapshots, study_store))
+    app.state.streams = StreamLimits(
+        settings.events_streams_per_key, settings.events_streams_per_process
+    )
     app.state.drawer = Drawer(settings.drawing_queue)
     app.add_middleware(BodySizeLimit, max_bytes=settings.max_body_bytes)
     app.add_middleware(ETags)

@@ -16,6 +16,7 @@ from nanonav.store.deliveries import DeliveryStore
 from service.drawing import Drawer
 from service.events import Channel
 from service.problems import UnsupportedMediaType
+from service.reports import Reports
 
 
 async def _store(request: Request) -> JobStore:
@@ -41,6 +42,11 @@ async def _deliveries(request: Request) -> DeliveryStore:
 async def _drawer(request: Request) -> Drawer:
     drawer: Drawer = request.app.state.drawer
     return drawer
+
+
+async def _reports(request: Request) -> Reports:
+    reports: Reports = request.app.state.reports
+    return reports
 
 
 async def _job_events(request: Request) -> Channel:
@@ -69,6 +75,7 @@ StoreDep = Annotated[JobStore, Depends(_store)]
 SettingsDep = Annotated[Settings, Depends(_settings)]
 DrawerDep = Annotated[Drawer, Depends(_drawer)]
 StudiesDep = Annotated[StudyStore, Depends(_studies)]
+ReportsDep = Annotated[Reports, Depends(_reports)]
 DeliveriesDep = Annotated[DeliveryStore, Depends(_deliveries)]
 JobEventsDep = Annotated[Channel, Depends(_job_events)]
 StudyEventsDep = Annotated[Channel, Depends(_study_events)]

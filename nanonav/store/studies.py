@@ -85,6 +85,9 @@ class StudyProgress:
     study_id: int
     cancel_requested: bool
     jobs: dict[JobStatus, int]  # jobs per status; a status no job has is absent
+    # (point, status, jobs) in order: with the metrics of its finished jobs, which never
+    # change, all the study's report depends on
+    by_point: tuple[tuple[int, str, int], ...]
     work_done: float  # 1 per finished job plus the fraction done of every other job
     last_finished_at: datetime | None  # when its latest finished job finished
 
@@ -252,6 +255,7 @@ class StudyStore:
             select(
                 Study.id,
                 Study.cancel_requested,
+                Job.study_point,
                 Job.status,
                 func.count(Job.id),
                 func.sum(Job.fraction),
@@ -259,28 +263,31 @@ class StudyStore:
             )
             .outerjoin(Job, Job.study_id == Study.id)
             .where(Study.id.in_(sorted(study_ids)))
-            .group_by(Study.id, Study.cancel_requested, Job.status)
+            .group_by(Study.id, Study.cancel_requested, Job.study_point, Job.status)
         )
         with unit_of_work(self._sessions) as session:
-            rows = session.execute(query.order_by(Study.id)).all()
+            rows = session.execute(query.order_by(Study.id, Job.study_point, Job.status)).all()
         found: dict[int, StudyProgress] = {}
         for study_id, group in groupby(rows, key=lambda row: int(row[0])):
             parts = list(group)
             cancel_requested = bool(parts[0][1])
             jobs: dict[JobStatus, int] = {}
+            by_point: list[tuple[int, str, int]] = []
             work_done = 0.0
             ends: list[datetime] = []
-            for _, _, status, n, fractions, finished_at in parts:
+            for _, _, point, status, n, fractions, finished_at in parts:
                 if status is None:  # the one row of a study without jobs
                     continue
                 status = JobStatus(status)
-                jobs[status] = int(n)
+                jobs[status] = jobs.get(status, 0) + int(n)
+                by_point.append((int(point or 0), status.value, int(n)))
                 work_done += float(n) if status.finished else float(fractions or 0.0)
                 if finished_at is not None:
                     ends.append(aware(finished_at))
             found[study_id] = StudyProgress(
-                study_id, cancel_requested, jobs, work_done, max(ends, default=None)
-            )
+                study_id, cancel_requested, jobs, tuple(by_point), work_done,
+                max(ends, default=None),
+            )  # fmt: skip
         return found
 
     def cancel(self, study_id: int) -> StudyRecord:

@@ -28,9 +28,10 @@ from nanonav.store import JobNotFound, JobStatus, StudyNotFound
 from nanonav.store.queue import PRESENCE_WINDOW_S
 from nanonav.studies.report import METRICS
 from nanonav.studies.spec import GRID_KEYS
-from service.deps import SettingsDep, StoreDep, StudiesDep
+from service.deps import ReportsDep, SettingsDep, StoreDep, StudiesDep
 from service.paging import Cursor, decode_cursor, encode_cursor
 from service.problems import Unauthorized
+from service.reports import Reports
 from service.routes.studies import list_studies, study_answer
 from service.schemas import Job
 from service.security import Caller, CallerDep, caller_of, matching_key, owner_of
@@ -176,11 +177,13 @@ def new_study_page(request: Request, settings: SettingsDep) -> HTMLResponse:
     )  # fmt: skip
 
 
-def _study_context(studies: StudiesDep, study_id: int, caller: Caller) -> dict[str, Any]:
+def _study_context(
+    studies: StudiesDep, reports: Reports, study_id: int, caller: Caller
+) -> dict[str, Any]:
     record = studies.get(study_id)
     if caller.scoped and record.owner != caller.owner:
         raise StudyNotFound(study_id)
-    study = study_answer(studies, record)
+    study = study_answer(studies, reports, record)
     keys = list(study.spec.get("grid", {}))
     compare = study.spec.get("compare")
     done = study.jobs.succeeded + study.jobs.failed + study.jobs.cancelled
@@ -200,11 +203,15 @@ def _study_context(studies: StudiesDep, study_id: int, caller: Caller) -> dict[s
 
 @router.get("/ui/studies/{study_id}", response_class=HTMLResponse)
 def study_page(
-    request: Request, study_id: PageId, studies: StudiesDep, caller: CallerDep
+    request: Request,
+    study_id: PageId,
+    studies: StudiesDep,
+    reports: ReportsDep,
+    caller: CallerDep,
 ) -> HTMLResponse:
     """A study: its jobs filling in live, its table with intervals and paired comparisons."""
     try:
-        context = _study_context(studies, study_id, caller)
+        context = _study_context(studies, reports, study_id, caller)
     except StudyNotFound:
         return _missing(request, f"study {study_id}")
     return _page(request, "study.html", nav="studies", **context)
@@ -212,11 +219,15 @@ def study_page(
 
 @router.get("/ui/studies/{study_id}/results", response_class=HTMLResponse)
 def study_results(
-    request: Request, study_id: PageId, studies: StudiesDep, caller: CallerDep
+    request: Request,
+    study_id: PageId,
+    studies: StudiesDep,
+    reports: ReportsDep,
+    caller: CallerDep,
 ) -> HTMLResponse:
     """The study page's results and counts alone, for the page to refresh as jobs finish."""
     try:
-        context = _study_context(studies, study_id, caller)
+        context = _study_context(studies, reports, study_id, caller)
     except StudyNotFound:
         return _missing(request, f"study {study_id}")
     return templates.TemplateResponse(request, "_study_fragment.html", context)

@@ -11,7 +11,7 @@ from fastapi import APIRouter, Body, Path, Query, Response
 from fastapi.concurrency import run_in_threadpool
 from pydantic import ValidationError
 
-from nanonav.store import StudyJob, StudyJobState, StudyRecord, StudyStore
+from nanonav.store import StudyJob, StudyJobState, StudyNotFound, StudyRecord, StudyStore
 from nanonav.studies import export, pictures
 from nanonav.studies.report import (
     JobOutcome,
@@ -26,7 +26,15 @@ from nanonav.studies.spec import StudySpec, grid_index, point_values, points
 from service.budget import check_budget, check_quota_fits
 from service.caching import IMMUTABLE
 from service.callbacks import CallbackUrl, callback_answer, check_callback
-from service.deps import DeliveriesDep, DrawerDep, JsonBody, SettingsDep, StoreDep, StudiesDep
+from service.deps import (
+    DeliveriesDep,
+    DrawerDep,
+    JsonBody,
+    ReportsDep,
+    SettingsDep,
+    StoreDep,
+    StudiesDep,
+)
 from service.drawing import Drawer
 from service.idempotency import IdempotencyDep
 from service.ids import StudyId
@@ -40,6 +48,7 @@ from service.problems import (
     invalid_body,
     problems,
 )
+from service.reports import Reports
 from service.routes.jobs import PNG
 from service.schemas import Callback, JobCounts, Study, StudyLinks, StudyPage, StudySummary
 from service.security import SCRIPTED_ONLY, CallerDep, owned_tables, quota_of
@@ -79,6 +88,7 @@ STUDY_EXAMPLES: dict[str, Any] = {
 def submit_study(
     spec: Annotated[StudySpec, Body(openapi_examples=STUDY_EXAMPLES)],
     studies: StudiesDep,
+    reports: ReportsDep,
     store: StoreDep,
     settings: SettingsDep,
     caller: CallerDep,
@@ -142,7 +152,7 @@ def submit_study(
         quota=quota,
     )
     response.headers["Location"] = f"/studies/{record.id}"
-    return study_answer(studies, record)
+    return study_answer(studies, reports, record)
 
 
 @router.get("", response_model=StudyPage, responses=problems(422))
@@ -180,10 +190,10 @@ def list_studies(
 
 
 @router.get("/{study_id}", response_model=Study, responses=problems(404, 422))
-def get_study(study_id: StudyId, studies: StudiesDep) -> Study:
+def get_study(study_id: StudyId, studies: StudiesDep, reports: ReportsDep) -> Study:
     """A study's jobs per status and, per grid point and metric, mean and 95% CI; with
     `compare`, paired differences seed by seed."""
-    return study_answer(studies, studies.get(study_id))
+    return study_answer(studies, reports, studies.get(study_id))
 
 
 @router.get("/{study_id}/callback", response_model=Callback, responses=problems(404, 422))
@@ -204,15 +214,15 @@ def get_study_callback(
     responses=problems(403, 404, 409, 415, 422),
     openapi_extra=SCRIPTED_ONLY,
 )
-def cancel_study(study_id: StudyId, studies: StudiesDep) -> Study:
+def cancel_study(study_id: StudyId, studies: StudiesDep, reports: ReportsDep) -> Study:
     """Cancel a study's unfinished jobs: queued ones at once, running ones within a second.
 
     The rule of a job's cancel: 200 when the study is or will be cancelled, 409 when it
     already ended another way (every job succeeded or failed)."""
-    view = study_answer(studies, studies.get(study_id))
+    view = study_answer(studies, reports, studies.get(study_id))
     if view.status in FINISHED and not view.cancel_requested:
         raise StudyFinished(f"study {study_id} has already finished: it is {view.status}")
-    return study_answer(studies, studies.cancel(study_id))
+    return study_answer(studies, reports, studies.cancel(study_id))
 
 
 @router.delete(
@@ -338,23 +348,34 @@ class _Loaded:
         return found
 
 
-def study_answer(studies: StudyStore, record: StudyRecord) -> Study:
-    loaded = _Loaded.of(studies, record)
-    states = loaded.states
-    progress = sum(1.0 if s.status.finished else s.fraction for s in states) / max(len(states), 1)
-    ends = [s.finished_at for s in states if s.finished_at is not None]
+def study_answer(studies: StudyStore, reports: Reports, record: StudyRecord) -> Study:
+    """The study as GET /studies/{id} answers it. Its counts and progress are one aggregate;
+    its report is read from the finished study, or taken from ``reports`` while nothing it
+    depends on has changed, so that polling a large study costs no job's metrics."""
+    found = studies.progress([record.id]).get(record.id)
+    if found is None:
+        raise StudyNotFound(record.id)
+    counts = {status.value: n for status, n in found.jobs.items()}
+    total = sum(counts.values())
+    status = status_of(counts, found.cancel_requested)
+    done = status in FINISHED
+    if done and record.report is not None:
+        statistics = record.report
+    else:
+        key = (record.id, found.by_point)
+        statistics = reports.get(key, lambda: _Loaded.of(studies, record).report(studies))
     return Study(
         id=record.id,
         name=record.name,
-        status=loaded.status,
+        status=status,
         created_at=record.created_at,
-        finished_at=max(ends) if loaded.done and ends else None,
-        cancel_requested=record.cancel_requested,
-        jobs=JobCounts.of(status_counts(loaded.outcomes)),
-        progress=progress,
+        finished_at=found.last_finished_at if done else None,
+        cancel_requested=found.cancel_requested,
+        jobs=JobCounts.of(counts),
+        progress=found.work_done / max(total, 1),
         spec=record.spec,
         links=_links(record.id),
-        **loaded.report(studies),
+        **statistics,
     )
 
 
