@@ -65,6 +65,10 @@ class ScenarioError(ValueError):
         self.field = field
         self.message = message
 
+    def __reduce__(self) -> tuple[type[ScenarioError], tuple[str, str]]:
+        # Rebuilt from both arguments, so it crosses to and from worker processes intact.
+        return type(self), (self.field, self.message)
+
 
 def _field_error(model: str, loc: tuple[str, ...], value: Any, message: str) -> ValidationError:
     """A validation error that names the field at fault, for rules that span several fields."""
@@ -420,7 +424,8 @@ class Scenario(_Part):
         ge=0,
         le=MAX_EXACT_INT,
         description="Seed of every random draw; the same scenario and seed give bit-identical "
-        "results.",
+        "results. Left out of POST /jobs, the server draws one (each submit a new sample) and "
+        "stores it in the resolved scenario; `nanonav run` uses 0.",
     )
     space: Space = Space()
     cells: Cells = Cells()

@@ -11,6 +11,7 @@ adding one such function and one line in ``build_parser``.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Callable
 
@@ -18,6 +19,7 @@ from nanonav.cli import remote, run, service
 from nanonav.cli.common import (
     EXIT_FAILED,
     EXIT_INTERRUPTED,
+    EXIT_PIPE_CLOSED,
     EXIT_USAGE,
     Failed,
     UsageError,
@@ -35,7 +37,8 @@ def build_parser() -> argparse.ArgumentParser:
         prog="nanonav",
         description="Simulations of learning nanorobots that hunt cancer cells in 3-D tissue.",
         epilog="Exit codes: 0 done; 1 the work failed, or the server failed or could not be "
-        "reached; 2 input to fix (here, or as the server judged it); 130 interrupted.",
+        "reached; 2 input to fix (here, or as the server judged it); 130 interrupted; 141 "
+        "the output's reader left early (as `| head` does).",
     )
     subcommands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     run.add_run(subcommands)
@@ -54,7 +57,8 @@ def main(argv: list[str] | None = None) -> int:
     """Run the command; returns the exit code instead of exiting, so tests can call it.
 
     Exit codes: 0 done; 1 the work failed, or the server failed or could not be reached; 2 input
-    to fix (here, or a 4xx answer of the server); 130 interrupted."""
+    to fix (here, or a 4xx answer of the server); 130 interrupted; 141 the reader of the output
+    left early."""
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
@@ -80,3 +84,9 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt as stop:
         say([str(stop) or "interrupted"])
         return EXIT_INTERRUPTED
+    except BrokenPipeError:
+        # The reader left (`nanonav study --id 2 | head -5`): stop quietly, as cat does, and
+        # point stdout at nothing so the interpreter's last flush raises no second error.
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return EXIT_PIPE_CLOSED

@@ -13,6 +13,8 @@ EXIT_OK = 0
 EXIT_FAILED = 1  # the work failed, or a server could not be reached or failed
 EXIT_USAGE = 2  # input the user can fix, here or as the server judged it (a 4xx answer)
 EXIT_INTERRUPTED = 130
+# The reader of the output left before it ended (a closed pipe), as 128 + SIGPIPE says in a shell.
+EXIT_PIPE_CLOSED = 141
 
 # Quoted: argparse's class cannot be subscripted at run time.
 Subcommands: TypeAlias = "argparse._SubParsersAction[argparse.ArgumentParser]"

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import io
+import secrets
 from collections.abc import Iterator
 from functools import partial
 from typing import Annotated, Any, Literal
@@ -35,6 +36,8 @@ from service.security import SCRIPTED_ONLY, CallerDep, owned_tables, quota_of
 
 router = APIRouter(prefix="/jobs", tags=["jobs"])
 
+# Seeds drawn for a submit that names none: any 32-bit integer.
+DRAWN_SEEDS = 2**32
 # Pictures of what a cancelled job keeps: the episodes it finished and the table it learned.
 KEPT_PICTURES = ("learning", "qtable")
 
@@ -78,6 +81,9 @@ def submit_job(
     ``callback_url`` the server will not call), ``idempotency_key`` (a blank, non-UTF-8 or
     over-long key) and ``idempotency_key_reused`` (a key already used for another request)."""
     check_callback(callback_url, settings)
+    if "seed" not in scenario.model_fields_set:
+        # each submit without a seed is a new sample; the seed drawn is stored, to repeat it
+        scenario = scenario.model_copy(update={"seed": secrets.randbelow(DRAWN_SEEDS)})
     check_budget(scenario, settings)
     check_policy_from(scenario, owned_tables(store, caller), ("body", "policy_from"))
     quota = quota_of(caller, settings)

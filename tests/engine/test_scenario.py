@@ -1,11 +1,12 @@
 """The scenario schema: defaults, presets, bounds, and errors that name the field."""
 
 import json
+import pickle
 
 import pytest
 from pydantic import ValidationError
 
-from nanonav.scenario import PRESETS, Scenario, preset_scenario
+from nanonav.scenario import PRESETS, Scenario, ScenarioError, preset_scenario
 
 
 def error_locations(data: object) -> list[str]:
@@ -86,3 +87,10 @@ def test_every_field_is_documented() -> None:
     walk(schema["properties"])
     for definition in schema["$defs"].values():
         walk(definition["properties"])
+
+
+def test_a_scenario_error_crosses_process_boundaries_intact() -> None:
+    error = ScenarioError("obstacles.count", "leave no room")
+    copy = pickle.loads(pickle.dumps(error))
+    assert isinstance(copy, ScenarioError)
+    assert (copy.field, copy.message, str(copy)) == (error.field, error.message, str(error))

@@ -49,13 +49,22 @@ def test_submit_answers_202_with_location_and_the_resolved_scenario(api: Api) ->
     job = response.json()
     assert response.headers["location"] == f"/jobs/{job['id']}"
     assert job["status"] == "queued"
-    assert job["scenario"]["seed"] == 0
     assert job["scenario"]["learning"]["episodes"] == 50
     assert job["progress"] == {"episode": 0, "episodes": 50 + 20, "fraction": 0.0}
     # nothing to fetch yet: no result is advertised before it exists
     assert job["links"]["metrics"] is None and job["links"]["plots"] == {}
     assert job["links"]["cancel"] == f"/jobs/{job['id']}/cancel"
     assert api.store.get(job["id"]).status is JobStatus.QUEUED
+
+
+def test_a_submit_without_a_seed_draws_one_and_keeps_it(api: Api) -> None:
+    drawn = [submit(api, body)["scenario"]["seed"] for body in ({}, {}, {"preset": "hard-single"})]
+    assert len(set(drawn)) == 3 and all(0 <= seed < 2**32 for seed in drawn)
+    job = submit(api, {})
+    assert (
+        api.client.get(f"/jobs/{job['id']}").json()["scenario"]["seed"] == job["scenario"]["seed"]
+    )
+    assert submit(api, {"seed": 0})["scenario"]["seed"] == 0
 
 
 def test_a_preset_is_applied_and_explicit_fields_override_it(api: Api) -> None:
