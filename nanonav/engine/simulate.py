@@ -88,7 +88,8 @@ def _params(scenario: Scenario, record_bytes: int = DEFAULT_RECORD_BYTES) -> Ker
         emitter_scatter=b.emitter_scatter,
         noise_floor=b.noise_floor,
         # a gradient component is the difference of two readings sensor_baseline apart
-        gradient_noise=b.noise_floor / (math.sqrt(2.0) * scenario.robots.sensor_baseline),
+        # (c1 + e1 - c2 - e2) / baseline, e1 and e2 independent: sd sqrt(2) floor / baseline
+        gradient_noise=math.sqrt(2.0) * b.noise_floor / scenario.robots.sensor_baseline,
         detection_threshold=b.detection_threshold,
         cell_sensing_radius=scenario.robots.cell_sensing_radius,
         reward_step=scenario.rewards.step,

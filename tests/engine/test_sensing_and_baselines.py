@@ -12,7 +12,8 @@ import pytest
 
 from nanonav.engine import qlearning, simulate
 from nanonav.engine.result import without_timings
-from nanonav.engine.simulate import _params
+from nanonav.engine import kernel
+from nanonav.engine.simulate import _params, _Run
 from nanonav.scenario import Scenario, preset_scenario
 
 
@@ -29,9 +30,22 @@ def segment_clearance(a: np.ndarray, b: np.ndarray, centres: np.ndarray) -> floa
     return float(np.linalg.norm(c - f[:, None] * u, axis=1).min())
 
 
-def test_the_gradient_is_sensed_through_the_noise_floor() -> None:
-    s = scenario(biomarker={"noise_floor": 0.02}, robots={"sensor_baseline": 0.25})
-    assert _params(s).gradient_noise == pytest.approx(0.02 / (math.sqrt(2) * 0.25))
+def test_each_sensed_gradient_component_carries_the_noise_of_two_readings_a_baseline_apart() -> (
+    None
+):
+    # (c(x + b) + e1 - c(x) - e2) / b, with e1 and e2 N(0, floor^2): sd sqrt(2) * floor / b
+    floor, baseline = 0.02, 0.25
+    s = scenario(biomarker={"noise_floor": floor}, robots={"sensor_baseline": baseline})
+    run = _Run(s, _params(s))
+    run.swarm.reading[0] = 1.0  # above any threshold; the true gradient is 0
+    rng = np.random.default_rng(11)
+    samples = np.array([kernel._sense(run.params, rng, run.swarm, 0) for _ in range(20_000)])
+    expected = math.sqrt(2.0) * floor / baseline
+    # the sample sd of n normal draws has a relative standard error of 1 / sqrt(2 (n - 1))
+    tolerance = 4.0 / math.sqrt(2.0 * (len(samples) - 1))
+    for component in (1, 2, 3):
+        assert np.std(samples[:, component]) == pytest.approx(expected, rel=tolerance)
+    assert np.std(samples[:, 0]) == pytest.approx(floor, rel=tolerance)
 
 
 def test_below_the_detection_threshold_a_robot_senses_nothing_and_keeps_its_heading() -> None:
