@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import re
 from functools import lru_cache
+from ipaddress import IPv4Network, IPv6Network, ip_network
 from typing import Annotated
 
 from pydantic import AliasChoices, Field, SecretStr, field_validator, model_validator
@@ -202,6 +203,15 @@ class Settings(BaseSettings):
         "'hooks.example.org' exactly, '*.example.org' its subdomains, 'localhost:9000' only "
         "that port. Empty: no webhooks, and a callback_url gets 422.",
     )
+    webhook_addresses: Annotated[tuple[IPv4Network | IPv6Network, ...], NoDecode] = Field(
+        (),
+        validation_alias=_aliases("webhook_addresses"),
+        description="Comma-separated addresses and networks ('127.0.0.0/8,10.1.2.3,fd00::/8') "
+        "webhooks may go to besides public ones. A callback's host is resolved when it is sent, "
+        "and a loopback, private, link-local, unspecified, multicast, reserved or shared address "
+        "is refused unless listed here; a cloud metadata address (169.254.169.254, "
+        "fd00:ec2::254, ...) only if listed alone. Empty: public addresses only.",
+    )
     webhook_secret: SecretStr | None = Field(
         None,
         validation_alias="NANONAV_WEBHOOK_SECRET",
@@ -352,6 +362,15 @@ class Settings(BaseSettings):
                 raise ValueError(f"not a port in webhook host {host!r}")
         return tuple(host.lower() for host in hosts)
 
+    @field_validator("webhook_addresses", mode="before")
+    @classmethod
+    def _networks(cls, value: object) -> object:
+        if isinstance(value, str):
+            value = tuple(part.strip() for part in value.split(",") if part.strip())
+        if not isinstance(value, list | tuple):
+            return value
+        return tuple(_network(entry) for entry in value)
+
     @field_validator("webhook_secret")
     @classmethod
     def _real_secret(cls, secret: SecretStr | None) -> SecretStr | None:
@@ -387,6 +406,21 @@ class Settings(BaseSettings):
         if url.get_backend_name() not in {"sqlite", "postgresql"}:
             raise ValueError("only sqlite:// and postgresql:// databases are supported")
         return url.render_as_string(hide_password=False)
+
+
+def _network(entry: object) -> object:
+    """A webhook address or network as written (``10.1.2.3``, ``127.0.0.0/8``), checked."""
+    if not isinstance(entry, str):
+        return entry
+    try:
+        return ip_network(entry)
+    except ValueError as error:
+        if "has host bits set" in str(error):
+            meant = ip_network(entry, strict=False)
+            raise ValueError(f"in NANONAV_WEBHOOK_ADDRESSES, {entry!r} has host bits set: "
+                             f"did you mean {meant}?") from None  # fmt: skip
+        raise ValueError(f"in NANONAV_WEBHOOK_ADDRESSES, {entry!r} is not an address or a "
+                         "network (like 10.1.2.3, 127.0.0.0/8 or fd00::/8)") from None  # fmt: skip
 
 
 def _check_secret(value: str, what: str) -> None:

@@ -1,19 +1,29 @@
-"""Webhooks: which callback URLs a server may call, how a delivery is signed and checked, and
-how long a failed one waits before the next try.
+"""Webhooks: which callback URLs and addresses a server may call, how a delivery is signed and
+checked, and how long a failed one waits before the next try.
 
 A delivery is a JSON ``POST`` with the header ``NanoNav-Signature: t=<unix seconds>,v1=<hex>``,
 where ``<hex>`` is HMAC-SHA256 under the server's secret of ``"<t>." + body``. The timestamp
 is signed with the body, so a receiver that also refuses old timestamps (``verify`` does,
 past ``tolerance_s``) cannot be fooled by a replayed delivery.
+
+A callback URL is checked with the parser that sends it (httpx's), at submit and again at
+send time, and kept in the form it is sent in; a URL that parser would refuse or that could
+not be resolved (an empty label, a control character, a name IDNA refuses) is refused up
+front, not left to fail inside the sender. The host names in the allow-list say whom the
+server may call; the addresses those names resolve to, checked at send time, say where:
+only public addresses, unless the operator allows others by address or network.
 """
 
 from __future__ import annotations
 
 import hashlib
 import hmac
+import ipaddress
+import re
 import time
 from collections.abc import Sequence
-from urllib.parse import urlsplit
+
+import httpx
 
 SIGNATURE_HEADER = "NanoNav-Signature"
 EVENT_HEADER = "NanoNav-Event"
@@ -21,6 +31,22 @@ DELIVERY_HEADER = "NanoNav-Delivery"
 MAX_URL_LENGTH = 2048
 # A retry waits RETRY_BASE_S x 2^(attempts - 1), at most RETRY_CAP_S.
 RETRY_CAP_S = 3600.0
+# A DNS name as a resolver takes it (RFC 1035, with the underscore some hosts carry).
+LABEL = re.compile(r"[a-z0-9_](?:[a-z0-9_-]*[a-z0-9_])?")
+
+Address = ipaddress.IPv4Address | ipaddress.IPv6Address
+Network = ipaddress.IPv4Network | ipaddress.IPv6Network
+# Where cloud providers serve instance credentials: AWS, GCP, Azure, OpenStack and
+# DigitalOcean (169.254.169.254, and AWS's IPv6 fd00:ec2::254), AWS ECS and EKS (169.254.170.2,
+# .23 and fd00:ec2::23), Alibaba (100.100.100.200), Oracle (192.0.0.192). A network the
+# operator allows never opens these; only an entry naming the address alone does.
+METADATA_ADDRESSES = frozenset(
+    ipaddress.ip_address(a)
+    for a in ("169.254.169.254", "169.254.170.2", "169.254.170.23", "fd00:ec2::254",
+              "fd00:ec2::23", "100.100.100.200", "192.0.0.192")
+)  # fmt: skip
+# NAT64's well-known prefix (RFC 6052): 64:ff9b::a.b.c.d reaches the IPv4 address a.b.c.d.
+NAT64 = ipaddress.ip_network("64:ff9b::/96")
 
 
 class SignatureMismatch(ValueError):
@@ -60,33 +86,95 @@ def verify(
     return timestamp
 
 
+class Refused(ValueError):
+    """A callback URL or address this server will not call; the message says why."""
+
+
 def refusal(url: str, allowed_hosts: Sequence[str]) -> str | None:
-    """Why this server will not call ``url``, or None if it may.
+    """Why this server will not call ``url``, or None if it may."""
+    try:
+        callback_target(url, allowed_hosts)
+    except Refused as why:
+        return str(why)
+    return None
+
+
+def callback_target(url: str, allowed_hosts: Sequence[str]) -> httpx.URL:
+    """``url`` as the sender sends it, if the allow-list permits its host; ``Refused`` if not.
 
     ``allowed_hosts`` holds host names, each matched exactly (``hooks.example.org``) or with
     its subdomains (``*.example.org``); a port may follow (``localhost:9000``) to allow only
-    that port."""
+    that port. A name is matched in its ASCII (``xn--``) form, without a final dot."""
     if not allowed_hosts:
-        return "this server sends no webhooks (NANONAV_WEBHOOK_HOSTS is empty)"
+        raise Refused("this server sends no webhooks (NANONAV_WEBHOOK_HOSTS is empty)")
+    target = parsed(url)
+    host = target.raw_host.decode("ascii").rstrip(".")
+    if not any(_matches(host, target.port, pattern) for pattern in allowed_hosts):
+        raise Refused(f"the host {host!r} is not among the hosts this server may call")
+    return target
+
+
+def normalised(url: str) -> str:
+    """``url`` in the form the sender sends it (the host lower-case and IDNA-encoded, the
+    port without a default or leading zeros, the path percent-encoded and without dot
+    segments): what a delivery stores and a client reads back. ``Refused`` if it is not a
+    URL this server could send to."""
+    return str(parsed(url))
+
+
+def parsed(url: str) -> httpx.URL:
+    """``url`` parsed as httpx parses it to send it, if the sender could send to it at all;
+    ``Refused`` with the reason otherwise. Says nothing of whether the host is allowed."""
     if len(url) > MAX_URL_LENGTH:
-        return f"longer than {MAX_URL_LENGTH} characters"
+        raise Refused(f"longer than {MAX_URL_LENGTH} characters")
+    # Other parsers drop tabs and newlines, or take a space for the end of the URL.
+    strange = next((c for c in url if c.isspace() or not c.isprintable()), None)
+    if strange is not None:
+        raise Refused(f"a callback URL may not hold a control character or space ({strange!r})")
     try:
-        parts = urlsplit(url)
-        port = parts.port
-    except ValueError as error:
-        return f"not a URL: {error}"
-    if parts.scheme not in {"http", "https"}:
-        return "not an http:// or https:// URL"
-    if parts.username is not None or parts.password is not None:
-        return "a callback URL may not carry a user name or password"
-    host = (parts.hostname or "").rstrip(".").lower()
+        target = httpx.URL(url)
+        port = target.port
+    except (httpx.InvalidURL, ValueError) as error:  # IDNA's errors are UnicodeErrors
+        raise Refused(f"not a URL: {error}") from None
+    if target.scheme not in {"http", "https"}:
+        raise Refused("not an http:// or https:// URL")
+    if target.userinfo:
+        raise Refused("a callback URL may not carry a user name or password")
+    if target.fragment:
+        raise Refused("a callback URL may not have a #fragment")
+    if port is not None and not 0 < port < 65536:
+        raise Refused(f"{port} is not a port")
+    _check_host(target.raw_host.decode("ascii"))
+    if len(str(target)) > MAX_URL_LENGTH:
+        raise Refused(f"longer than {MAX_URL_LENGTH} characters once encoded as it is sent")
+    return target
+
+
+def _check_host(host: str) -> None:
+    """An address, or a name every label of which a resolver takes (one final dot allowed)."""
     if not host:
-        return "the URL names no host"
-    if parts.fragment:
-        return "a callback URL may not have a #fragment"
-    if not any(_matches(host, port, pattern) for pattern in allowed_hosts):
-        return f"the host {host!r} is not among the hosts this server may call"
-    return None
+        raise Refused("the URL names no host")
+    if host_address(host) is not None:
+        return
+    name = host.removesuffix(".")
+    labels = name.split(".")
+    if "" in labels:
+        raise Refused(f"the host name {host!r} has an empty label")
+    for label in labels:
+        if len(label) > 63:
+            raise Refused(f"the host name {host!r} has a label longer than 63 characters")
+        if not LABEL.fullmatch(label):
+            raise Refused(f"{host!r} is not a DNS name (letters, digits, '-' and '_')")
+    if len(name) > 253:
+        raise Refused(f"the host name {host!r} is longer than 253 characters")
+
+
+def host_address(host: str) -> Address | None:
+    """The address a URL's host is written as (``127.0.0.1``, ``::1``), or None for a name."""
+    try:
+        return ipaddress.ip_address(host)
+    except ValueError:
+        return None
 
 
 def _matches(host: str, port: int | None, pattern: str) -> bool:
@@ -96,6 +184,60 @@ def _matches(host: str, port: int | None, pattern: str) -> bool:
     if name.startswith("*."):
         return host.endswith(name[1:])
     return host == name
+
+
+def address_refusal(address: str | Address, allowed: Sequence[Network]) -> str | None:
+    """Why this server will not connect to ``address``, or None if it may.
+
+    A public address may be called. Any other (loopback, private, link-local, unspecified,
+    multicast, reserved, shared, and what IPv4-mapped, 6to4, Teredo or NAT64 forms carry
+    of those) only if a network in ``allowed`` holds it; a cloud metadata address only if an
+    entry of ``allowed`` is that address alone."""
+    ip = ipaddress.ip_address(address) if isinstance(address, str) else address
+    reached = _reached(ip)
+    if reached in METADATA_ADDRESSES:
+        if any(net.num_addresses == 1 and reached in net for net in allowed):
+            return None
+        return _refused("a cloud metadata address")
+    if any(ip in net or reached in net for net in allowed):
+        return None
+    kind = _kind(reached)
+    if kind is None and isinstance(reached, ipaddress.IPv6Address):
+        carried = reached.sixtofour or (reached.teredo[1] if reached.teredo else None)
+        if carried is not None:
+            kind = _kind(carried)
+    return None if kind is None else _refused(kind)
+
+
+def _reached(ip: Address) -> Address:
+    """The address a connection to ``ip`` reaches: the IPv4 address an IPv4-mapped or NAT64
+    address stands for, else ``ip``."""
+    if isinstance(ip, ipaddress.IPv6Address):
+        if ip.ipv4_mapped is not None:
+            return ip.ipv4_mapped
+        if ip in NAT64:
+            return ipaddress.IPv4Address(int(ip) & 0xFFFFFFFF)
+    return ip
+
+
+def _kind(ip: Address) -> str | None:
+    """What kind of address that is not public ``ip`` is, or None if it is public."""
+    if ip in METADATA_ADDRESSES:
+        return "a cloud metadata address"
+    checks = (
+        (ip.is_loopback, "a loopback address"),
+        (ip.is_unspecified, "the unspecified address"),
+        (ip.is_link_local, "a link-local address"),
+        (ip.is_multicast, "a multicast address"),
+        (ip.is_reserved, "a reserved address"),
+        (ip.is_private, "a private address"),
+        (not ip.is_global, "not a public address"),
+    )
+    return next((kind for matched, kind in checks if matched), None)
+
+
+def _refused(kind: str) -> str:
+    return f"{kind} (NANONAV_WEBHOOK_ADDRESSES may allow it)"
 
 
 def retry_delay_s(attempts: int, base_s: float) -> float:

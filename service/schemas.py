@@ -382,6 +382,25 @@ class Workers(BaseModel):
     window_s: float = Field(description="How far back 'lately' reaches, in seconds.")
 
 
+class Webhooks(BaseModel):
+    due: int = Field(
+        description="Webhooks to send now: their next try's time has come, or their job or "
+        "study has ended."
+    )
+    retrying: int = Field(description="Webhooks due again once a failed try's backoff passed.")
+    oldest_due_at: datetime | None = Field(
+        description="Since when the longest-waiting of the due ones could have been sent."
+    )
+    overdue_s: float | None = Field(description="How long ago that was, in seconds.")
+    last_pass_at: datetime | None = Field(
+        description="When a worker's webhook sender last made progress (a pass or a try)."
+    )
+    window_s: float = Field(
+        description="A sender that made progress this many seconds ago or less counts as "
+        "sending: the presence window and one try's timeouts (3 x NANONAV_WEBHOOK_TIMEOUT_S)."
+    )
+
+
 class Health(BaseModel):
     model_config = ConfigDict(
         json_schema_extra={
@@ -393,6 +412,14 @@ class Health(BaseModel):
                     "head": "0002",
                     "queue": {"queued": 3, "running": 2, "oldest_queued_at": "2026-11-30T04:00Z"},
                     "workers": {"seen": 2, "window_s": 30.0},
+                    "webhooks": {
+                        "due": 1,
+                        "retrying": 0,
+                        "oldest_due_at": "2026-11-30T04:00Z",
+                        "overdue_s": 0.4,
+                        "last_pass_at": "2026-11-30T04:00Z",
+                        "window_s": 60.0,
+                    },
                     "note": None,
                 }
             ]
@@ -405,8 +432,13 @@ class Health(BaseModel):
     head: str | None = Field(description="The newest migration this code knows.")
     queue: Queue | None = Field(None, description="The queue, when the database answered.")
     workers: Workers | None = Field(None, description="Workers seen, when the database answered.")
+    webhooks: Webhooks | None = Field(
+        None, description="Webhooks to send and their senders, when the database answered."
+    )
     note: str | None = Field(
-        None, description="Why queued jobs may not be moving, e.g. that no worker is running."
+        None,
+        description="Why queued jobs or due webhooks may not be moving, e.g. that no worker "
+        "is running, or that none has sent webhooks lately (the status stays ok: jobs run).",
     )
 
 

@@ -1,7 +1,8 @@
-"""A real HTTP server on a free local port that records the webhooks it gets, for tests."""
+"""A real HTTP(S) server on a free local port that records the webhooks it gets, for tests."""
 
 from __future__ import annotations
 
+import ssl
 import threading
 import time
 from collections.abc import Iterator
@@ -15,6 +16,7 @@ class Received:
     path: str
     headers: dict[str, str]
     body: bytes
+    local_address: str = ""  # the address of this machine the request came in on
 
 
 @dataclass
@@ -22,9 +24,11 @@ class Receiver:
     """What it got, and the statuses it answers with, in turn (the last one from then on)."""
 
     url: str
+    port: int = 0
     statuses: list[int] = field(default_factory=lambda: [200])
     delay_s: float = 0.0  # how long it takes to answer
     got: list[Received] = field(default_factory=list)
+    server_names: list[str | None] = field(default_factory=list)  # TLS SNI, per handshake
     _lock: threading.Lock = field(default_factory=threading.Lock)
 
     def answer(self, request: Received) -> int:
@@ -43,15 +47,24 @@ class Receiver:
 
 
 @contextmanager
-def receiving(statuses: list[int] | None = None, delay_s: float = 0.0) -> Iterator[Receiver]:
-    """A receiver on ``http://localhost:<port>/hook`` until the block ends."""
+def receiving(
+    statuses: list[int] | None = None,
+    delay_s: float = 0.0,
+    *,
+    bind: str = "127.0.0.1",
+    name: str = "localhost",
+    tls: ssl.SSLContext | None = None,
+) -> Iterator[Receiver]:
+    """A receiver listening on ``bind``, at ``http://<name>:<port>/hook`` (``https://`` with
+    ``tls``, a server context whose handshakes it records), until the block ends."""
     receiver: Receiver
 
     class Handler(BaseHTTPRequestHandler):
         def do_POST(self) -> None:
             body = self.rfile.read(int(self.headers.get("Content-Length", "0")))
-            got = Received(self.path, {k.lower(): v for k, v in self.headers.items()}, body)
-            status = receiver.answer(got)
+            headers = {k.lower(): v for k, v in self.headers.items()}
+            local = str(self.connection.getsockname()[0])
+            status = receiver.answer(Received(self.path, headers, body, local))
             time.sleep(receiver.delay_s)
             self.send_response(status)
             self.send_header("Content-Length", "0")
@@ -60,10 +73,19 @@ def receiving(statuses: list[int] | None = None, delay_s: float = 0.0) -> Iterat
         def log_message(self, format: str, *args: object) -> None:
             pass
 
-    server = ThreadingHTTPServer(("127.0.0.1", 0), Handler)
+    server = ThreadingHTTPServer((bind, 0), Handler)
     server.daemon_threads = True
     port = server.server_address[1]
-    receiver = Receiver(url=f"http://localhost:{port}/hook", delay_s=delay_s)
+    scheme = "http"
+    if tls is not None:
+
+        def seen(sock: ssl.SSLObject, server_name: str | None, context: ssl.SSLContext) -> None:
+            receiver.server_names.append(server_name)
+
+        tls.sni_callback = seen
+        server.socket = tls.wrap_socket(server.socket, server_side=True)
+        scheme = "https"
+    receiver = Receiver(url=f"{scheme}://{name}:{port}/hook", port=port, delay_s=delay_s)
     if statuses:
         receiver.statuses = statuses
     thread = threading.Thread(target=server.serve_forever, daemon=True)

@@ -4,10 +4,19 @@ from __future__ import annotations
 
 import hashlib
 import hmac
+from ipaddress import ip_network
 
 import pytest
 
-from nanonav.webhooks import SignatureMismatch, refusal, retry_delay_s, signature, verify
+from nanonav.webhooks import (
+    SignatureMismatch,
+    address_refusal,
+    normalised,
+    refusal,
+    retry_delay_s,
+    signature,
+    verify,
+)
 
 SECRET = "kq3N9vTz0bX7mR2sW5yC8dF1gH4jL6pA"
 
@@ -59,6 +68,112 @@ def test_verify_refuses_a_missing_tampered_foreign_or_stale_signature(
 def test_only_urls_on_allowed_hosts_may_be_called(url: str, allowed: bool) -> None:
     hosts = ("hooks.example.org", "*.lab.example.net", "localhost:9000")
     assert (refusal(url, hosts) is None) is allowed
+
+
+@pytest.mark.parametrize(
+    ("url", "why"),
+    [
+        ("http://localhost..:9000/x", "empty label"),
+        ("http://.localhost:9000/x", "empty label"),
+        ("http://localhost:9000/tab\there", "control character or space"),
+        ("http://localhost:9000/x\ny", "control character or space"),
+        ("http://localhost:9000/x y", "control character or space"),
+        ("http://local\thost:9000/x", "control character or space"),
+        ("http://localhost:9000/x\x7f", "control character or space"),
+        ("http://localhost:9000/x\u00a0", "control character or space"),
+        ("http://localhost:9000/x\u200b", "control character or space"),
+        (" http://localhost:9000/x", "control character or space"),
+        ("http://xn--:9000/x", "not a DNS name"),
+        ("http://b\u00fccher\u2029.localhost:9000/x", "control character or space"),
+        ("http://\u2603.localhost:9000/x", "not a URL"),
+        ("http://" + "a" * 64 + ".localhost:9000/x", "longer than 63"),
+        ("http://local%68ost:9000/x", "not a DNS name"),
+        ("http://local!host:9000/x", "not a DNS name"),
+        ("http://localhost:0/x", "not a port"),
+        ("http://localhost:65536/x", "not a port"),
+    ],
+)
+def test_a_url_the_sender_could_not_send_is_refused_by_the_check(url: str, why: str) -> None:
+    hosts = ("localhost:9000", "*.localhost", "xn--", "local%68ost", "local!host")
+    refused = refusal(url, hosts)
+    assert refused is not None and why in refused, refused
+
+
+@pytest.mark.parametrize(
+    ("url", "sent"),
+    [
+        ("http://HOOKS.Example.ORG:09000/x", "http://hooks.example.org:9000/x"),
+        (
+            "http://hooks.example.org:9000/x?@127.0.0.2",
+            "http://hooks.example.org:9000/x?@127.0.0.2",
+        ),
+        ("https://hooks.example.org:443/a/../b?q=1", "https://hooks.example.org/b?q=1"),
+        ("http://b\u00fccher.example.org/\u00fc", "http://xn--bcher-kva.example.org/%C3%BC"),
+        ("http://hooks.example.org./x", "http://hooks.example.org./x"),
+    ],
+)
+def test_an_allowed_url_is_kept_in_the_form_the_sender_sends(url: str, sent: str) -> None:
+    hosts = ("hooks.example.org", "*.example.org")
+    assert refusal(url, hosts) is None
+    assert normalised(url) == sent
+    assert normalised(sent) == sent
+    assert refusal(sent, hosts) is None
+
+
+def test_a_url_that_grows_past_the_limit_when_normalised_is_refused() -> None:
+    url = "https://hooks.example.org/" + "\u00fc" * 1000  # 6 bytes each once percent-encoded
+    assert len(url) < 2048
+    assert "longer than 2048" in str(refusal(url, ("hooks.example.org",)))
+
+
+@pytest.mark.parametrize(
+    ("address", "why"),
+    [
+        ("127.0.0.2", "a loopback address"),
+        ("::1", "a loopback address"),
+        ("::ffff:127.0.0.1", "a loopback address"),
+        ("10.1.2.3", "a private address"),
+        ("172.16.0.1", "a private address"),
+        ("192.168.1.1", "a private address"),
+        ("::ffff:192.168.1.1", "a private address"),
+        ("fd12::1", "a private address"),
+        ("169.254.169.254", "a cloud metadata address"),
+        ("::ffff:169.254.169.254", "a cloud metadata address"),
+        ("fd00:ec2::254", "a cloud metadata address"),
+        ("100.100.100.200", "a cloud metadata address"),
+        ("169.254.1.1", "a link-local address"),
+        ("fe80::1", "a link-local address"),
+        ("0.0.0.0", "the unspecified address"),
+        ("::", "the unspecified address"),
+        ("224.0.0.1", "a multicast address"),
+        ("ff02::1", "a multicast address"),
+        ("240.0.0.1", "a reserved address"),
+        ("255.255.255.255", "a reserved address"),
+        ("100.64.0.1", "not a public address"),
+        ("2002:7f00:1::", "a loopback address"),  # 6to4 of 127.0.0.1
+        ("64:ff9b::a01:203", "a private address"),  # NAT64 of 10.1.2.3
+    ],
+)
+def test_an_address_that_is_not_public_is_refused_saying_what_it_is(address: str, why: str) -> None:
+    refused = address_refusal(address, ())
+    assert refused is not None and why in refused and "NANONAV_WEBHOOK_ADDRESSES" in refused
+
+
+@pytest.mark.parametrize("address", ["93.184.215.14", "2606:4700::1111", "64:ff9b::808:808"])
+def test_a_public_address_may_be_called(address: str) -> None:
+    assert address_refusal(address, ()) is None
+
+
+def test_allowed_networks_open_their_addresses_but_a_metadata_address_only_by_itself() -> None:
+    allowed = (ip_network("127.0.0.0/8"), ip_network("10.1.2.3"), ip_network("169.254.0.0/16"))
+    assert address_refusal("127.0.0.2", allowed) is None
+    assert address_refusal("::ffff:127.0.0.2", allowed) is None
+    assert address_refusal("10.1.2.3", allowed) is None
+    assert "a private address" in str(address_refusal("10.1.2.4", allowed))
+    assert "a loopback address" in str(address_refusal("::1", allowed))
+    assert address_refusal("169.254.1.1", allowed) is None
+    assert "a cloud metadata address" in str(address_refusal("169.254.169.254", allowed))
+    assert address_refusal("169.254.169.254", (ip_network("169.254.169.254/32"),)) is None
 
 
 def test_no_allowed_hosts_means_no_webhooks() -> None:

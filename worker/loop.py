@@ -29,7 +29,7 @@ from nanonav.store.faults import reason
 from nanonav.store.queue import PRESENCE_INTERVAL_S
 from nanonav.store.retention import RETENTION_BATCH
 from nanonav.store.wakeups import Wakeups
-from worker.deliveries import run_deliveries
+from worker.deliveries import supervise_deliveries
 from worker.job import run_job
 
 logger = logging.getLogger(__name__)
@@ -71,8 +71,9 @@ def work(settings: Settings, shutdown: threading.Event, *, max_jobs: int | None 
     ]  # fmt: skip
     if settings.webhook_hosts:  # a worker without the webhook settings leaves them to others
         deliveries = DeliveryStore(store.engine)
-        housekeeping.append(threading.Thread(target=run_deliveries, name="webhooks", daemon=True,
-                                             args=(deliveries, settings, stopped)))  # fmt: skip
+        housekeeping.append(threading.Thread(target=supervise_deliveries, name="webhooks",
+                                             args=(deliveries, settings, stopped),
+                                             kwargs={"owner": owner}, daemon=True))  # fmt: skip
     for thread in housekeeping:
         thread.start()
     wakeups = Wakeups(store.engine)

@@ -6,6 +6,11 @@ whoever sends it first ``claim``s it under a lease (as a worker claims a job), s
 senders never send it at once, and ``settle``s it: ``delivered``, or due again after a
 backoff, or ``failed`` once its attempts ran out. A sender that dies leaves a lease that runs
 out, and the delivery is claimed again: a receiver may get one twice, never none.
+
+A delivery keeps its URL in the form the sender sends it (``nanonav.webhooks.normalised``),
+so what a client reads back at ``/callback`` is where the webhook goes. Each sender records on
+its worker's row when it last made progress (``sender_passed``); ``backlog`` tells /healthz
+what is due, since when, and when a sender was last seen sending.
 """
 
 from __future__ import annotations
@@ -19,8 +24,17 @@ from sqlalchemy import Engine, and_, delete, exists, func, or_, select, update
 from sqlalchemy.orm import Session
 
 from nanonav.store.db import make_sessionmaker, unit_of_work
-from nanonav.store.models import Delivery, DeliveryState, Job, JobResult, JobStatus, Study
+from nanonav.store.models import (
+    Delivery,
+    DeliveryState,
+    Job,
+    JobResult,
+    JobStatus,
+    Study,
+    Worker,
+)
 from nanonav.studies.report import status_of
+from nanonav.webhooks import normalised
 
 FINISHED = (JobStatus.SUCCEEDED, JobStatus.FAILED, JobStatus.CANCELLED)
 PROMOTE_BATCH = 100
@@ -72,14 +86,25 @@ class DeliveryClaim:
     token: str
 
 
+@dataclass(frozen=True)
+class Backlog:
+    """How the webhooks to send stand, for /healthz."""
+
+    due: int  # to send now: their next try's time has come, or their job or study has ended
+    retrying: int  # due again once the backoff after a failed try has passed
+    oldest_due_at: datetime | None  # since when the longest-waiting of the ``due`` could go
+    last_pass_at: datetime | None  # the latest progress a worker's sender recorded
+
+
 def add_waiting(session: Session, url: str, *, job_id: int | None = None,
                 study_id: int | None = None) -> None:  # fmt: skip
-    """In the transaction that stores a job or a study, the webhook its end will send."""
+    """In the transaction that stores a job or a study, the webhook its end will send, to
+    ``url`` as the sender will send it (``Refused``, a ValueError, if it never could be)."""
     session.add(
         Delivery(
             job_id=job_id,
             study_id=study_id,
-            url=url,
+            url=normalised(url),
             state=DeliveryState.WAITING,
             created_at=utcnow(),
             attempts=0,
@@ -108,18 +133,9 @@ class DeliveryStore:
         """Make due the waiting deliveries whose job or study has ended, each with the summary
         it will send; returns how many."""
         now = now or utcnow()
-        job_ended = and_(
-            Delivery.job_id.is_not(None),
-            exists().where(Job.id == Delivery.job_id, Job.status.in_(FINISHED)),
-        )
-        study_ended = and_(
-            Delivery.study_id.is_not(None),
-            ~exists().where(Job.study_id == Delivery.study_id, Job.status.not_in(FINISHED)),
-        )
-        orphaned = and_(Delivery.job_id.is_(None), Delivery.study_id.is_(None))
         query = (
             select(Delivery)
-            .where(Delivery.state == DeliveryState.WAITING, or_(job_ended, study_ended, orphaned))
+            .where(Delivery.state == DeliveryState.WAITING, _ended())
             .order_by(Delivery.id)
             .limit(PROMOTE_BATCH)
             .with_for_update(skip_locked=True, of=Delivery)
@@ -206,6 +222,55 @@ class DeliveryStore:
         with unit_of_work(self._sessions, write=True) as session:
             return session.scalars(statement).one_or_none() is not None
 
+    def sender_passed(self, worker: str, *, now: datetime | None = None) -> None:
+        """Record on the row of the worker ``worker`` that its sender made progress now."""
+        statement = (
+            update(Worker)
+            .where(Worker.name == worker)
+            .values(webhooks_passed_at=now or utcnow())
+            .execution_options(synchronize_session=False)
+        )
+        with unit_of_work(self._sessions, write=True) as session:
+            session.execute(statement)
+
+    def backlog(self, *, now: datetime | None = None) -> Backlog:
+        """What is due and since when, and when a sender last made progress."""
+        now = now or utcnow()
+        due = Delivery.state == DeliveryState.DUE
+        # A waiting delivery whose job or study has ended is due as soon as a sender passes:
+        # without one it would never look due. It could go since its last job ended.
+        ended_at = (
+            select(func.max(Job.finished_at))
+            .where(or_(Job.id == Delivery.job_id, Job.study_id == Delivery.study_id))
+            .correlate(Delivery)
+            .scalar_subquery()
+        )
+        ended = (
+            select(func.coalesce(ended_at, Delivery.created_at).label("at"))
+            .where(Delivery.state == DeliveryState.WAITING, _ended())
+            .subquery()
+        )
+        with unit_of_work(self._sessions) as session:
+            ready, ready_since = session.execute(
+                select(func.count(), func.min(Delivery.next_attempt_at)).where(
+                    due, Delivery.next_attempt_at <= now
+                )
+            ).one()
+            retrying = session.scalar(
+                select(func.count()).where(due, Delivery.next_attempt_at > now)
+            )
+            waiting, waiting_since = session.execute(
+                select(func.count(), func.min(ended.c.at))
+            ).one()
+            last_pass = session.scalar(select(func.max(Worker.webhooks_passed_at)))
+        since = [_aware(at) for at in (ready_since, waiting_since) if at is not None]
+        return Backlog(
+            due=int(ready) + int(waiting),
+            retrying=int(retrying or 0),
+            oldest_due_at=min(since, default=None),
+            last_pass_at=None if last_pass is None else _aware(last_pass),
+        )
+
     def pending(self) -> int:
         """Deliveries that are due (to be sent now or after a backoff)."""
         query = select(func.count()).where(Delivery.state == DeliveryState.DUE)
@@ -242,6 +307,25 @@ def settled_orphans(before: datetime) -> Any:
         Delivery.state.in_([DeliveryState.DELIVERED, DeliveryState.FAILED]),
         func.coalesce(Delivery.last_attempt_at, Delivery.created_at) < before,
     )
+
+
+def _ended() -> Any:
+    """Deliveries whose job or study has ended (or was deleted): theirs is to be sent."""
+    job_ended = and_(
+        Delivery.job_id.is_not(None),
+        exists().where(Job.id == Delivery.job_id, Job.status.in_(FINISHED)),
+    )
+    study_ended = and_(
+        Delivery.study_id.is_not(None),
+        ~exists().where(Job.study_id == Delivery.study_id, Job.status.not_in(FINISHED)),
+    )
+    orphaned = and_(Delivery.job_id.is_(None), Delivery.study_id.is_(None))
+    return or_(job_ended, study_ended, orphaned)
+
+
+def _aware(value: datetime) -> datetime:
+    """Aggregates bypass the column type: SQLite and PostgreSQL give naive UTC back."""
+    return value if value.tzinfo is not None else value.replace(tzinfo=UTC)
 
 
 def _make_due(session: Session, row: Delivery, now: datetime) -> None:

@@ -190,6 +190,8 @@ class Worker(Base):
     name: Mapped[str] = mapped_column(String(200), primary_key=True)
     started_at: Mapped[datetime] = mapped_column(UTCDateTime())
     seen_at: Mapped[datetime] = mapped_column(UTCDateTime(), index=True)
+    # when its webhook sender last made progress (a pass, or a try within one); null without one
+    webhooks_passed_at: Mapped[datetime | None] = mapped_column(UTCDateTime())
 
 
 class DeliveryState(enum.StrEnum):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from datetime import UTC, datetime
 from typing import Any
 
 from fastapi import APIRouter, Response
@@ -9,10 +10,12 @@ from sqlalchemy.exc import SQLAlchemyError
 
 import nanonav
 from nanonav.scenario import PRESETS, preset_scenario
+from nanonav.settings import Settings
+from nanonav.store.deliveries import Backlog
 from nanonav.store.migrate import current_revision, head_revision
 from nanonav.store.queue import PRESENCE_WINDOW_S
-from service.deps import StoreDep
-from service.schemas import Health, Queue, Version, Workers
+from service.deps import DeliveriesDep, SettingsDep, StoreDep
+from service.schemas import Health, Queue, Version, Webhooks, Workers
 
 router = APIRouter(tags=["meta"])
 
@@ -24,9 +27,15 @@ def list_presets() -> dict[str, dict[str, Any]]:
 
 
 @router.get("/healthz", response_model=Health, responses={503: {"model": Health}})
-def healthz(store: StoreDep, response: Response) -> Health:
+def healthz(
+    store: StoreDep, deliveries: DeliveriesDep, settings: SettingsDep, response: Response
+) -> Health:
     """Whether the database answers, takes writes and has its schema at the newest migration;
-    how many jobs wait and how many workers were seen lately."""
+    how many jobs wait and how many workers were seen lately; how many webhooks are due and
+    when a worker last sent some.
+
+    Webhooks due with no sender at work are told in ``note``, not as 503: the API and the
+    jobs still work, and a load balancer taking the API away would help no webhook."""
     head = head_revision()
     try:
         revision = current_revision(store.engine)
@@ -37,12 +46,17 @@ def healthz(store: StoreDep, response: Response) -> Health:
         response.status_code = 503
         return Health(status="unavailable", database=True, revision=revision, head=head)
     census = store.census(seen_within_s=PRESENCE_WINDOW_S)
-    note = None
+    now = datetime.now(UTC)
+    backlog = deliveries.backlog(now=now)
+    window_s = sender_window_s(settings)
+    notes = []
     if census.queued and not census.workers:
-        note = (
+        notes.append(
             f"{census.queued} jobs are queued but no worker has been seen in the last "
             f"{PRESENCE_WINDOW_S:g} s: start one with `nanonav worker`"
         )
+    if stalled := _stalled_webhooks(backlog, now, window_s):
+        notes.append(stalled)
     return Health(
         status="ok",
         database=True,
@@ -54,8 +68,44 @@ def healthz(store: StoreDep, response: Response) -> Health:
             oldest_queued_at=census.oldest_queued_at,
         ),
         workers=Workers(seen=census.workers, window_s=PRESENCE_WINDOW_S),
-        note=note,
+        webhooks=Webhooks(
+            due=backlog.due,
+            retrying=backlog.retrying,
+            oldest_due_at=backlog.oldest_due_at,
+            overdue_s=_age_s(backlog.oldest_due_at, now),
+            last_pass_at=backlog.last_pass_at,
+            window_s=window_s,
+        ),
+        note="; ".join(notes) or None,
     )
+
+
+def sender_window_s(settings: Settings) -> float:
+    """How long a webhook sender may go without progress and still count as sending: it
+    records progress every few seconds between tries, and one try may wait out a connect, a
+    write and a read timeout."""
+    return PRESENCE_WINDOW_S + 3 * settings.webhook_timeout_s
+
+
+def _stalled_webhooks(backlog: Backlog, now: datetime, window_s: float) -> str | None:
+    """What to say of webhooks that are due while no sender has made progress lately."""
+    if not backlog.due:
+        return None
+    passed_s = _age_s(backlog.last_pass_at, now)
+    if passed_s is not None and passed_s <= window_s:
+        return None
+    overdue_s = _age_s(backlog.oldest_due_at, now) or 0.0
+    due = "1 webhook is" if backlog.due == 1 else f"{backlog.due} webhooks are"
+    last = "" if passed_s is None else f" (the last one {passed_s:.0f} s ago)"
+    return (
+        f"{due} due (the oldest for {overdue_s:.0f} s) but no worker has sent webhooks in the "
+        f"last {window_s:g} s{last}: start a worker with the API's NANONAV_WEBHOOK_* settings, "
+        "or read the log of the one that should send them"
+    )
+
+
+def _age_s(moment: datetime | None, now: datetime) -> float | None:
+    return None if moment is None else max((now - moment).total_seconds(), 0.0)
 
 
 @router.get("/version", response_model=Version)

@@ -1,5 +1,6 @@
 """Webhooks end to end: the API takes a callback_url, a real worker process runs the job and
-POSTs the signed summary to a real receiver, for a job and for a study."""
+POSTs the signed summary to a real receiver, for a job and for a study; one webhook it cannot
+send is a failed try and the others still go; /healthz shows the sender at work."""
 
 from __future__ import annotations
 
@@ -10,8 +11,10 @@ from pathlib import Path
 from urllib.parse import urlsplit
 
 import pytest
+from sqlalchemy import update
 
 from nanonav.settings import Settings
+from nanonav.store.models import Delivery
 from nanonav.webhooks import verify
 from tests.conftest import Api, sqlite_url_in
 from tests.processes import Worker
@@ -19,6 +22,7 @@ from tests.receiver import Receiver, receiving
 
 SECRET = "kq3N9vTz0bX7mR2sW5yC8dF1gH4jL6pA"
 TINY = {"robots": {"count": 1}, "learning": {"episodes": 1, "max_steps": 30}}
+LOCAL = "127.0.0.0/8,::1"  # the receiver listens on this machine
 
 
 @pytest.fixture
@@ -33,14 +37,22 @@ def api_settings(tmp_path: Path, receiver: Receiver) -> Settings:
         database_url=sqlite_url_in(tmp_path),
         webhook_hosts=(urlsplit(receiver.url).netloc,),
         webhook_secret=SECRET,  # type: ignore[arg-type]
+        webhook_addresses=LOCAL,  # type: ignore[arg-type]
+    )
+
+
+def sending_worker(start_worker: Callable[..., Worker], receiver: Receiver) -> Worker:
+    return start_worker(
+        NANONAV_WEBHOOK_HOSTS=urlsplit(receiver.url).netloc,
+        NANONAV_WEBHOOK_SECRET=SECRET,
+        NANONAV_WEBHOOK_ADDRESSES=LOCAL,
     )
 
 
 def test_a_worker_posts_signed_summaries_when_a_job_and_a_study_end(
     api: Api, receiver: Receiver, start_worker: Callable[..., Worker]
 ) -> None:
-    hosts = urlsplit(receiver.url).netloc
-    worker = start_worker(NANONAV_WEBHOOK_HOSTS=hosts, NANONAV_WEBHOOK_SECRET=SECRET)
+    worker = sending_worker(start_worker, receiver)
     job = api.client.post("/jobs", params={"callback_url": receiver.url + "?job"}, json=TINY)
     study = api.client.post(
         "/studies",
@@ -62,3 +74,31 @@ def test_a_worker_posts_signed_summaries_when_a_job_and_a_study_end(
     assert study_body["study"]["jobs"]["succeeded"] == 2
     callback = api.client.get(f"/jobs/{job.json()['id']}/callback").json()
     assert callback["state"] == "delivered" and callback["last_status"] == 200
+
+
+def test_a_worker_goes_on_sending_webhooks_after_one_it_cannot_send(
+    api: Api, receiver: Receiver, start_worker: Callable[..., Worker]
+) -> None:
+    stuck = api.store.enqueue({}, robot_steps=1, episodes=1, callback_url=receiver.url)
+    api.store.cancel(stuck.id)
+    with api.store.engine.begin() as connection:  # as a check before today's let it through
+        connection.execute(
+            update(Delivery)
+            .where(Delivery.job_id == stuck.id)
+            .values(url=f"http://localhost..:{receiver.port}/hook")
+        )
+    worker = sending_worker(start_worker, receiver)
+    job = api.client.post("/jobs", params={"callback_url": receiver.url + "?after"}, json=TINY)
+    assert job.status_code == 202, job.text
+    worker.wait_ready()
+    (got,) = receiver.wait_for(1, timeout_s=60)
+    assert got.path == "/hook?after"
+    callback = api.client.get(f"/jobs/{stuck.id}/callback").json()
+    assert callback["state"] == "failed" and callback["attempts"] == 1
+    assert "empty label" in callback["last_error"]
+    deadline = time.monotonic() + 30
+    while (webhooks := api.client.get("/healthz").json()["webhooks"])["last_pass_at"] is None:
+        assert time.monotonic() < deadline, worker.text()
+        time.sleep(0.1)
+    assert webhooks["due"] == 0 and webhooks["retrying"] == 0
+    assert "Traceback" not in worker.text()

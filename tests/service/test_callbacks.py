@@ -56,6 +56,9 @@ def test_a_job_with_an_allowed_callback_has_a_waiting_delivery(api: Api) -> None
         ("file:///etc/passwd", "not an http"),
         ("https://user:pw@hooks.example.org/", "user name or password"),
         ("https://hooks.example.org/" + "a" * 2100, "at most 2048 characters"),
+        ("https://hooks.example.org../x", "empty label"),
+        ("https://hooks.example.org/tab\there", "control character or space"),
+        ("https://hooks.example.org:0/x", "not a port"),
     ],
 )
 def test_a_refused_callback_is_a_422_naming_it_and_stores_nothing(
@@ -69,6 +72,16 @@ def test_a_refused_callback_is_a_422_naming_it_and_stores_nothing(
         assert why in str(problem)
     assert api.client.get("/jobs").json()["jobs"] == []
     assert api.client.get("/studies").json()["studies"] == []
+
+
+def test_a_callback_url_is_stored_and_answered_as_the_sender_will_send_it(api: Api) -> None:
+    written = "https://HOOKS.Example.org:0443/a/../nanonav?@127.0.0.1"
+    sent = "https://hooks.example.org/nanonav?@127.0.0.1"
+    job = api.client.post("/jobs", params={"callback_url": written}, json={})
+    study = api.client.post("/studies", params={"callback_url": written}, json=STUDY)
+    assert job.status_code == study.status_code == 202, (job.text, study.text)
+    assert api.client.get(f"/jobs/{job.json()['id']}/callback").json()["url"] == sent
+    assert api.client.get(f"/studies/{study.json()['id']}/callback").json()["url"] == sent
 
 
 def test_a_study_callback_is_read_at_the_study(api: Api) -> None:

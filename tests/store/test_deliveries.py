@@ -7,7 +7,7 @@ import threading
 from datetime import timedelta
 
 from nanonav.store import JobStore, StudyJob, StudyStore
-from nanonav.store.deliveries import DeliveryStore
+from nanonav.store.deliveries import Backlog, DeliveryStore
 from nanonav.store.models import DeliveryState
 from nanonav.store.queue import utcnow
 from tests.store.test_queue import LEASE_S, claim, outcome
@@ -127,3 +127,38 @@ def test_promoters_in_parallel_make_each_delivery_due_once(store: JobStore) -> N
         thread.join()
     assert sum(counts) == 20
     assert promoters[0].pending() == 20
+
+
+def test_the_backlog_counts_what_is_due_since_when_and_when_a_sender_last_passed(
+    store: JobStore,
+) -> None:
+    deliveries = DeliveryStore(store.engine)
+    assert deliveries.backlog() == Backlog(due=0, retrying=0, oldest_due_at=None,
+                                           last_pass_at=None)  # fmt: skip
+    studies = StudyStore(store.engine)
+    jobs = [StudyJob(scenario={"seed": s}, robot_steps=1, episodes=1, point=0, seed=s)
+            for s in (1, 2)]  # fmt: skip
+    studies.create(name="s", spec={}, jobs=jobs, callback_url=URL)
+    store.finish(claim(store), outcome())  # the study goes on: its webhook is not due
+    job_id = submit(store)
+    store.cancel(job_id)  # ended: due, though no sender has made it so yet
+    ended_at = store.get(job_id).finished_at
+    backlog = deliveries.backlog()
+    assert (backlog.due, backlog.retrying, backlog.oldest_due_at) == (1, 0, ended_at)
+    now = utcnow()
+    assert deliveries.promote(now=now) == 1
+    assert deliveries.backlog(now=now).oldest_due_at == now
+    held = deliveries.claim(lease_s=LEASE_S, now=now)
+    assert held is not None
+    deliveries.settle(held, status=500, error="HTTP 500", retry_in_s=60, now=now)
+    backlog = deliveries.backlog(now=now + timedelta(seconds=1))
+    assert (backlog.due, backlog.retrying, backlog.oldest_due_at) == (0, 1, None)
+    backlog = deliveries.backlog(now=now + timedelta(seconds=61))
+    assert (backlog.due, backlog.retrying) == (1, 0)
+    assert backlog.oldest_due_at == now + timedelta(seconds=60)
+    for name in ("host:1", "host:2"):
+        store.worker_seen(name, started_at=now)
+    deliveries.sender_passed("host:1", now=now + timedelta(seconds=2))
+    deliveries.sender_passed("host:2", now=now + timedelta(seconds=3))
+    deliveries.sender_passed("host:1", now=now + timedelta(seconds=1))
+    assert deliveries.backlog().last_pass_at == now + timedelta(seconds=3)

@@ -101,3 +101,33 @@ def test_bad_webhook_settings_stop_the_process_saying_why_without_the_secret(
         Settings()
     if secret is not None:
         assert secret not in str(refused.value)
+
+
+def test_webhook_addresses_are_read_as_networks_and_default_to_none(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    monkeypatch.delenv("NANONAV_WEBHOOK_ADDRESSES", raising=False)
+    assert Settings().webhook_addresses == ()
+    monkeypatch.setenv("NANONAV_WEBHOOK_ADDRESSES", " 127.0.0.0/8, 10.1.2.3,::1,fd00::/8 ")
+    settings = Settings()
+    assert [str(network) for network in settings.webhook_addresses] == [
+        "127.0.0.0/8", "10.1.2.3/32", "::1/128", "fd00::/8"
+    ]  # fmt: skip
+    assert Settings(**settings.model_dump()).webhook_addresses == settings.webhook_addresses
+
+
+@pytest.mark.parametrize(
+    ("addresses", "why"),
+    [
+        ("localhost", "'localhost' is not an address or a network"),
+        ("10.0.0.300", "is not an address or a network"),
+        ("10.0.0.1/8", "has host bits set: did you mean 10.0.0.0/8"),
+        ("127.0.0.0/8,hooks.example.org", "'hooks.example.org' is not an address"),
+    ],
+)
+def test_bad_webhook_addresses_stop_the_process_saying_which(
+    monkeypatch: pytest.MonkeyPatch, addresses: str, why: str
+) -> None:
+    monkeypatch.setenv("NANONAV_WEBHOOK_ADDRESSES", addresses)
+    with pytest.raises(ValidationError, match=why):
+        Settings()

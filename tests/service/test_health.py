@@ -1,0 +1,58 @@
+"""/healthz on webhooks: how many are due and since when, when a worker's sender last made
+progress, and a note when some are due but no sender is sending them; still 200 then, as the
+jobs still run."""
+
+from __future__ import annotations
+
+from datetime import UTC, datetime, timedelta
+from pathlib import Path
+
+import pytest
+
+from nanonav.settings import Settings
+from nanonav.store.deliveries import DeliveryStore
+from tests.conftest import Api, sqlite_url_in
+
+SECRET = "kq3N9vTz0bX7mR2sW5yC8dF1gH4jL6pA"
+HOOK = "https://hooks.example.org/nanonav"
+
+
+@pytest.fixture
+def api_settings(tmp_path: Path) -> Settings:
+    return Settings(
+        database_url=sqlite_url_in(tmp_path),
+        webhook_hosts=("hooks.example.org",),
+        webhook_secret=SECRET,  # type: ignore[arg-type]
+    )
+
+
+def test_healthz_counts_due_webhooks_and_says_when_no_sender_sends_them(api: Api) -> None:
+    quiet = api.client.get("/healthz").json()
+    assert quiet["webhooks"] == {
+        "due": 0, "retrying": 0, "oldest_due_at": None, "overdue_s": None,
+        "last_pass_at": None, "window_s": 60.0,
+    }  # fmt: skip
+    assert quiet["note"] is None
+    job_id = api.client.post("/jobs", params={"callback_url": HOOK}, json={}).json()["id"]
+    api.client.post(f"/jobs/{job_id}/cancel")
+    response = api.client.get("/healthz")
+    assert response.status_code == 200
+    health = response.json()
+    assert health["status"] == "ok"
+    webhooks = health["webhooks"]
+    assert webhooks["due"] == 1 and webhooks["last_pass_at"] is None
+    ended = api.store.get(job_id).finished_at
+    assert ended is not None and datetime.fromisoformat(webhooks["oldest_due_at"]) == ended
+    assert 0 <= webhooks["overdue_s"] < 30
+    assert health["note"].startswith("1 webhook is due (the oldest for ")
+    assert "no worker has sent webhooks in the last 60 s" in health["note"]
+    now = datetime.now(UTC)
+    api.store.worker_seen("host:7", started_at=now)
+    deliveries = DeliveryStore(api.store.engine)
+    deliveries.sender_passed("host:7", now=now)
+    health = api.client.get("/healthz").json()
+    assert datetime.fromisoformat(health["webhooks"]["last_pass_at"]) == now
+    assert health["note"] is None
+    deliveries.sender_passed("host:7", now=now - timedelta(seconds=300))
+    health = api.client.get("/healthz").json()
+    assert health["status"] == "ok" and "(the last one 300 s ago)" in health["note"]
