@@ -22,7 +22,7 @@ import csv
 import io
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
-from dataclasses import dataclass, field, fields
+from dataclasses import MISSING, Field, dataclass, field, fields
 from datetime import datetime
 from pathlib import Path
 from types import TracebackType
@@ -217,13 +217,15 @@ class JobCounts:
 
 @dataclass(frozen=True, kw_only=True)
 class Interval:
-    """A metric over a grid point's succeeded seeds: mean and 95% Student t interval."""
+    """A metric over a grid point's succeeded seeds: mean and its 95% interval, kept to the
+    metric's range; ``method`` names how (see the study's ``interval``)."""
 
     n: int
     mean: float | None
     sd: float | None
     ci_low: float | None
     ci_high: float | None
+    method: str = "student_t"
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -236,6 +238,7 @@ class Difference:
     ci_low: float | None
     ci_high: float | None
     p_value: float | None  # Wilcoxon signed-rank, two-sided
+    method: str = "student_t"
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -325,8 +328,13 @@ _D = TypeVar("_D", JobCounts, Interval, Difference)
 
 
 def _known(kind: type[_D], data: Mapping[str, Any]) -> _D:
-    """``kind`` from the keys it knows, so that a newer server's extra keys break nothing."""
-    return kind(**{f.name: data[f.name] for f in fields(kind)})
+    """``kind`` from the keys it knows, so that a newer server's extra keys break nothing, and
+    an older server's missing ones take their defaults."""
+    return kind(**{f.name: data[f.name] for f in fields(kind) if f.name in data or _required(f)})
+
+
+def _required(known: Field[Any]) -> bool:
+    return known.default is MISSING and known.default_factory is MISSING
 
 
 def _summary_fields(data: dict[str, Any]) -> dict[str, Any]:

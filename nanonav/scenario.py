@@ -200,9 +200,9 @@ class Biomarker(_Part):
         le=1e6,
         description="Additive Gaussian noise on every concentration reading, in concentration "
         "units: what a real sensor reads when there is nothing to read. The gradient is sensed "
-        "as the difference of two readings robots.sensor_baseline apart, each with its own noise, "
-        "so each of its components carries sqrt(2) * noise_floor / sensor_baseline. Far from a cell the signal sinks "
-        "below this floor and the gradient's direction is lost.",
+        "as the difference of two readings robots.sensor_baseline apart, each with its own "
+        "noise, so each of its components carries sqrt(2) * noise_floor / sensor_baseline. Far "
+        "from a cell the signal sinks below this floor and the gradient's direction is lost.",
     )
     detection_threshold: float = Field(
         0.0,

@@ -29,9 +29,25 @@ EXACT_MAX_PAIRS = 50
 # enumerated (8,192 at most), which gives the exact distribution given the tied ranks.
 PERMUTATION_MAX_PAIRS = 13
 
+# How an interval of a mean is made, by the range of the values (see ``describe``).
+STUDENT_T = "student_t"  # any real values: mean +- t sd / sqrt(n)
+WILSON = "wilson"  # outcomes that are each 0 or 1: the Wilson score interval
+LOGIT_T = "logit_t"  # values in [0, 1]: the t interval on the logit scale, mapped back
+LOG_T = "log_t"  # values in [0, inf): the t interval on the log scale, mapped back
+INTERVAL_METHODS = {
+    STUDENT_T: "Student t interval of the mean, from the sample standard deviation with n - 1 "
+    "degrees of freedom",
+    WILSON: "Wilson score interval of a proportion of n outcomes, each 0 or 1",
+    LOGIT_T: "Student t interval of the mean taken on the logit scale by the delta method "
+    "(half-width t sd / (sqrt(n) m (1 - m))) and mapped back, so it stays inside (0, 1)",
+    LOG_T: "Student t interval of the mean taken on the log scale by the delta method "
+    "(half-width t sd / (sqrt(n) m)) and mapped back, so it stays above 0",
+}
 CONFIDENCE_METHOD = (
-    f"{DEFAULT_CONFIDENCE:.0%} Student t confidence interval of the mean (or of the mean paired "
-    "difference), from the sample standard deviation with n - 1 degrees of freedom"
+    f"{DEFAULT_CONFIDENCE:.0%} confidence interval of the mean, made so that it stays in the "
+    "metric's range, each named in its 'method': 'student_t' for unbounded metrics (and for mean "
+    "paired differences), 'wilson' for success rates of 0/1 outcomes, 'logit_t' for other "
+    "metrics in [0, 1], 'log_t' for metrics that cannot be negative"
 )
 TEST_METHOD = (
     "Wilcoxon signed-rank test, two-sided, on pairs with the same seed: pairs with zero difference "
@@ -48,16 +64,18 @@ class Description:
     n: int
     mean: float | None  # None when n == 0
     sd: float | None  # sample standard deviation (ddof=1); None when n < 2
-    ci_low: float | None  # Student t interval of the mean; None when n < 2
+    ci_low: float | None  # the interval of the mean; None when n < 2
     ci_high: float | None
+    method: str = STUDENT_T  # how the interval was made: a key of INTERVAL_METHODS
 
-    def to_dict(self) -> dict[str, float | int | None]:
+    def to_dict(self) -> dict[str, float | int | str | None]:
         return {
             "n": self.n,
             "mean": self.mean,
             "sd": self.sd,
             "ci_low": self.ci_low,
             "ci_high": self.ci_high,
+            "method": self.method,
         }
 
 
@@ -72,8 +90,9 @@ class PairedComparison:
     ci_low: float | None  # Student t interval of the mean difference; None when n < 2
     ci_high: float | None
     p_value: float | None  # Wilcoxon signed-rank, two-sided; None when n < 2
+    method: str = STUDENT_T  # the interval's: differences may be of either sign
 
-    def to_dict(self) -> dict[str, float | int | None]:
+    def to_dict(self) -> dict[str, float | int | str | None]:
         return {
             "n": self.n,
             "mean_difference": self.mean_difference,
@@ -81,6 +100,7 @@ class PairedComparison:
             "ci_low": self.ci_low,
             "ci_high": self.ci_high,
             "p_value": self.p_value,
+            "method": self.method,
         }
 
 
@@ -98,32 +118,85 @@ def _finite_array(values: Sequence[float], name: str) -> NDArray[np.float64]:
     return np.asarray(values, dtype=np.float64).reshape(-1)
 
 
-def _describe(values: NDArray[np.float64], confidence: float) -> Description:
+def _describe(
+    values: NDArray[np.float64], confidence: float, bounds: tuple[float, float] | None = None
+) -> Description:
+    method = _method(values, bounds)
     n = len(values)
     if n == 0:
-        return Description(n=0, mean=None, sd=None, ci_low=None, ci_high=None)
+        return Description(n=0, mean=None, sd=None, ci_low=None, ci_high=None, method=method)
     if n == 1:
-        return Description(n=1, mean=float(values[0]), sd=None, ci_low=None, ci_high=None)
+        mean = float(values[0])
+        return Description(n=1, mean=mean, sd=None, ci_low=None, ci_high=None, method=method)
     if np.all(values == values[0]):
         # Exactly, not to rounding: the float mean of equal values can differ in its last bit.
         mean = float(values[0])
-        return Description(n=n, mean=mean, sd=0.0, ci_low=mean, ci_high=mean)
+        if method == WILSON:  # n equal outcomes still leave a proportion uncertain
+            low, high = _wilson(mean, n, confidence)
+            return Description(n=n, mean=mean, sd=0.0, ci_low=low, ci_high=high, method=method)
+        return Description(n=n, mean=mean, sd=0.0, ci_low=mean, ci_high=mean, method=method)
     mean = float(values.mean())
     sd = float(values.std(ddof=1))
-    half_width = _t_quantile(0.5 + confidence / 2, n - 1) * sd / math.sqrt(n)
-    return Description(n=n, mean=mean, sd=sd, ci_low=mean - half_width, ci_high=mean + half_width)
+    t = _t_quantile(0.5 + confidence / 2, n - 1)
+    if method == WILSON:
+        low, high = _wilson(mean, n, confidence)
+    elif method == LOGIT_T:
+        # logit(m) +- t sd / (sqrt(n) m (1 - m)); 0 < m < 1 since the values differ
+        centre = math.log(mean / (1.0 - mean))
+        half = t * sd / (math.sqrt(n) * mean * (1.0 - mean))
+        low, high = _expit(centre - half), _expit(centre + half)
+    elif method == LOG_T:
+        # log(m) +- t sd / (sqrt(n) m); m > 0 since the values differ and none is negative
+        half = t * sd / (math.sqrt(n) * mean)
+        low, high = mean * math.exp(-half), mean * math.exp(half)
+    else:
+        half = t * sd / math.sqrt(n)
+        low, high = mean - half, mean + half
+    return Description(n=n, mean=mean, sd=sd, ci_low=low, ci_high=high, method=method)
 
 
-def describe(values: Sequence[float], confidence: float = DEFAULT_CONFIDENCE) -> Description:
-    """The mean of ``values`` with its Student t ``confidence`` interval.
+def _method(values: NDArray[np.float64], bounds: tuple[float, float] | None) -> str:
+    """The interval that keeps to ``bounds``: (0, 1), (0, inf) or None for unbounded. Values
+    outside the bounds given (which a caller should never pass) get the plain t interval."""
+    if bounds == (0.0, 1.0) and np.all((values >= 0.0) & (values <= 1.0)):
+        return WILSON if np.all((values == 0.0) | (values == 1.0)) else LOGIT_T
+    if bounds == (0.0, math.inf) and np.all(values >= 0.0):
+        return LOG_T
+    return STUDENT_T
 
+
+def _expit(x: float) -> float:
+    return 1.0 / (1.0 + math.exp(-x)) if x >= 0 else math.exp(x) / (1.0 + math.exp(x))
+
+
+def _wilson(p: float, n: int, confidence: float) -> tuple[float, float]:
+    """The Wilson score interval of a proportion ``p`` of ``n`` outcomes."""
+    z = float(stats.norm.ppf(0.5 + confidence / 2))
+    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
+    half = z / (1 + z * z / n) * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n))
+    return max(0.0, centre - half), min(1.0, centre + half)
+
+
+def describe(
+    values: Sequence[float],
+    confidence: float = DEFAULT_CONFIDENCE,
+    bounds: tuple[float, float] | None = None,
+) -> Description:
+    """The mean of ``values`` with a ``confidence`` interval that stays within ``bounds``.
+
+    ``bounds`` is the metric's range: None (unbounded: Student t), ``(0, 1)`` (a proportion:
+    Wilson when every value is 0 or 1, else the t interval on the logit scale) or
+    ``(0, math.inf)`` (the t interval on the log scale); ``method`` names the one used.
     ``None``, NaN and infinities raise ``ValueError``: the caller decides what a missing value
     means (a failed job, a metric that does not apply) and filters it out. With one value there is
     no spread, so ``sd`` and the interval are ``None``; when every value is the same the interval
-    is ``[mean, mean]``.
+    is ``[mean, mean]``, but for 0/1 outcomes, whose Wilson interval says how far n outcomes
+    alike still leave the proportion.
     """
     _check_confidence(confidence)
-    return _describe(_finite_array(values, "values"), confidence)
+    if bounds not in (None, (0.0, 1.0), (0.0, math.inf)):
+        raise ValueError(f"bounds must be None, (0, 1) or (0, inf), not {bounds!r}")
+    return _describe(_finite_array(values, "values"), confidence, bounds)
 
 
 @lru_cache(maxsize=1024)

@@ -237,8 +237,10 @@ class Metrics(BaseModel):
     )
     uncertainty: dict[str, Any] = Field(
         default_factory=dict,
-        description="Per summary number: n (worlds where it exists), sd and the 95% Student t "
-        "interval of its mean over the evaluation worlds.",
+        description="Per summary number: n (worlds where it exists), sd and the 95% interval of "
+        "its mean over the evaluation worlds, kept to the number's range, and the method that "
+        "made it: 'wilson' (0/1 outcomes), 'logit_t' (other values in [0, 1]), 'log_t' "
+        "(values that cannot be negative) or 'student_t'.",
     )
     worlds: list[dict[str, Any]] = Field(
         default_factory=list, description="Every evaluation world's own summary."
@@ -483,8 +485,16 @@ class Interval(BaseModel):
     n: int = Field(description="Succeeded jobs with a value for this metric.")
     mean: float | None
     sd: float | None = Field(description="Sample standard deviation (n - 1); null when n < 2.")
-    ci_low: float | None = Field(description="95% Student t interval of the mean.")
+    ci_low: float | None = Field(
+        description="95% interval of the mean, inside the metric's range (see method)."
+    )
     ci_high: float | None
+    method: str = Field(
+        "student_t",
+        description="How the interval was made: 'student_t', 'wilson' (0/1 outcomes), "
+        "'logit_t' (other values in [0, 1]) or 'log_t' (values that cannot be negative); the "
+        "study's 'interval' says each in words.",
+    )
 
 
 class Difference(BaseModel):
@@ -496,6 +506,7 @@ class Difference(BaseModel):
     ci_low: float | None = Field(description="95% Student t interval of the mean difference.")
     ci_high: float | None
     p_value: float | None = Field(description="Wilcoxon signed-rank, two-sided; null when n < 2.")
+    method: str = Field("student_t", description="How the interval was made: Student t.")
 
 
 class StudyPoint(BaseModel):

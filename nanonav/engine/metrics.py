@@ -57,6 +57,22 @@ AVERAGED = (
 )
 
 
+# Each averaged metric's range, which its interval keeps to (``nanonav.stats.describe``).
+UNBOUNDED = None
+PROPORTION = (0.0, 1.0)
+NON_NEGATIVE = (0.0, math.inf)
+RANGES: dict[str, tuple[float, float] | None] = {
+    "success_rate": PROPORTION,
+    "path_efficiency": PROPORTION,
+    "mean_return": UNBOUNDED,
+    **{
+        key: NON_NEGATIVE
+        for key in AVERAGED
+        if key not in {"success_rate", "path_efficiency", "mean_return"}
+    },
+}
+
+
 def _efficiency(tallies: NDArray[np.float64]) -> NDArray[np.float64]:
     path = tallies[:, EV_PATH_LENGTH]
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -127,19 +143,20 @@ def over_worlds(
     worlds: Sequence[dict[str, Any]],
 ) -> tuple[dict[str, Any], dict[str, dict[str, Any]]]:
     """The summary (each number the mean over the worlds where it exists, counts summed) and,
-    per averaged metric, its n, sd and 95% Student t interval over the worlds."""
+    per averaged metric, its n, sd and 95% interval over the worlds, kept to its range."""
     summary: dict[str, Any] = {}
     uncertainty: dict[str, dict[str, Any]] = {}
     for key in AVERAGED:
         values = [float(w[key]) for w in worlds if w.get(key) is not None]
         values = [v for v in values if math.isfinite(v)]
-        described = stats.describe(values)
+        described = stats.describe(values, bounds=RANGES[key])
         summary[key] = described.mean
         uncertainty[key] = {
             "n": described.n,
             "sd": described.sd,
             "ci_low": described.ci_low,
             "ci_high": described.ci_high,
+            "method": described.method,
         }
     summary["robots"] = int(worlds[0]["robots"]) if worlds else 0
     summary["reached"] = int(sum(w["reached"] for w in worlds))

@@ -89,7 +89,8 @@ class SimulationResult:
 
     ``summary`` is Table 1 for the swarm, each number the mean over the evaluation worlds
     (``metrics`` says what each means); ``uncertainty`` gives, per number, n, sd and the 95%
-    Student t interval over those worlds; ``worlds`` holds every world's own summary;
+    interval over those worlds, kept to the number's range (its ``method`` says how);
+    ``worlds`` holds every world's own summary;
     ``robots`` and ``trajectory`` are the first evaluation world's. ``completed`` is false when
     the caller stopped the run early: the episodes finished so far are kept, and there is no
     evaluation (``trajectory`` is None, the summaries empty).

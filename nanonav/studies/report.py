@@ -17,6 +17,7 @@ from typing import Any, Literal
 import numpy as np
 
 from nanonav import stats
+from nanonav.engine.metrics import RANGES
 from nanonav.studies.spec import GridValue, StudySpec
 
 # The paper's Table 1 (its duration included), then success, collisions and path efficiency.
@@ -110,7 +111,7 @@ def report(
         described = {}
         for metric in METRICS:
             sample = [v for v in (_value(j, metric) for j in members) if v is not None]
-            described[metric] = stats.describe(sample).to_dict()
+            described[metric] = stats.describe(sample, bounds=RANGES[metric]).to_dict()
         point_rows.append(
             {"index": index, "values": point_values, "jobs": dict(counts), "metrics": described}
         )

@@ -162,3 +162,19 @@ def test_keys_a_newer_server_adds_break_nothing() -> None:
     assert found.finished and found.jobs.finished == 2
     assert found.points[0].metrics["total_steps"].ci_high == 6.0
     assert found.raw["owner"] == "someone"
+
+
+def test_an_older_server_without_the_interval_method_is_read_as_student_t() -> None:
+    interval = {"n": 2, "mean": 1.5, "sd": 0.5, "ci_low": -3.0, "ci_high": 6.0}
+    counts = {"total": 2, "queued": 0, "running": 0, "succeeded": 2, "failed": 0, "cancelled": 0}
+    study = {
+        "id": 3, "name": "", "status": "succeeded", "created_at": "2026-11-22T04:00:00+00:00",
+        "cancel_requested": False, "jobs": counts, "links": {}, "finished_at": None,
+        "progress": 1.0, "spec": {"grid": {}, "seeds": [0, 1]}, "interval": "t", "test": "w",
+        "metrics": ["total_steps"], "comparisons": [],
+        "points": [{"index": 0, "values": {}, "jobs": counts,
+                    "metrics": {"total_steps": interval}}],
+    }  # fmt: skip
+    with client_for(lambda request: httpx.Response(200, json=study)) as (client, _):
+        found = client.study(3)
+    assert found.points[0].metrics["total_steps"].method == "student_t"

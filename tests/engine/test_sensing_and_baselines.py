@@ -10,9 +10,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from nanonav.engine import qlearning, simulate
+from nanonav.engine import kernel, qlearning, simulate
 from nanonav.engine.result import without_timings
-from nanonav.engine import kernel
 from nanonav.engine.simulate import _params, _Run
 from nanonav.scenario import Scenario, preset_scenario
 

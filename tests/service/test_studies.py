@@ -45,9 +45,9 @@ def test_every_grid_point_and_seed_becomes_a_queued_job(api: Api) -> None:
         {"robots.policy": "gradient", "obstacles.count": 10},
     ]
     assert study["points"][0]["metrics"]["total_steps"] == {
-        "n": 0, "mean": None, "sd": None, "ci_low": None, "ci_high": None
+        "n": 0, "mean": None, "sd": None, "ci_low": None, "ci_high": None, "method": "log_t"
     }  # fmt: skip
-    assert "Student t" in study["interval"] and "Wilcoxon" in study["test"]
+    assert "log_t" in study["interval"] and "Wilcoxon" in study["test"]
     jobs = api.client.get("/jobs", params={"study": study["id"], "limit": 100}).json()["jobs"]
     assert len(jobs) == 12
     seen = set()
