@@ -40,6 +40,7 @@ from nanonav.engine.state import (
     EV_STRAIGHT,
     EV_SUM_CONCENTRATION,
     EV_SUM_DISTANCE,
+    EV_SWEPT,
     GRADIENT,
     LAYOUT_STATUS,
     Q_LEARNING,
@@ -474,6 +475,7 @@ def _begin_episode(
 ) -> int:  # fmt: skip
     """Reset the swarm and draw a fresh world; returns ``draw_world``'s status."""
     s.active[:] = True
+    s.swept[:] = False
     s.steps[:] = 0
     s.prev_conc[:] = -1.0
     s.returns[:] = 0.0
@@ -516,6 +518,7 @@ def _evaluated(s: Swarm, out: NDArray[np.float64]) -> None:
         dz = s.pos[i, 2] - s.start[i, 2]
         out[i, EV_STRAIGHT] = math.sqrt(dx * dx + dy * dy + dz * dz)
         out[i, EV_RETURN] = s.returns[i]
+        out[i, EV_SWEPT] = 1.0 if s.swept[i] else 0.0
 
 
 @njit(cache=True, error_model="numpy")
@@ -634,7 +637,15 @@ def _run_steps(
             pz = s.pos[i, 2]
             cell, cell_d = _nearest(w.cells, px, py, pz)
             if cell_d <= p.reach_distance:
-                # a drifting cell came within reach: the robot spends this step receiving it
+                # a drifting cell came within reach: the robot spends this step receiving it.
+                # Unless its last heading pointed at the cell, the cell found the robot (a
+                # robot parked at a field maximum, say), not the robot the cell.
+                toward = (
+                    s.heading[i, 0] * (w.cells[cell, 0] - px)
+                    + s.heading[i, 1] * (w.cells[cell, 1] - py)
+                    + s.heading[i, 2] * (w.cells[cell, 2] - pz)
+                )
+                s.swept[i] = toward <= 0.0
                 s.steps[i] += 1
                 s.returns[i] += p.reward_reach + p.reward_step
                 if learn and s.pending[i]:

@@ -7,7 +7,10 @@ Each metric means one thing, for one robot or for the swarm alike:
   did not; for a swarm, the median over its robots (so a failure counts as the step limit).
 - ``mean_steps_to_reach``: the mean steps to reach over the robots that reached (none: null).
 - ``episode_steps``: steps until every robot had reached, or the step limit.
-- ``success_rate``: the share of robots that reached a cell.
+- ``success_rate``: the share of robots that searched a cell out: reached it by their own move,
+  or were met by a drifting cell while heading toward it. ``swept_up`` counts apart the robots a
+  drifting cell met while they headed elsewhere (parked at a field maximum, say): they reached
+  a cell, and stopped there, but did not find it.
 - ``final_distance``: distance to the nearest cell at a robot's last step, mean over robots;
   ``final_distance_reached`` and ``final_distance_unreached`` split it (null when empty).
 - ``average_distance``, ``average_concentration``: a robot's mean over its own steps (start
@@ -37,6 +40,7 @@ from nanonav.engine.state import (
     EV_STRAIGHT,
     EV_SUM_CONCENTRATION,
     EV_SUM_DISTANCE,
+    EV_SWEPT,
 )
 
 # The summary's numbers that are averaged over worlds (the counts are summed instead).
@@ -87,12 +91,14 @@ def robot_rows(
     steps = tallies[:, EV_STEPS]
     counted = steps + 1  # rows 0..steps of the robot's own path
     reached = tallies[:, EV_REACHED] > 0
+    swept = tallies[:, EV_SWEPT] > 0
     efficiency = _efficiency(tallies)
     share = steps / max(episode_steps, 1)
     return [
         {
             "robot": i,
             "reached": bool(reached[i]),
+            "swept_up": bool(swept[i]),
             "total_steps": int(steps[i]) if reached[i] else max_steps,
             "steps_to_reach": int(steps[i]) if reached[i] else None,
             "final_distance": float(tallies[i, EV_FINAL_DISTANCE]),
@@ -117,6 +123,7 @@ def world_summary(
 ) -> dict[str, Any]:
     """Table 1 for the swarm in one evaluation world (see the module's definitions)."""
     reached = tallies[:, EV_REACHED] > 0
+    swept = tallies[:, EV_SWEPT] > 0
     steps = tallies[:, EV_STEPS]
     final = tallies[:, EV_FINAL_DISTANCE]
     counted = steps + 1
@@ -124,7 +131,7 @@ def world_summary(
         "total_steps": float(np.median(np.where(reached, steps, max_steps))),
         "mean_steps_to_reach": _mean(steps[reached]),
         "episode_steps": int(episode_steps),
-        "success_rate": float(reached.mean()),
+        "success_rate": float((reached & ~swept).mean()),
         "final_distance": float(final.mean()),
         "final_distance_reached": _mean(final[reached]),
         "final_distance_unreached": _mean(final[~reached]),
@@ -136,6 +143,7 @@ def world_summary(
         "duration_s": float(duration_s),
         "robots": int(tallies.shape[0]),
         "reached": int(reached.sum()),
+        "swept_up": int(swept.sum()),
     }
 
 
@@ -160,5 +168,6 @@ def over_worlds(
         }
     summary["robots"] = int(worlds[0]["robots"]) if worlds else 0
     summary["reached"] = int(sum(w["reached"] for w in worlds))
+    summary["swept_up"] = int(sum(w.get("swept_up", 0) for w in worlds))
     summary["worlds"] = len(worlds)
     return summary, uncertainty

@@ -243,6 +243,7 @@ class _Run:
             last_dist=np.zeros(n),
             reading=np.zeros(n),
             reading_grad=np.zeros((n, 3)),
+            swept=np.zeros(n, dtype=np.bool_),
         )
         rows = history_rows(params.max_steps, params.record_stride)
         self.recording = Recording(

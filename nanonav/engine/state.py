@@ -86,6 +86,7 @@ class Swarm(NamedTuple):
     last_dist: NDArray[np.float64]  # distance at the robot's last step
     reading: NDArray[np.float64]  # true concentration at the robot this step, before noise
     reading_grad: NDArray[np.float64]  # (N, 3) its gradient
+    swept: NDArray[np.bool_]  # reached by a drifting cell while heading away from it
 
 
 class World(NamedTuple):
@@ -138,7 +139,8 @@ EV_COLLISIONS = 5
 EV_PATH_LENGTH = 6
 EV_STRAIGHT = 7  # straight-line distance from its start to where it ended
 EV_RETURN = 8
-EV_COLUMNS = 9
+EV_SWEPT = 9  # 1 if its cell drifted onto it while it headed elsewhere (it did not search it out)
+EV_COLUMNS = 10
 
 # curve[episode, ...] columns written by the kernel when an episode ends
 CURVE_STEPS = 0

@@ -75,7 +75,10 @@ def test_swarm_metrics_follow_their_definitions() -> None:
     )
     assert all(r["total_steps"] == 200 and r["steps_to_reach"] is None for r in failed)
     assert world["mean_steps_to_reach"] == statistics.fmean(r["steps_to_reach"] for r in reached)
-    assert world["success_rate"] == len(reached) / len(rows)
+    searched = [r for r in reached if not r["swept_up"]]
+    assert all(r["reached"] for r in rows if r["swept_up"])
+    assert world["success_rate"] == len(searched) / len(rows)
+    assert world["swept_up"] == len(reached) - len(searched)
     assert world["final_distance_reached"] == pytest.approx(
         statistics.fmean(r["final_distance"] for r in reached)
     )
@@ -84,3 +87,21 @@ def test_swarm_metrics_follow_their_definitions() -> None:
     )
     assert world["final_distance_reached"] <= 0.5 < world["final_distance_unreached"]
     assert world["episode_steps"] == 200
+
+
+def test_a_cell_that_drifts_onto_a_parked_robot_is_counted_apart_from_a_search() -> None:
+    # robots that climb the exact gradient park at the field's maximum, where the drifting
+    # cells then run into them
+    found = simulate(
+        scenario(
+            preset="paper-swarm", seed=3, robots={"policy": "gradient"},
+            learning={"episodes": 0, "max_steps": 800}, evaluation={"worlds": 4},
+        )
+    )  # fmt: skip
+    worlds = found.worlds
+    swept = sum(w["swept_up"] for w in worlds)
+    reached = sum(w["reached"] for w in worlds)
+    assert swept > 0 and found.summary["swept_up"] == swept
+    robots = worlds[0]["robots"]
+    searched = sum(w["success_rate"] for w in worlds) * robots
+    assert searched == pytest.approx(reached - swept)

@@ -149,8 +149,8 @@ def test_table_1_agrees_with_the_trajectory() -> None:
         if row["reached"]:
             assert row["final_distance"] <= result.scenario.reach_distance
         assert 0.0 <= row["path_efficiency"] <= 1.0 + 1e-12
-    reached = [r for r in result.robots if r["reached"]]
-    assert first["success_rate"] == len(reached) / 15
+    searched = [r for r in result.robots if r["reached"] and not r["swept_up"]]
+    assert first["success_rate"] == len(searched) / 15
     assert first["collisions"] == sum(r["collisions"] for r in result.robots)
     for key in ("success_rate", "total_steps", "average_distance"):
         values = [w[key] for w in result.worlds]
