@@ -159,8 +159,10 @@ class Job:
     id: int
     status: Status
     progress: float  # share of the run's work done, 0 to 1
-    episode: int  # episodes finished (the evaluation episode counts as the last)
-    episodes: int
+    episode: int  # episodes finished: training episodes, then evaluation worlds
+    episodes: int  # training_episodes + evaluation_worlds
+    training_episodes: int = 0
+    evaluation_worlds: int = 0
     error: str | None  # why it failed, in words
     study_id: int | None
     scenario: dict[str, Any]  # fully resolved: preset applied, defaults filled, seed included
@@ -181,6 +183,8 @@ class Job:
             progress=float(progress["fraction"]),
             episode=int(progress["episode"]),
             episodes=int(progress["episodes"]),
+            training_episodes=int(progress.get("training_episodes", 0)),
+            evaluation_worlds=int(progress.get("evaluation_worlds", 0)),
             error=data.get("error"),
             study_id=data.get("study_id"),
             scenario=data["scenario"],

@@ -33,7 +33,7 @@ METRICS: tuple[tuple[str, str, Callable[[Any], str]], ...] = (
     ("Final Distance", "final_distance", number),
     ("Average Distance", "average_distance", number),
     ("Average Biomarker Concentration", "average_concentration", number),
-    ("Simulation Duration", "duration_s", seconds),
+    ("Simulation Duration per World", "duration_s", seconds),
     ("Success Rate", "success_rate", percent),
     ("Collisions", "collisions", number),
     ("Path Efficiency", "path_efficiency", number),

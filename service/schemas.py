@@ -39,8 +39,17 @@ JOB_EXAMPLE: dict[str, Any] = {
 
 
 class Progress(BaseModel):
-    episode: int = Field(description="Episodes finished so far.")
-    episodes: int = Field(description="Episodes the run has in all.")
+    """How far the run is: it trains its episodes, then plays its evaluation worlds, and both
+    count as episodes here."""
+
+    episode: int = Field(
+        description="Episodes finished so far: training episodes, then evaluation worlds."
+    )
+    episodes: int = Field(
+        description="Episodes the run has in all: training_episodes + evaluation_worlds."
+    )
+    training_episodes: int = Field(0, description="Of them, the training episodes.")
+    evaluation_worlds: int = Field(0, description="Of them, the greedy evaluation worlds.")
     fraction: float = Field(ge=0.0, le=1.0, description="Share of the run's work done.")
 
 
@@ -112,7 +121,13 @@ class Job(BaseModel):
         return cls(
             id=job.id,
             status=job.status.value,
-            progress=Progress(episode=job.episode, episodes=job.episodes, fraction=job.fraction),
+            progress=Progress(
+                episode=job.episode,
+                episodes=job.episodes,
+                training_episodes=int((job.scenario.get("learning") or {}).get("episodes", 0)),
+                evaluation_worlds=int((job.scenario.get("evaluation") or {}).get("worlds", 0)),
+                fraction=job.fraction,
+            ),
             scenario=job.scenario,
             created_at=job.created_at,
             started_at=job.started_at,

@@ -30,7 +30,7 @@ pytestmark = pytest.mark.timeout(180)
 WAIT_S = 60.0
 TABLE_1 = (
     "Total Steps", "Final Distance", "Average Distance", "Average Biomarker Concentration",
-    "Simulation Duration", "Success Rate", "Collisions", "Path Efficiency",
+    "Simulation Duration per World", "Success Rate", "Collisions", "Path Efficiency",
 )  # fmt: skip
 
 

@@ -25,7 +25,7 @@ TABLE_ROWS = (
     "Final Distance",
     "Average Distance",
     "Average Biomarker Concentration",
-    "Simulation Duration",
+    "Simulation Duration per World",
     "Success Rate",
     "Collisions",
     "Path Efficiency",

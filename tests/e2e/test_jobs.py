@@ -80,7 +80,10 @@ def test_a_submitted_job_runs_and_every_result_comes_back(
     job_id = submit(api, TINY)
     job, seen = wait_for(api, job_id, finished, FIRST_JOB_S)
     assert job["status"] == "succeeded", job
-    assert job["progress"] == {"episode": 2 + 20, "episodes": 2 + 20, "fraction": 1.0}
+    assert job["progress"] == {
+        "episode": 2 + 20, "episodes": 2 + 20, "training_episodes": 2, "evaluation_worlds": 20,
+        "fraction": 1.0,
+    }  # fmt: skip
     assert job["attempts"] == 1
     assert job["started_at"] is not None and job["finished_at"] >= job["started_at"]
     fractions = [s["progress"]["fraction"] for s in seen]
