@@ -55,6 +55,12 @@ def healthz(
             f"{census.queued} jobs are queued but no worker has been seen in the last "
             f"{PRESENCE_WINDOW_S:g} s: start one with `nanonav worker`"
         )
+    elif not census.workers:
+        # the API answers before a worker is ready (one starting compiles the engine first)
+        notes.append(
+            f"no worker has been seen in the last {PRESENCE_WINDOW_S:g} s, so a job submitted "
+            "now waits: start one with `nanonav worker`, or wait for the one starting"
+        )
     if stalled := _stalled_webhooks(backlog, now, window_s):
         notes.append(stalled)
     return Health(

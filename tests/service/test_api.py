@@ -315,6 +315,14 @@ def test_healthz_is_ok_at_head(api: Api) -> None:
     assert api.client.get("/healthz").json()["status"] == "ok"
 
 
+def test_healthz_says_while_no_worker_is_ready_that_a_job_would_wait(api: Api) -> None:
+    health = api.client.get("/healthz").json()
+    assert health["status"] == "ok" and health["queue"]["queued"] == 0
+    assert "no worker has been seen in the last 30 s" in health["note"]
+    api.store.worker_seen("host:7", started_at=datetime.now(UTC))
+    assert api.client.get("/healthz").json()["note"] is None
+
+
 def test_healthz_says_why_queued_jobs_wait(api: Api) -> None:
     submit(api)
     health = api.client.get("/healthz").json()
