@@ -65,22 +65,12 @@ def main() -> int:
     signal.signal(signal.SIGINT, on_signal)
     signal.signal(signal.SIGTERM, on_signal)
 
+    # `nanonav api`, so that the API is served as it is everywhere else (service/server.py)
     api = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "uvicorn",
-            "service.app:create_app",
-            "--factory",
-            "--host",
-            settings.host,
-            "--port",
-            str(settings.port),
-            "--timeout-graceful-shutdown",
-            str(settings.shutdown_grace_s),
-        ],
+        [sys.executable, "-m", "nanonav.cli", "api", "--host", settings.host,
+         "--port", str(settings.port)],
         start_new_session=True,
-    )
+    )  # fmt: skip
     worker = subprocess.Popen([sys.executable, "-m", "worker"], start_new_session=True)
     children = [api, worker]
     url = f"http://{settings.host}:{settings.port}"

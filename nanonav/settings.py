@@ -188,6 +188,65 @@ class Settings(BaseSettings):
         "limit the server would wait for every watching client to leave.",
     )
 
+    # --- Slow clients and open streams: what one API process holds for clients it cannot
+    # hurry (service/connections.py, service/events.py). ---
+    api_max_connections: int = Field(
+        1000,
+        ge=1,
+        le=100_000,
+        validation_alias=_aliases("api_max_connections"),
+        description="Connections one API process serves at once (default 1000). Past them a "
+        "new connection takes the place of the one idle longest (waiting for a request head "
+        "for a second or more); with none idle, a request on it gets 503 with Retry-After. With "
+        "api_healthz_connections and 128 files of its own they must fit the open-file limit "
+        "(RLIMIT_NOFILE): the soft limit is raised to fit if the hard one allows, else the "
+        "API refuses to start.",
+    )
+    api_healthz_connections: int = Field(
+        16,
+        ge=1,
+        le=1000,
+        validation_alias=_aliases("api_healthz_connections"),
+        description="Connections past api_max_connections, all busy, on which an API process "
+        "answers /healthz alone (default 16), once each, and 503 to anything else; a "
+        "connection past them is closed at once.",
+    )
+    api_header_timeout_s: float = Field(
+        10.0,
+        gt=0,
+        le=3600,
+        validation_alias=_aliases("api_header_timeout_s"),
+        description="Seconds a client has to send a whole request head (default 10), from "
+        "when it connected or sent the first byte of its next request; then it gets 408 and "
+        "the connection is closed (one that sent nothing is closed without a word).",
+    )
+    api_body_timeout_s: float = Field(
+        30.0,
+        gt=0,
+        le=3600,
+        validation_alias=_aliases("api_body_timeout_s"),
+        description="Seconds a client has to send a whole request body after its head "
+        "(default 30; a 1 MB body at 35 kB/s); then it gets 408, if nothing was answered yet, "
+        "and the connection is closed.",
+    )
+    events_streams_per_key: int = Field(
+        50,
+        ge=1,
+        le=100_000,
+        validation_alias=_aliases("events_streams_per_key"),
+        description="Event streams one key (without keys: one client address) may have open "
+        "on one API process (default 50); another gets 503 with Retry-After.",
+    )
+    events_streams_per_process: int = Field(
+        500,
+        ge=1,
+        le=100_000,
+        validation_alias=_aliases("events_streams_per_process"),
+        description="Event streams one API process keeps open (default 500), so that other "
+        "requests still get connections and time; another gets 503 with Retry-After.",
+    )
+    # --- end of slow clients and open streams ---
+
     trajectory_json_values: int = Field(
         2_000_000,
         ge=1000,

@@ -20,7 +20,7 @@ from nanonav.store.deliveries import DeliveryStore
 from service import problems
 from service.caching import ETags
 from service.drawing import Drawer
-from service.events import Poller
+from service.events import Poller, StreamLimits
 from service.limits import BodySizeLimit
 from service.methods import HeadAsGet
 from service.orphans import stop_when_orphaned
@@ -93,6 +93,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.state.poller = poller
     app.state.job_events = poller.channel(partial(events.job_snapshots, store))
     app.state.study_events = poller.channel(partial(events.study_snapshots, study_store))
+    app.state.streams = StreamLimits(
+        settings.events_streams_per_key, settings.events_streams_per_process
+    )
     app.state.drawer = Drawer(settings.drawing_queue)
     app.add_middleware(BodySizeLimit, max_bytes=settings.max_body_bytes)
     app.add_middleware(ETags)

@@ -8,6 +8,7 @@ if it differs from the last state it was given. A listener holds only the latest
 not handed on, so a slow client costs one state of memory, never a queue that grows.
 
 States are :class:`Snapshot`: encoded once per tick, shared by every listener of the id.
+:class:`StreamLimits` bounds how many streams are open, per caller and in the process.
 """
 
 from __future__ import annotations
@@ -22,7 +23,11 @@ from dataclasses import dataclass
 from fastapi.concurrency import run_in_threadpool
 from sqlalchemy.exc import SQLAlchemyError
 
+from service.problems import ProblemError
+
 logger = logging.getLogger(__name__)
+# How long a client refused a stream is asked to wait, seconds: places free as streams end.
+STREAMS_RETRY_AFTER_S = 5
 
 
 @dataclass(frozen=True)
@@ -202,3 +207,56 @@ class Poller:
         with contextlib.suppress(TimeoutError):
             async with asyncio.timeout(seconds):
                 await self._stop.wait()
+
+
+class TooManyStreams(ProblemError):
+    """No place for another event stream: the caller's, or the process's, are all taken."""
+
+    status = 503
+    slug = "too-many-streams"
+    title = "Too many event streams"
+    headers = {"Retry-After": str(STREAMS_RETRY_AFTER_S)}  # noqa: RUF012  (read-only)
+
+
+class StreamLimits:
+    """The event streams open in this process, per caller and in all. Each holds a connection,
+    two tasks and a listener until its job or study ends: 2,000 of them kept every other
+    request waiting a second or more, and one client could open them all."""
+
+    def __init__(self, per_key: int, per_process: int) -> None:
+        self.per_key = per_key
+        self.per_process = per_process
+        self._open: dict[str, int] = {}
+        self._total = 0
+
+    @property
+    def open(self) -> int:
+        return self._total
+
+    @contextlib.contextmanager
+    def hold(self, key: str) -> Iterator[None]:
+        """A place for one stream of ``key`` (a key's owner, or a client address) while the
+        block runs; :class:`TooManyStreams` if there is none."""
+        if self._total >= self.per_process:
+            raise TooManyStreams(
+                f"this server has {self._total} event streams open, the most it keeps "
+                "(NANONAV_EVENTS_STREAMS_PER_PROCESS); try again shortly, or poll GET /jobs/{id}"
+            )
+        held = self._open.get(key, 0)
+        if held >= self.per_key:
+            raise TooManyStreams(
+                f"{held} event streams are open for this key (without keys, this address), "
+                "the most one may have (NANONAV_EVENTS_STREAMS_PER_KEY); close one, or poll "
+                "GET /jobs/{id}"
+            )
+        self._open[key] = held + 1
+        self._total += 1
+        try:
+            yield
+        finally:
+            self._total -= 1
+            left = self._open[key] - 1
+            if left:
+                self._open[key] = left
+            else:
+                del self._open[key]

@@ -30,6 +30,7 @@ from nanonav.settings import Settings
 from nanonav.store import JobStore
 from nanonav.store.migrate import upgrade
 from service.app import create_app
+from service.server import server_config
 from tests.processes import ApiServer, Worker
 
 # What a script sends so that a body-less POST (a cancel) is not taken for a cross-site form.
@@ -123,12 +124,18 @@ def sqlite_store(sqlite_url: str) -> Iterator[JobStore]:
 
 @contextmanager
 def serve(app: FastAPI) -> Iterator[str]:
-    """Serve ``app`` with a real uvicorn on a free local port; yields its base URL."""
+    """Serve ``app`` with a real uvicorn on a free local port, configured as the API always is
+    (``service.server``) under the app's own settings; yields its base URL."""
     sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
     sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
     sock.bind(("127.0.0.1", 0))
     port = sock.getsockname()[1]
-    config = uvicorn.Config(app, log_level="warning", lifespan="on", timeout_graceful_shutdown=2)
+    settings = getattr(getattr(app, "state", None), "settings", None)
+    if not isinstance(settings, Settings):
+        settings = Settings()
+    config = server_config(
+        app, settings, log_level="warning", lifespan="on", timeout_graceful_shutdown=2
+    )
     server = uvicorn.Server(config)
     thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, daemon=True)
     thread.start()

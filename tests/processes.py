@@ -79,15 +79,12 @@ class Worker(_Process):
 
 
 class ApiServer(_Process):
-    """The API as ``make run`` serves it: ``python -m uvicorn service.app:create_app``."""
+    """The API as ``make run`` serves it: ``nanonav api``, with its limits and shutdown grace."""
 
     def __init__(self, database_url: str, log: Path, **env: str) -> None:
         self.url = f"http://127.0.0.1:{free_port()}"
-        command = [
-            sys.executable, "-m", "uvicorn", "service.app:create_app", "--factory",
-            "--host", "127.0.0.1", "--port", self.url.rsplit(":", 1)[1],
-            "--timeout-graceful-shutdown", "5",
-        ]  # fmt: skip
+        command = [sys.executable, "-m", "nanonav.cli", "api", "--host", "127.0.0.1",
+                   "--port", self.url.rsplit(":", 1)[1]]  # fmt: skip
         environment = clean_environment(NANONAV_DATABASE_URL=database_url, **env)
         super().__init__(command, log, environment)
 

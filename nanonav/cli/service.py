@@ -44,7 +44,7 @@ def add_api(subcommands: Subcommands) -> None:
 
 
 def _api(args: argparse.Namespace) -> int:
-    import uvicorn
+    import importlib
 
     settings = _settings()
     port = settings.port if args.port is None else args.port
@@ -54,14 +54,14 @@ def _api(args: argparse.Namespace) -> int:
     if not 1 <= processes <= 64:
         raise UsageError([f"--processes must be between 1 and 64, not {processes}"])
     host = args.host or settings.host
-    uvicorn.run(
-        "service.app:create_app",
-        factory=True,
-        host=host,
-        port=port,
-        workers=processes,
-        timeout_graceful_shutdown=settings.shutdown_grace_s,
-    )
+    # served as every other way of starting the API is: the limits on connections, on slow
+    # clients and the shutdown grace come with it
+    server = importlib.import_module("service.server")
+    connections = importlib.import_module("service.connections")
+    try:
+        server.run(settings, host=host, port=port, processes=processes)
+    except connections.OpenFilesTooFew as error:
+        raise UsageError([str(error)]) from error
     return EXIT_OK
 
 

@@ -5,14 +5,15 @@ Every event carries the whole current state (a job as `GET /jobs/{id}` answers i
 had, ``event: progress`` otherwise. Its ``id`` is ``<status>-<digest of the data>``, so a client
 that reconnects with ``Last-Event-ID`` is not sent the state it already has; one that already
 has a finished state gets ``204 No Content``, which tells ``EventSource`` to stop reconnecting.
-Unknown ids get 404 before the stream starts. Between events FastAPI sends a ``: ping`` comment
-every 15 s (``fastapi.sse._PING_INTERVAL``; FastAPI offers no setting for it), which keeps idle
-streams open through proxies.
+Unknown ids get 404 before the stream starts, and a caller past its streams, or a server past
+its own (``StreamLimits``), gets 503 with ``Retry-After``. Between events FastAPI sends a
+``: ping`` comment every 15 s (``fastapi.sse._PING_INTERVAL``; FastAPI offers no setting for
+it), which keeps idle streams open through proxies.
 """
 
 from __future__ import annotations
 
-from collections.abc import AsyncIterable, Collection, Mapping
+from collections.abc import AsyncIterable, AsyncIterator, Collection, Mapping
 from dataclasses import dataclass
 from typing import Annotated, Any
 
@@ -23,11 +24,12 @@ from fastapi.sse import EventSourceResponse, ServerSentEvent
 from nanonav.store import JobRecord, JobStore, StudyNotFound, StudyProgress, StudyStore
 from nanonav.studies.report import status_of
 from service.deps import JobEventsDep, StoreDep, StudiesDep, StudyEventsDep
-from service.events import Channel, Snapshot
+from service.events import Channel, Snapshot, StreamLimits
 from service.ids import JobId, StudyId
 from service.problems import PROBLEM_JSON, EventsUnavailable
 from service.routes.studies import FINISHED
 from service.schemas import Job, JobCounts, StudyState
+from service.security import caller_of
 
 router = APIRouter(tags=["events"])
 
@@ -124,6 +126,17 @@ def _study_start(
     return _start(study_id, study_snapshot(found[study_id]), last_event_id)
 
 
+async def _place(request: Request) -> AsyncIterator[None]:
+    """A place among the open streams, taken before anything is read and held until the
+    stream ends (FastAPI closes a request's dependencies after its response)."""
+    streams: StreamLimits = request.app.state.streams
+    with streams.hold(caller_of(request).quota_key):
+        yield
+
+
+Place = Annotated[None, Depends(_place)]
+
+
 def _check(channel: Channel) -> None:
     if not channel.running:
         raise EventsUnavailable(
@@ -133,7 +146,7 @@ def _check(channel: Channel) -> None:
 
 @router.get("/jobs/{job_id}/events", response_class=EventSourceResponse, responses=STREAM)
 async def job_events(
-    start: Annotated[Start, Depends(_job_start)], channel: JobEventsDep
+    place: Place, start: Annotated[Start, Depends(_job_start)], channel: JobEventsDep
 ) -> AsyncIterable[ServerSentEvent]:
     """The job's state now, then each change (`progress` while queued or running, `status`
     when its status changes), ending after the event that shows it finished."""
@@ -143,7 +156,7 @@ async def job_events(
 
 @router.get("/studies/{study_id}/events", response_class=EventSourceResponse, responses=STREAM)
 async def study_events(
-    start: Annotated[Start, Depends(_study_start)], channel: StudyEventsDep
+    place: Place, start: Annotated[Start, Depends(_study_start)], channel: StudyEventsDep
 ) -> AsyncIterable[ServerSentEvent]:
     """The study's jobs per status and progress now, then each change, ending once it has
     finished."""
