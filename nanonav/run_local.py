@@ -7,6 +7,7 @@ process groups, so a Ctrl-C reaches this supervisor only, which then stops them 
 
 from __future__ import annotations
 
+import json
 import signal
 import subprocess
 import sys
@@ -37,6 +38,16 @@ def _wait_until_ready(url: str, api: subprocess.Popen[bytes], stop: threading.Ev
             pass
         stop.wait(0.2)
     return False
+
+
+def _workers_seen(url: str) -> int:
+    """How many workers the API has seen lately (0 if it cannot say)."""
+    try:
+        with urllib.request.urlopen(f"{url}/healthz", timeout=2) as response:
+            health = json.load(response)
+    except (urllib.error.URLError, OSError, ValueError):
+        return 0
+    return int((health.get("workers") or {}).get("seen", 0))
 
 
 def _stop(children: list[subprocess.Popen[bytes]]) -> None:
@@ -83,7 +94,12 @@ def main() -> int:
                 f"{command.parent}/activate`, then `nanonav --help`)",
                 flush=True,
             )
+        # a starting worker compiles the engine first: say when jobs will run
+        worker_ready = False
         while not stop.is_set():
+            if not worker_ready and _workers_seen(url):
+                worker_ready = True
+                print("nanonav: a worker is ready; submitted jobs run now", flush=True)
             if any(child.poll() is not None for child in children):
                 name = "API" if api.poll() is not None else "worker"
                 print(f"nanonav: the {name} stopped unexpectedly; stopping", file=sys.stderr)

@@ -52,8 +52,13 @@ def test_run_local_migrates_serves_runs_a_job_and_stops_on_ctrl_c(tmp_path: Path
         assert (tmp_path / "var" / "nanonav.db").exists()
         shown = re.search(r"the command line is (\S+)", log.read_text())
         assert shown is not None and Path(shown.group(1)).is_file()
+        while "a worker is ready" not in log.read_text():
+            assert process.poll() is None, log.read_text()
+            assert time.monotonic() < deadline, log.read_text()
+            time.sleep(0.1)
         with httpx.Client(base_url=f"http://127.0.0.1:{port}", timeout=10) as client:
             health = client.get("/healthz").json()
+            assert health["workers"]["seen"] == 1 and health["note"] is None
             assert health["status"] == "ok"
             assert health["queue"] == {"queued": 0, "running": 0, "oldest_queued_at": None}
             job_id = client.post("/jobs", json=TINY).json()["id"]
