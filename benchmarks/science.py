@@ -31,8 +31,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from nanonav import stats, study_plots
+from nanonav import stats
 from nanonav.engine import simulate
+from nanonav.pictures.study import charts
 from nanonav.policy import chemotaxis
 from nanonav.scenario import Scenario
 
@@ -191,12 +192,12 @@ def chemotaxis_from_scratch(run: Runner, schedule: Sequence[int], out: Path | No
     table(("policy", "episodes", "greedy success", "climbs: clear states", "climbs: all"), rows)
     if out is not None:
         g = stats.describe(values(gradient, "success_rate"))
-        flat = study_plots.Series(
+        flat = charts.Series(
             "gradient", curve["x"], [g.mean] * len(curve["x"]), [g.ci_low] * len(curve["x"]),
             [g.ci_high] * len(curve["x"]),
         )  # fmt: skip
-        learned = study_plots.Series("directions Q-learning", **curve)
-        png = study_plots.metric_png(
+        learned = charts.Series("directions Q-learning", **curve)
+        png = charts.metric_png(
             "success_rate", [learned, flat], x_label="training episodes",
             title="paper-swarm: greedy success over the evaluation worlds",
         )  # fmt: skip
@@ -286,8 +287,8 @@ def settings(run: Runner, episodes: dict[str, int], out: Path | None) -> None:
               "minus rule")  # fmt: skip
     table(header, rows)
     if out is not None:
-        drawn = [study_plots.Series(k, **v) for k, v in series.items()]
-        png = study_plots.metric_png(
+        drawn = [charts.Series(k, **v) for k, v in series.items()]
+        png = charts.metric_png(
             "success_rate", drawn, x_label=None, title="Greedy success by world and policy"
         )
         (out / "settings.png").write_bytes(png)

@@ -50,3 +50,10 @@ class Drawer:
         self._pending.pop(key, None)
         if not done.cancelled():
             done.exception()  # retrieved here too, in case every waiter went away
+
+
+def kept_name(name: str, version: int) -> str:
+    """The name the picture ``name`` is kept under: its own at the first version of its drawing,
+    else with the version (``learning.v2``), so that a copy of an older drawing, still in the
+    store until its job or study goes, is never served again."""
+    return name if version == 1 else f"{name}.v{version}"

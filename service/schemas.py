@@ -8,12 +8,21 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from nanonav.pictures import job as job_pictures
 from nanonav.store import JobRecord, JobStatus
 from service.paging import CURSOR_PATTERN
 
 Status = Literal["queued", "running", "succeeded", "failed", "cancelled"]
 PLOTS = ("trajectory", "concentration", "learning", "qtable")
 PLANES = ("xy", "xz", "yz", "all")
+
+
+def plot_link(base: str, name: str) -> str:
+    """Where a job's picture is: with ``?v=`` its drawing's version once it has been drawn anew,
+    so that no cache keeps a copy of the older drawing."""
+    version = job_pictures.version(name)
+    return f"{base}/plots/{name}.png" + ("" if version == 1 else f"?v={version}")
+
 
 JOB_EXAMPLE: dict[str, Any] = {
     "id": 42,
@@ -33,7 +42,7 @@ JOB_EXAMPLE: dict[str, Any] = {
         "trajectory": "/jobs/42/trajectory",
         "qtable": "/jobs/42/qtable",
         "heatmap": "/jobs/42/heatmap.png",
-        "plots": {name: f"/jobs/42/plots/{name}.png" for name in PLOTS},
+        "plots": {name: plot_link("/jobs/42", name) for name in PLOTS},
     },
 }
 
@@ -144,7 +153,7 @@ class Job(BaseModel):
                 qtable=f"{base}/qtable" if (done or kept) and learns else None,
                 heatmap=f"{base}/heatmap.png" if done else None,
                 plots={
-                    name: f"{base}/plots/{name}.png"
+                    name: plot_link(base, name)
                     for name in PLOTS
                     if (done or (kept and name in ("learning", "qtable")))
                     and (learns or name != "qtable")

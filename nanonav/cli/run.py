@@ -157,7 +157,7 @@ def _progress_bar(enabled: bool) -> Iterator[Callable[[Progress], None]]:
 def _write_outputs(result: SimulationResult, document: dict[str, Any], out: Path) -> list[Path]:
     import numpy as np
 
-    from nanonav.plots import render_all
+    from nanonav.pictures.job import render_all
 
     try:
         out.mkdir(parents=True, exist_ok=True)

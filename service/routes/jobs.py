@@ -15,8 +15,8 @@ from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import JSONResponse, StreamingResponse
 from numpy.typing import NDArray
 
-from nanonav import plots
 from nanonav.engine import SimulationResult
+from nanonav.pictures import job as pictures
 from nanonav.policy import greedy_table
 from nanonav.scenario import MAX_EXACT_INT, Policy, Scenario
 from nanonav.store import JobStatus, JobStore, ResultsUnavailable, StudyNotFound
@@ -25,7 +25,7 @@ from service.budget import check_budget, check_quota_fits
 from service.caching import IMMUTABLE
 from service.callbacks import CallbackUrl, callback_answer, check_callback
 from service.deps import DeliveriesDep, DrawerDep, JsonBody, SettingsDep, StoreDep, StudiesDep
-from service.drawing import Drawer
+from service.drawing import Drawer, kept_name
 from service.idempotency import IdempotencyDep
 from service.ids import JobId
 from service.paging import Cursor, decode_cursor, encode_cursor
@@ -330,16 +330,16 @@ async def get_heatmap(
     resolution: Annotated[
         int,
         Query(
-            ge=plots.MIN_HEATMAP_RESOLUTION,
-            le=plots.MAX_HEATMAP_RESOLUTION,
+            ge=pictures.MIN_HEATMAP_RESOLUTION,
+            le=pictures.MAX_HEATMAP_RESOLUTION,
             description="Grid pixels per side of each slice (the PNG's size does not change).",
         ),
-    ] = plots.HEATMAP_RESOLUTION,
+    ] = pictures.HEATMAP_RESOLUTION,
 ) -> Response:
     """The biomarker concentration in a plane, with the robots' paths projected on it. The
     default slice is kept once drawn; one chosen with ``at`` or ``resolution`` is drawn anew."""
     name = f"heatmap_{plane}"
-    if at is None and resolution == plots.HEATMAP_RESOLUTION:
+    if at is None and resolution == pictures.HEATMAP_RESOLUTION:
         return await _picture(store, drawer, job_id, name)
     await run_in_threadpool(_check_heatmap_request, store, job_id, at)
     key = ("job", job_id, name, at, resolution)
@@ -364,7 +364,7 @@ def _draw_heatmap(
 ) -> bytes:
     """A heatmap at a chosen slice or resolution: drawn for this request, not stored."""
     result = SimulationResult.from_stored(store.metrics(job_id), store.trajectory(job_id))
-    return plots.render(result, name, at=at, resolution=resolution)
+    return pictures.render(result, name, at=at, resolution=resolution)
 
 
 @router.get(
@@ -379,27 +379,35 @@ async def get_plot(
     drawer: DrawerDep,
 ) -> Response:
     """A picture of the run: 3-D trajectory, concentration over time, learning curve, or the
-    learned Q-table (404 for a job whose policy learns none)."""
+    learned Q-table (404 for a job whose policy learns none).
+
+    The job's links name a picture with ``?v=`` the version of its drawing once it has been
+    drawn anew, so that no cache keeps an older one; any ``v`` gets the current drawing."""
     return await _picture(store, drawer, job_id, name)
 
 
 async def _picture(store: JobStore, drawer: Drawer, job_id: int, name: str) -> Response:
-    """The stored picture, or drawn now (off the event loop) and stored for next time."""
-    png = await run_in_threadpool(partial(store.plot, job_id, name, kept=name in KEPT_PICTURES))
+    """The stored picture, or drawn now (off the event loop) and stored for next time, under
+    the version of its drawing: a copy of an older drawing is drawn again."""
+    stored_as = kept_name(name, pictures.version(name))
+    kept = name in KEPT_PICTURES
+    png = await run_in_threadpool(partial(store.plot, job_id, stored_as, kept=kept))
     if png is None:
-        png = await drawer.draw(("job", job_id, name), partial(_draw, store, job_id, name))
+        draw = partial(_draw, store, job_id, name, stored_as)
+        png = await drawer.draw(("job", job_id, stored_as), draw)
     return Response(png, media_type="image/png", headers=IMMUTABLE)
 
 
-def _draw(store: JobStore, job_id: int, name: str) -> bytes:
-    """Draw ``name`` from what it shows: the Q-table's arrays, or the metrics and trajectory."""
+def _draw(store: JobStore, job_id: int, name: str, stored_as: str) -> bytes:
+    """Draw ``name`` from what it shows: the Q-table's arrays, or the metrics and trajectory
+    (the learning curve reads only the metrics, as a cancelled job keeps no trajectory)."""
     if name == "qtable":
         png = _qtable_png(store, job_id)
     else:
         metrics = store.metrics(job_id)
         arrays = {} if name == "learning" else store.trajectory(job_id)
-        png = plots.render(SimulationResult.from_stored(metrics, arrays), name)
-    store.save_plot(job_id, name, png)
+        png = pictures.render(SimulationResult.from_stored(metrics, arrays), name)
+    store.save_plot(job_id, stored_as, png)
     return png
 
 
@@ -411,7 +419,7 @@ def _qtable_png(store: JobStore, job_id: int) -> bytes:
             f"job {job_id} learned no Q-table: its robots used the {policy!r} policy, and only "
             "q_learning learns one"
         )
-    return plots.qtable_png(
+    return pictures.qtable_png(
         arrays["states"].tolist(), arrays["actions"].tolist(), arrays["values"], arrays["visits"]
     )
 

@@ -11,8 +11,9 @@ from fastapi import APIRouter, Body, Path, Query, Response
 from fastapi.concurrency import run_in_threadpool
 from pydantic import ValidationError
 
+from nanonav.pictures import study as pictures
 from nanonav.store import StudyJob, StudyJobState, StudyNotFound, StudyRecord, StudyStore
-from nanonav.studies import export, pictures
+from nanonav.studies import export
 from nanonav.studies.report import (
     JobOutcome,
     StudyStatus,
@@ -35,7 +36,7 @@ from service.deps import (
     StoreDep,
     StudiesDep,
 )
-from service.drawing import Drawer
+from service.drawing import Drawer, kept_name
 from service.idempotency import IdempotencyDep
 from service.ids import StudyId
 from service.paging import Cursor, decode_cursor, encode_cursor
@@ -286,7 +287,7 @@ async def get_study_plot(
 ) -> Response:
     """A metric against the swept numeric parameter with CI bars, a line per compared method
     (grouped bars when no swept parameter is numeric), or the mean learning curves."""
-    png = await run_in_threadpool(studies.plot, study_id, name)
+    png = await run_in_threadpool(studies.plot, study_id, kept_name(name, pictures.VERSION))
     if png is not None:
         return Response(png, media_type="image/png", headers=IMMUTABLE)
     return await _draw(drawer, studies, study_id, name)
@@ -307,8 +308,8 @@ def _draw_now(studies: StudyStore, study_id: int, name: str, finished: list[bool
         png = pictures.learning_png(loaded.spec, point_values(loaded.spec), loaded.outcomes)
     else:
         png = pictures.metric_png(loaded.spec, loaded.report(studies), name)
-    if loaded.done:
-        studies.keep_plot(study_id, name, png)
+    if loaded.done:  # kept under its drawing's version: a copy of an older one is drawn again
+        studies.keep_plot(study_id, kept_name(name, pictures.VERSION), png)
     finished.append(loaded.done)
     return png
 

@@ -13,8 +13,9 @@ import pytest
 from matplotlib.image import imread
 
 import nanonav.engine
-from nanonav import cli, plots
+from nanonav import cli
 from nanonav.engine import Progress, SimulationResult, simulate
+from nanonav.pictures import job as pictures
 
 SMALL: dict[str, Any] = {"learning": {"episodes": 2, "max_steps": 200}, "obstacles": {"count": 3}}
 DOCUMENT_KEYS = {
@@ -89,7 +90,7 @@ def test_out_writes_decodable_pictures_arrays_and_metrics(
     out_dir = tmp_path / "results" / "run1"
     assert cli.main(["run", "--scenario", path, "--out", str(out_dir), "--json"]) == 0
     printed = json.loads(capsys.readouterr().out)
-    for name in plots.PICTURE_NAMES:
+    for name in pictures.PICTURE_NAMES:
         png = (out_dir / f"{name}.png").read_bytes()
         assert png.startswith(b"\x89PNG\r\n\x1a\n")
         assert imread(io.BytesIO(png), format="png").ndim == 3
@@ -100,6 +101,22 @@ def test_out_writes_decodable_pictures_arrays_and_metrics(
     metrics = json.loads((out_dir / "metrics.json").read_text(encoding="utf-8"))
     assert metrics["scenario"] == printed["scenario"]
     assert metrics["robots"] == printed["robots"]
+
+
+def test_out_writes_the_qtable_picture_only_for_a_policy_that_learns_a_table(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    learner = write_scenario(tmp_path, SMALL)
+    baseline = write_scenario(
+        tmp_path, {**SMALL, "robots": {"policy": "gradient"}}, "gradient.json"
+    )
+    assert cli.main(["run", "--scenario", learner, "--out", str(tmp_path / "learner")]) == 0
+    assert cli.main(["run", "--scenario", baseline, "--out", str(tmp_path / "gradient")]) == 0
+    capsys.readouterr()
+    table = imread(tmp_path / "learner" / "qtable.png", format="png")
+    assert table.shape[:2] == (1500, 780)  # 72 states x 4 actions, as the service draws it
+    assert not (tmp_path / "gradient" / "qtable.png").exists()
+    assert (tmp_path / "gradient" / "learning.png").exists()
 
 
 def test_invalid_scenario_exits_2_naming_each_field(

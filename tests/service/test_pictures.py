@@ -2,19 +2,22 @@
 
 from __future__ import annotations
 
+import json
 import threading
 import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
 from typing import Any
 
 import httpx
 import pytest
 
-from nanonav import plots
+from nanonav import cli
 from nanonav.engine import SimulationResult
+from nanonav.pictures import job as pictures
 from nanonav.settings import Settings
-from nanonav.store import JobStatus, JobStore
+from nanonav.store import JobStatus, JobStore, StudyStore
 from nanonav.store.migrate import upgrade
 from service.app import create_app
 from tests.conftest import Api, serve
@@ -39,7 +42,7 @@ def drawn(monkeypatch: pytest.MonkeyPatch) -> Iterator[list[str]]:
     """The names of the pictures the API draws, in order (with the slice and resolution asked
     for, if any); each drawing takes a little while, so that requests made together overlap."""
     names: list[str] = []
-    real = plots.render
+    real = pictures.render
 
     def counted(result: SimulationResult, name: str, **options: Any) -> bytes:
         asked = "&".join(f"{key}={value}" for key, value in sorted(options.items()))
@@ -47,7 +50,7 @@ def drawn(monkeypatch: pytest.MonkeyPatch) -> Iterator[list[str]]:
         time.sleep(0.2)
         return real(result, name, **options)
 
-    monkeypatch.setattr(plots, "render", counted)
+    monkeypatch.setattr(pictures, "render", counted)
     yield names
 
 
@@ -90,7 +93,7 @@ def test_the_default_heatmap_is_stored_whether_or_not_its_resolution_is_named(
     default = api.client.get(f"/jobs/{job_id}/heatmap.png", params={"plane": "yz"})
     named = api.client.get(
         f"/jobs/{job_id}/heatmap.png",
-        params={"plane": "yz", "resolution": plots.HEATMAP_RESOLUTION},
+        params={"plane": "yz", "resolution": pictures.HEATMAP_RESOLUTION},
     )
     assert default.status_code == named.status_code == 200
     assert named.content == default.content == api.store.plot(job_id, "heatmap_yz")
@@ -164,14 +167,14 @@ def test_pictures_beyond_the_drawing_queue_are_refused_with_503(
     job_id = succeeded_job(store, settings)
     release = threading.Event()
     started = threading.Event()
-    real: Callable[[SimulationResult, str], bytes] = plots.render
+    real: Callable[[SimulationResult, str], bytes] = pictures.render
 
     def blocked(result: SimulationResult, name: str) -> bytes:
         started.set()
         release.wait(10)
         return real(result, name)
 
-    monkeypatch.setattr(plots, "render", blocked)
+    monkeypatch.setattr(pictures, "render", blocked)
     with serve(create_app(settings)) as url, httpx.Client(base_url=url, timeout=30) as client:
         with ThreadPoolExecutor(1) as pool:
             slow = pool.submit(client.get, f"/jobs/{job_id}/plots/trajectory.png")
@@ -186,3 +189,58 @@ def test_pictures_beyond_the_drawing_queue_are_refused_with_503(
             assert slow.result().status_code == 200
         assert client.get(f"/jobs/{job_id}/plots/learning.png").status_code == 200
     store.close()
+
+
+def test_the_served_learning_curve_and_qtable_are_the_ones_nanonav_run_writes(
+    api: Api, api_settings: Settings, tmp_path: Path
+) -> None:
+    job_id = succeeded_job(api.store, api_settings)
+    scenario = tmp_path / "scenario.json"
+    scenario.write_text(json.dumps(api.store.metrics(job_id)["scenario"]), encoding="utf-8")
+    out = tmp_path / "run"
+    assert cli.main(["run", "--scenario", str(scenario), "--out", str(out)]) == 0
+    links = api.client.get(f"/jobs/{job_id}").json()["links"]["plots"]
+    for name in ("learning", "qtable"):
+        served = api.client.get(links[name])
+        assert served.status_code == 200, served.text
+        assert served.content == (out / f"{name}.png").read_bytes(), name
+
+
+def test_a_learning_curve_kept_from_an_older_drawing_is_drawn_again(
+    api: Api, api_settings: Settings, drawn: list[str]
+) -> None:
+    job_id = succeeded_job(api.store, api_settings)
+    api.store.save_plot(job_id, "learning", b"kept before the curve showed its evaluation")
+    link = api.client.get(f"/jobs/{job_id}").json()["links"]["plots"]["learning"]
+    assert link == f"/jobs/{job_id}/plots/learning.png?v=2"
+    bodies = set()
+    for url in (link, link, f"/jobs/{job_id}/plots/learning.png"):
+        served = api.client.get(url)
+        assert served.status_code == 200, served.text
+        assert served.content.startswith(b"\x89PNG")
+        bodies.add(served.content)
+    assert len(bodies) == 1
+    assert drawn == ["learning"]  # drawn once more, then kept beside the old copy
+
+
+def test_the_jobs_page_shows_the_pictures_its_links_name(api: Api, api_settings: Settings) -> None:
+    job_id = succeeded_job(api.store, api_settings)
+    links = api.client.get(f"/jobs/{job_id}").json()["links"]["plots"]
+    assert set(links) == {"trajectory", "concentration", "learning", "qtable"}
+    page = api.client.get(f"/ui/jobs/{job_id}").text
+    for url in links.values():
+        assert f'<img src="{url}"' in page, url
+
+
+def test_a_study_picture_kept_from_an_older_drawing_is_drawn_again(api: Api) -> None:
+    study = {"base": TINY, "grid": {"robots.policy": ["q_learning", "gradient"]}, "seeds": [0]}
+    created = api.client.post("/studies", json=study)
+    assert created.status_code == 202, created.text
+    study_id = created.json()["id"]
+    assert api.client.post(f"/studies/{study_id}/cancel").json()["status"] == "cancelled"
+    stale = b"kept before the series were named in words"
+    StudyStore(api.store.engine).keep_plot(study_id, "learning", stale)
+    served = [api.client.get(f"/studies/{study_id}/plots/learning.png") for _ in range(2)]
+    assert all(s.status_code == 200 and s.content.startswith(b"\x89PNG") for s in served)
+    assert served[0].content == served[1].content != stale
+    assert "immutable" in served[0].headers["cache-control"]  # the study is over: kept

@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import io
+from collections.abc import Mapping, Sequence
 
 import numpy as np
+import pytest
 from matplotlib.image import imread
 
-from nanonav.studies.pictures import axis_key, learning_png, metric_png
+from nanonav.pictures.study import axis_key, charts, learning_png, metric_png
 from nanonav.studies.report import METRICS, JobOutcome, report
 from nanonav.studies.spec import StudySpec, point_values
 
@@ -61,3 +63,58 @@ def test_metric_pictures_draw_lines_or_bars() -> None:
         found = report(study, point_values(study), outcomes(study, False))
         image = decode(metric_png(study, found, "total_steps"))
         assert image.shape[:2] == (500, 800) and image[..., :3].std() > 0.05
+
+
+class Received:
+    """What the drawing functions were given: the series' labels, their x values (the labels of
+    the bars' groups when x is not a number) and the axis label."""
+
+    def __init__(self, monkeypatch: pytest.MonkeyPatch) -> None:
+        self.labels: list[list[str]] = []
+        self.xs: list[list[object]] = []
+        self.x_labels: list[str | None] = []
+        monkeypatch.setattr(charts, "metric_png", self.metric)
+        monkeypatch.setattr(charts, "learning_png", self.learning)
+
+    def metric(
+        self,
+        metric: str,
+        series: Sequence[charts.Series],
+        *,
+        x_label: str | None,
+        title: str | None = None,
+    ) -> bytes:
+        self.labels.append([s.label for s in series])
+        self.xs.append([x for s in series for x in s.x])
+        self.x_labels.append(x_label)
+        return b""
+
+    def learning(
+        self, panels: Mapping[str, Sequence[charts.Series]], *, title: str | None = None
+    ) -> bytes:
+        self.labels.extend([s.label for s in group] for group in panels.values())
+        return b""
+
+
+def test_series_are_labelled_by_readable_names_and_values(monkeypatch: pytest.MonkeyPatch) -> None:
+    received = Received(monkeypatch)
+    study = spec({"robots.policy": ["q_learning", "gradient"], "obstacles.count": [0, 5]},
+                 "robots.policy")  # fmt: skip
+    metric_png(study, report(study, point_values(study), outcomes(study, False)), "total_steps")
+    assert received.labels == [["robots policy: q_learning", "robots policy: gradient"]]
+    assert received.xs == [[0, 5, 0, 5]]
+    assert received.x_labels == ["obstacles count"]
+    learning_png(study, point_values(study), outcomes(study, True))
+    points = [f"robots policy: {policy}, obstacles count: {count}"
+              for policy in ("q_learning", "gradient") for count in (0, 5)]  # fmt: skip
+    assert received.labels[1:] == [points] * 3  # one panel each: steps, success, return
+
+
+def test_bars_are_labelled_by_readable_names_and_values(monkeypatch: pytest.MonkeyPatch) -> None:
+    received = Received(monkeypatch)
+    study = spec({"robots.policy": ["q_learning", "gradient"],
+                  "learning.shared_table": [True, False]}, "robots.policy")  # fmt: skip
+    metric_png(study, report(study, point_values(study), outcomes(study, False)), "success_rate")
+    assert received.labels == [["robots policy: q_learning", "robots policy: gradient"]]
+    assert received.xs == [["learning shared table: true", "learning shared table: false"] * 2]
+    assert received.x_labels == [None]

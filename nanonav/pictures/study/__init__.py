@@ -1,7 +1,7 @@
 """A study's pictures: one metric against the swept numeric parameter (a line per compared
 method, CI bars), or grouped bars when no swept parameter is numeric; and the mean learning
 curves of every grid point with CI bands. This module picks what goes on which axis; drawing is
-``nanonav.study_plots``'s."""
+``charts``'s."""
 
 from __future__ import annotations
 
@@ -11,7 +11,8 @@ from typing import Any
 
 import numpy as np
 
-from nanonav import stats, study_plots
+from nanonav import stats
+from nanonav.pictures.study import charts
 from nanonav.studies.report import METRICS, JobOutcome
 from nanonav.studies.spec import GridValue, StudySpec
 
@@ -21,6 +22,12 @@ LEARNING_PANELS = {
     "mean_return": "mean return per robot",
 }
 PICTURES = (*METRICS, "learning")
+VERSION = 2
+"""The version of the drawing of every picture of a study: it goes up when a picture drawn
+before would now be drawn differently, so that a copy kept of the older drawing is drawn again.
+2: series and groups named in words (``robots policy: q_learning``, not
+``robots.policy=q_learning``), and a metric's title no longer says its interval is Student t's
+(bounded metrics have others: ``nanonav.stats``)."""
 
 
 def _numeric(values: Sequence[GridValue]) -> bool:
@@ -34,8 +41,21 @@ def axis_key(spec: StudySpec) -> str | None:
     )
 
 
+def readable_key(key: str) -> str:
+    """A grid key in words, its section kept, as a field alone can be ambiguous (``count``,
+    ``step``): ``robots.policy`` is robots policy, ``learning.shared_table`` learning shared
+    table."""
+    return key.replace(".", " ").replace("_", " ")
+
+
+def _readable_value(value: GridValue) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"  # as the study's JSON says it
+    return f"{value:g}" if isinstance(value, float) else str(value)
+
+
 def _label(values: dict[str, GridValue], keys: Sequence[str]) -> str:
-    return ", ".join(f"{k}={values[k]}" for k in keys)
+    return ", ".join(f"{readable_key(k)}: {_readable_value(values[k])}" for k in keys)
 
 
 def metric_png(spec: StudySpec, report: dict[str, Any], metric: str) -> bytes:
@@ -61,18 +81,18 @@ def metric_png(spec: StudySpec, report: dict[str, Any], metric: str) -> bytes:
         line["low"].append(found["ci_low"])
         line["high"].append(found["ci_high"])
     drawn = [
-        study_plots.Series(label, s["x"], s["mean"], s["low"], s["high"])
-        for label, s in series.items()
+        charts.Series(label, s["x"], s["mean"], s["low"], s["high"]) for label, s in series.items()
     ]
-    title = f"{spec.name or 'Study'}: {metric.replace('_', ' ')}, mean with 95% CI (Student t)"
-    return study_plots.metric_png(metric, drawn, x_label=axis, title=title)
+    title = f"{spec.name or 'Study'}: {metric.replace('_', ' ')}, mean with 95% CI"
+    x_label = None if axis is None else readable_key(axis)
+    return charts.metric_png(metric, drawn, x_label=x_label, title=title)
 
 
 def learning_png(
     spec: StudySpec, values: Sequence[dict[str, GridValue]], jobs: Sequence[JobOutcome]
 ) -> bytes:
     """The learning curve of every grid point, averaged over its succeeded seeds, with CIs."""
-    panels: dict[str, list[study_plots.Series]] = {title: [] for title in LEARNING_PANELS.values()}
+    panels: dict[str, list[charts.Series]] = {title: [] for title in LEARNING_PANELS.values()}
     for index, point_values in enumerate(values):
         curves = [
             job.curve
@@ -88,7 +108,7 @@ def learning_png(
             matrix = np.array([c[key][:length] for c in curves], dtype=np.float64)
             described = [stats.describe(column.tolist()) for column in matrix.T]
             panels[title].append(
-                study_plots.Series(
+                charts.Series(
                     label,
                     episodes,
                     [d.mean for d in described],
@@ -96,4 +116,4 @@ def learning_png(
                     [d.ci_high for d in described],
                 )
             )
-    return study_plots.learning_png(panels, title=f"{spec.name or 'Study'}: learning curves")
+    return charts.learning_png(panels, title=f"{spec.name or 'Study'}: learning curves")

@@ -9,8 +9,8 @@ from matplotlib.colors import to_rgb
 from matplotlib.image import imread
 from numpy.typing import NDArray
 
-from nanonav import study_plots
-from nanonav.study_plots import SERIES_COLOURS, Series, learning_png, metric_png
+from nanonav.pictures.study import charts
+from nanonav.pictures.study.charts import SERIES_COLOURS, Series, learning_png, metric_png
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 METRIC_SIZE = (800, 500)  # 8 x 5 inches at 100 DPI
@@ -209,14 +209,14 @@ def test_bin_averages_keep_at_most_the_limit_and_skip_gaps() -> None:
     y = x.copy()
     y[10:20] = np.nan  # the whole second bin is missing
     y[25] = np.nan  # part of the third
-    binned = study_plots._bin_average(np.vstack([x, y]), 2_000)
+    binned = charts._bin_average(np.vstack([x, y]), 2_000)
     assert binned.shape == (2, 2_000)
     assert binned[0, 0] == pytest.approx(4.5)
     assert np.isnan(binned[1, 1])
     assert binned[1, 2] == pytest.approx(np.mean([20, 21, 22, 23, 24, 26, 27, 28, 29]))
     assert binned[0, -1] == pytest.approx(19_994.5)
     short = np.vstack([x[:50], y[:50]])
-    assert study_plots._bin_average(short, 2_000) is short
+    assert charts._bin_average(short, 2_000) is short
 
 
 def test_learning_with_nothing_to_draw_says_so_in_each_panel() -> None:

@@ -2,9 +2,10 @@
 and the mean learning curves of several scenarios.
 
 The numbers arrive already summarised (means and confidence bounds, see ``nanonav.stats``); this
-module only draws them, so it reads no result, job or database. As in ``nanonav.plots``, each
-figure is its own ``matplotlib.figure.Figure`` on the Agg canvas, saved to a ``BytesIO``, never
-pyplot, and each PNG is exactly ``figsize x DPI`` pixels.
+module only draws them, so it reads no result, job or database (``nanonav.pictures.study`` turns
+a study's report into them). As for a job's pictures, each figure is its own
+``matplotlib.figure.Figure`` on the Agg canvas, saved to a ``BytesIO``, never pyplot, and each PNG
+is exactly ``figsize x DPI`` pixels.
 
 A series keeps its colour in every picture of a study: colours are given by the order in which
 labels first appear in a call, so callers pass the scenarios in the same (the study's) order.
@@ -27,7 +28,7 @@ from matplotlib.ticker import NullLocator
 from matplotlib.typing import LineStyleType
 from numpy.typing import NDArray
 
-from nanonav.figures import new_figure, png
+from nanonav.pictures.figure import new_figure, png
 
 METRIC_FIGSIZE = (8.0, 5.0)
 LEARNING_WIDTH = 8.0

@@ -1,0 +1,106 @@
+"""The pictures of a job, as PNG bytes: the paper's Figures 3, 4 and 5 (``trajectory``,
+``concentration``, ``heatmap``), the ``learning`` curve and the learned ``qtable``, a module
+each; ``render`` and ``render_all`` draw them by name.
+
+These modules only read a finished ``SimulationResult`` (or, for the Q-table, its arrays). Each
+PNG is exactly ``PICTURE_PIXELS`` in size (no tight bounding box), which clients can rely on;
+the Q-table's grows with the table.
+"""
+
+from __future__ import annotations
+
+from nanonav.engine import SimulationResult
+from nanonav.pictures.figure import png
+from nanonav.pictures.job.common import PICTURE_PIXELS, ColourScale, resolve_scale
+from nanonav.pictures.job.concentration import concentration_png
+from nanonav.pictures.job.heatmap import (
+    HEATMAP_RESOLUTION,
+    MAX_HEATMAP_RESOLUTION,
+    MIN_HEATMAP_RESOLUTION,
+    Plane,
+    heatmap_figure,
+    heatmap_png,
+    heatmap_slices,
+)
+from nanonav.pictures.job.learning import learning_png
+from nanonav.pictures.job.qtable import learned_qtable_png, qtable_png
+from nanonav.pictures.job.trajectory import trajectory_png
+
+__all__ = [
+    "HEATMAP_RESOLUTION",
+    "MAX_HEATMAP_RESOLUTION",
+    "MIN_HEATMAP_RESOLUTION",
+    "PICTURE_NAMES",
+    "PICTURE_PIXELS",
+    "VERSIONS",
+    "ColourScale",
+    "qtable_png",
+    "render",
+    "render_all",
+    "version",
+]
+
+PICTURE_NAMES: tuple[str, ...] = (
+    "heatmap_xy",
+    "heatmap_xz",
+    "heatmap_yz",
+    "heatmap_all",
+    "trajectory",
+    "concentration",
+    "learning",
+    "qtable",
+)
+"""The keys of ``render_all``: also the file names (``<name>.png``) the command line writes;
+``qtable`` only for a result that learned a Q-table (Q-learning)."""
+
+VERSIONS: dict[str, int] = {"learning": 2}
+"""The version of each picture's drawing, for the pictures past their first (the others are at
+1). It goes up when a picture drawn before would now be drawn differently, so that a copy kept
+of the older drawing is not served again. 2: ``learning`` of a result stored without its
+trajectory shows the greedy evaluation too."""
+
+
+def version(name: str) -> int:
+    """The version of the drawing of the picture ``name`` (``VERSIONS``)."""
+    return VERSIONS.get(name, 1)
+
+
+def render(
+    result: SimulationResult,
+    name: str,
+    *,
+    scale: ColourScale = "auto",
+    at: float | None = None,
+    resolution: int = HEATMAP_RESOLUTION,
+) -> bytes:
+    """The one picture ``name`` (one of ``PICTURE_NAMES``), drawn on its own; ``at`` and
+    ``resolution`` choose a heatmap's slice and grid (``heatmap_png``)."""
+    planes: dict[str, Plane] = {"heatmap_xy": "xy", "heatmap_xz": "xz", "heatmap_yz": "yz",
+                                "heatmap_all": "all"}  # fmt: skip
+    if name in planes:
+        return heatmap_png(result, planes[name], at=at, resolution=resolution, scale=scale)
+    drawers = {"trajectory": trajectory_png, "concentration": concentration_png,
+               "learning": learning_png, "qtable": learned_qtable_png}  # fmt: skip
+    if name not in drawers:
+        raise ValueError(f"there is no picture {name!r}; there are {', '.join(PICTURE_NAMES)}")
+    if at is not None or resolution != HEATMAP_RESOLUTION:
+        raise ValueError(f"only heatmaps take at and resolution, not {name!r}")
+    return drawers[name](result)
+
+
+def render_all(result: SimulationResult, *, scale: ColourScale = "auto") -> dict[str, bytes]:
+    """Every picture the result has, keyed by ``PICTURE_NAMES`` (the Q-table only if it learned
+    one); the field is evaluated once for the four heatmaps."""
+    planes = ("xy", "xz", "yz")
+    slices = heatmap_slices(result, planes)
+    resolved = resolve_scale(result, scale)
+    pictures = {
+        f"heatmap_{p}": png(heatmap_figure(result, {p: slices[p]}, resolved)) for p in planes
+    }
+    pictures["heatmap_all"] = png(heatmap_figure(result, slices, resolved))
+    pictures["trajectory"] = trajectory_png(result)
+    pictures["concentration"] = concentration_png(result)
+    pictures["learning"] = learning_png(result)
+    if result.qtable is not None:
+        pictures["qtable"] = learned_qtable_png(result)
+    return {name: pictures[name] for name in PICTURE_NAMES if name in pictures}

@@ -1,0 +1,74 @@
+"""What every picture of a job shares: its size in pixels, the colours, and the evaluation
+episode it reads from a finished ``SimulationResult``."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+from matplotlib.figure import Figure
+from numpy.typing import NDArray
+
+from nanonav.engine import SimulationResult, Trajectory
+from nanonav.pictures.figure import DPI, new_figure
+
+ColourScale = Literal["auto", "linear", "log"]
+
+PICTURE_PIXELS: dict[str, tuple[int, int]] = {
+    "heatmap_xy": (640, 620),
+    "heatmap_xz": (640, 620),
+    "heatmap_yz": (640, 620),
+    "heatmap_all": (1520, 540),
+    "trajectory": (750, 720),
+    "concentration": (800, 600),
+    "learning": (900, 600),
+}
+"""(width, height) in pixels of each picture, whatever it shows (one robot or ten thousand, a
+learner or a baseline, any heatmap resolution); the Q-table's grows with the table."""
+
+# Paths longer than this are thinned to this many points (their last one kept) to draw fast.
+MAX_LINE_POINTS = 2000
+
+LENGTH = "length units"
+ROBOT_BLUE = "tab:blue"
+CELL_RED = "tab:red"
+START_GREEN = "tab:green"
+
+
+def sized_figure(name: str) -> Figure:
+    """An empty figure of the picture ``name``'s size (``PICTURE_PIXELS``)."""
+    width, height = PICTURE_PIXELS[name]
+    return new_figure(width / DPI, height / DPI)
+
+
+def evaluation_trajectory(result: SimulationResult) -> Trajectory:
+    """The recorded evaluation episode, or ``ValueError`` for a run stopped before it."""
+    if result.trajectory is None:
+        raise ValueError(
+            "this result has no evaluation episode to draw (the run was stopped before it "
+            "finished); only the learning curve can be drawn"
+        )
+    return result.trajectory
+
+
+def last_row(trajectory: Trajectory, robot: int) -> int:
+    """The history row that shows ``robot`` where it stopped: the first row at or after its last
+    step (rows may be ``stride`` steps apart, and a stopped robot stays put)."""
+    row = int(np.searchsorted(trajectory.step, trajectory.robot_steps[robot], side="left"))
+    return min(row, len(trajectory.step) - 1)
+
+
+def thin(path: NDArray[np.float64]) -> NDArray[np.float64]:
+    """At most ``MAX_LINE_POINTS`` rows of a path, always keeping its last point."""
+    if len(path) <= MAX_LINE_POINTS:
+        return path
+    stride = int(np.ceil(len(path) / MAX_LINE_POINTS))
+    return np.concatenate([path[::stride], path[-1:]])
+
+
+def resolve_scale(result: SimulationResult, scale: ColourScale) -> Literal["linear", "log"]:
+    """``scale``, with ``"auto"`` made linear for the Gaussian field and logarithmic for the
+    others, which span decades."""
+    if scale != "auto":
+        return scale
+    return "linear" if result.scenario.biomarker.model == "gaussian" else "log"
