@@ -22,6 +22,7 @@ signed-rank p-value. ``--out`` writes the pictures (PNG) there.
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import sys
 import time
@@ -63,20 +64,24 @@ class Outcome:
     summary: dict[str, Any]
     chemotaxis_clear: float | None
     chemotaxis_all: float | None
+    # the greedy move is the sensed direction itself (chance: 1 in 26), clear states
+    chemotaxis_strict: float | None
+    chemotaxis_chance: float | None  # a random table's chemotaxis_clear in the same states
     worst_final_distance: float  # the largest final distance of any world (robots' mean)
     worst_success: float  # the lowest success rate of any evaluation world
 
 
 def run_one(scenario: dict[str, Any]) -> Outcome:
     result = simulate(Scenario.model_validate(scenario))
-    clear = every = None
+    clear = every = strict = chance = None
     q = result.qtable
     if q is not None and result.scenario.learning.actions == "directions":
-        clear = chemotaxis(q.states, q.actions, q.values, q.visits, near_obstacles=False).share
+        found = chemotaxis(q.states, q.actions, q.values, q.visits, near_obstacles=False)
+        clear, strict, chance = found.share, found.strict_share, found.chance
         every = chemotaxis(q.states, q.actions, q.values, q.visits).share
     worst = max(w["final_distance"] for w in result.worlds)
     lowest = min(w["success_rate"] for w in result.worlds)
-    return Outcome(result.summary, clear, every, worst, lowest)
+    return Outcome(result.summary, clear, every, strict, chance, worst, lowest)
 
 
 class Runner:
@@ -106,8 +111,11 @@ def values(outcomes: Sequence[Outcome], key: str | Callable[[Outcome], Any]) -> 
     return [float(v) for v in (pick(o) for o in outcomes) if v is not None]
 
 
-def mean_ci(sample: Sequence[float], digits: int = 2) -> str:
-    d = stats.describe(sample)
+def mean_ci(
+    sample: Sequence[float], digits: int = 2, bounds: tuple[float, float] | None = (0.0, 1.0)
+) -> str:
+    """Mean and 95 % interval; by default of shares, whose interval stays in [0, 1]."""
+    d = stats.describe(sample, bounds=bounds)
     if d.mean is None:
         return "n/a"
     if d.ci_low is None or d.ci_high is None:
@@ -160,17 +168,21 @@ def defaults(run: Runner, episodes: int) -> None:
                 name,
                 mean_ci(values(found, "success_rate")),
                 mean_ci(values(found, lambda o: o.chemotaxis_clear)),
+                mean_ci(values(found, lambda o: o.chemotaxis_chance)),
+                mean_ci(values(found, lambda o: o.chemotaxis_strict)),
                 mean_ci(values(found, lambda o: o.chemotaxis_all)),
             )
         )
-    table(("learner", "greedy success", "climbs: clear states", "climbs: all states"), rows)
+    table(("learner", "greedy success", "climbs: clear states", "(chance)",
+           "strictly: clear", "climbs: all states"), rows)  # fmt: skip
 
 
 def chemotaxis_from_scratch(run: Runner, schedule: Sequence[int], out: Path | None) -> None:
     print("2. Chemotaxis from scratch: 'directions' Q-learning in paper-swarm")
     gradient = run({"preset": "paper-swarm", "robots": {"policy": "gradient"},
                     "learning": {"episodes": 0}})  # fmt: skip
-    rows = [("gradient (no learning)", "-", mean_ci(values(gradient, "success_rate")), "-", "-")]
+    rows = [("gradient (no learning)", "-", mean_ci(values(gradient, "success_rate")), "-", "-",
+             "-", "-")]  # fmt: skip
     curve: dict[str, list[Any]] = {"x": [], "mean": [], "low": [], "high": []}
     for episodes in schedule:
         found = run({"preset": "paper-swarm",
@@ -181,17 +193,20 @@ def chemotaxis_from_scratch(run: Runner, schedule: Sequence[int], out: Path | No
                 str(episodes),
                 mean_ci(values(found, "success_rate")),
                 mean_ci(values(found, lambda o: o.chemotaxis_clear)),
+                mean_ci(values(found, lambda o: o.chemotaxis_chance)),
+                mean_ci(values(found, lambda o: o.chemotaxis_strict)),
                 mean_ci(values(found, lambda o: o.chemotaxis_all)),
             )
         )
-        d = stats.describe(values(found, "success_rate"))
+        d = stats.describe(values(found, "success_rate"), bounds=(0.0, 1.0))
         curve["x"].append(episodes)
         curve["mean"].append(d.mean)
         curve["low"].append(d.ci_low)
         curve["high"].append(d.ci_high)
-    table(("policy", "episodes", "greedy success", "climbs: clear states", "climbs: all"), rows)
+    table(("policy", "episodes", "greedy success", "climbs: clear states", "(chance)",
+           "strictly: clear", "climbs: all"), rows)  # fmt: skip
     if out is not None:
-        g = stats.describe(values(gradient, "success_rate"))
+        g = stats.describe(values(gradient, "success_rate"), bounds=(0.0, 1.0))
         flat = charts.Series(
             "gradient", curve["x"], [g.mean] * len(curve["x"]), [g.ci_low] * len(curve["x"]),
             [g.ci_high] * len(curve["x"]),
@@ -257,7 +272,7 @@ def settings(run: Runner, episodes: dict[str, int], out: Path | None) -> None:
             fixed_run = {"robots": {"policy": fixed}, "learning": {"episodes": 0}}
             policies[fixed] = run(merge(world, fixed_run))
         for label, found in policies.items():
-            d = stats.describe(values(found, "success_rate"))
+            d = stats.describe(values(found, "success_rate"), bounds=(0.0, 1.0))
             line = series.setdefault(label, {"x": [], "mean": [], "low": [], "high": []})
             line["x"].append(name)
             line["mean"].append(d.mean)
@@ -306,7 +321,8 @@ def authors_script(run: Runner, seeds: Sequence[int]) -> None:
             + (f" [{script[1]}, {script[2]}]" if script[1] is not None else "")
             + (f" ({script[3]})" if script[3] else "")
         )
-        rows.append((key, str(PAPER_TABLE_1[key]), script_text, mean_ci(sample),
+        rows.append((key, str(PAPER_TABLE_1[key]), script_text,
+                     mean_ci(sample, bounds=(0.0, math.inf)),
                      f"{min(sample):.2f} .. {max(sample):.2f}"))  # fmt: skip
     table(("metric", "paper", "authors' script", "NanoNav (mean over seeds)", "range"), rows)
     worst = max(values(found, lambda o: o.worst_final_distance))

@@ -177,14 +177,24 @@ def learned_table(
 class Chemotaxis:
     """How many states that sense a gradient move up it: of ``states`` such visited states of a
     'directions' table, ``agree`` have a greedy move with a positive component along the sensed
-    gradient's signs."""
+    gradient's signs, and ``strict_agree`` a greedy move in the sensed direction itself (its
+    sign on every axis, zero where the gradient has none). ``chance`` and ``strict_chance`` are
+    what a greedy move drawn at random would score in the same states: a positive component
+    is easy (9 or 10 of the 26 moves), the sensed direction is one move in 26."""
 
     agree: int
     states: int
+    strict_agree: int = 0
+    chance: float | None = None
+    strict_chance: float | None = None
 
     @property
     def share(self) -> float | None:
         return self.agree / self.states if self.states else None
+
+    @property
+    def strict_share(self) -> float | None:
+        return self.strict_agree / self.states if self.states else None
 
 
 def _signs(label: str) -> NDArray[np.float64]:
@@ -206,7 +216,8 @@ def chemotaxis(
     ``near_obstacles`` is false), is the greedy move's dot product with those signs positive?"""
     table, counts = swarm_table(values, visits)
     moves = np.array([_signs(a) for a in actions])
-    agree = counted = 0
+    agree = strict = counted = 0
+    chance = strict_chance = 0.0
     for index, label in enumerate(states):
         signs = _signs(label)
         if not signs.any() or counts[index].sum() == 0:
@@ -214,5 +225,15 @@ def chemotaxis(
         if not near_obstacles and label.endswith("obstacle=near"):
             continue
         counted += 1
-        agree += bool(moves[int(np.argmax(table[index]))] @ signs > 0)
-    return Chemotaxis(agree=agree, states=counted)
+        greedy = moves[int(np.argmax(table[index]))]
+        agree += bool(greedy @ signs > 0)
+        strict += bool(np.array_equal(greedy, signs))
+        chance += float(np.mean(moves @ signs > 0))
+        strict_chance += float(np.mean(np.all(moves == signs, axis=1)))
+    return Chemotaxis(
+        agree=agree,
+        states=counted,
+        strict_agree=strict,
+        chance=chance / counted if counted else None,
+        strict_chance=strict_chance / counted if counted else None,
+    )

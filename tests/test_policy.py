@@ -195,6 +195,23 @@ def test_chemotaxis_counts_visited_gradient_states_whose_greedy_move_climbs() ->
         visits[state, action] = 3
     found = chemotaxis(states, actions, values, visits)
     assert (found.agree, found.states, found.share) == (1, 2, 0.5)  # the flat state has no sign
+    assert (found.strict_agree, found.strict_share) == (1, 0.5)
+    # one axis sensed: 9 of the 26 moves have a positive component; two axes: 9 too
+    assert found.chance == pytest.approx(9 / 26) and found.strict_chance == pytest.approx(1 / 26)
     clear = chemotaxis(states, actions, values, visits, near_obstacles=False)
     assert (clear.agree, clear.states) == (1, 1)
     assert chemotaxis(states, actions, values, np.zeros_like(visits)).share is None
+
+
+def test_a_table_of_random_greedy_moves_climbs_at_its_chance_level() -> None:
+    states, actions = qlearning.labels("directions")
+    rng = np.random.default_rng(5)
+    values = rng.random((len(states), len(actions)))
+    visits = np.ones_like(values, dtype=np.int64)
+    found = chemotaxis(states, actions, values, visits)
+    assert found.chance is not None and 0.34 < found.chance < 0.39
+    assert found.share is not None and found.strict_share is not None
+    # a few dozen states: the random table's shares lie within a few standard errors of chance
+    tolerance = 4 * np.sqrt(found.chance * (1 - found.chance) / found.states)
+    assert abs(found.share - found.chance) < tolerance
+    assert found.strict_share < 0.2
