@@ -15,6 +15,7 @@ from typing import Any
 import pyarrow.parquet as pq
 import pytest
 
+from nanonav.engine.metrics import RANGES
 from tests.conftest import Api
 from tests.e2e.test_jobs import LONG, decode_png
 from tests.processes import FIRST_JOB_S, Worker
@@ -67,6 +68,35 @@ def signed_rank_p(differences: list[float]) -> float:
     return min(1.0, hits / len(patterns))
 
 
+def interval_of(
+    values: list[float], bounds: tuple[float, float] | None, method: str
+) -> tuple[float, float]:
+    """The 95 % interval of three values worked out here, for the method the range calls for."""
+    mean, n = statistics.fmean(values), len(values)
+    sd = statistics.stdev(values)
+    outcomes = bounds == (0.0, 1.0) and all(v in (0.0, 1.0) for v in values)
+    if sd == 0.0 and not outcomes:  # n outcomes alike still leave a proportion uncertain
+        return mean, mean
+    if bounds is None:
+        assert method == "student_t"
+        half = T_975_2 * sd / math.sqrt(n)
+        return mean - half, mean + half
+    if bounds == (0.0, 1.0):
+        if outcomes:
+            assert method == "wilson"
+            z = 1.959963984540054
+            centre = (mean + z * z / (2 * n)) / (1 + z * z / n)
+            half = z / (1 + z * z / n) * math.sqrt(mean * (1 - mean) / n + z * z / (4 * n * n))
+            return max(0.0, centre - half), min(1.0, centre + half)
+        assert method == "logit_t"
+        half = T_975_2 * sd / (math.sqrt(n) * mean * (1 - mean))
+        centre = math.log(mean / (1 - mean))
+        return 1 / (1 + math.exp(-(centre - half))), 1 / (1 + math.exp(-(centre + half)))
+    assert method == "log_t"
+    half = T_975_2 * sd / (math.sqrt(n) * mean)
+    return mean * math.exp(-half), mean * math.exp(half)
+
+
 def test_a_study_runs_and_its_statistics_match_the_jobs(
     api: Api, start_worker: Callable[..., Worker]
 ) -> None:
@@ -98,9 +128,9 @@ def test_a_study_runs_and_its_statistics_match_the_jobs(
             assert got["n"] == 3
             assert got["mean"] == pytest.approx(mean, rel=1e-12, abs=1e-12)
             assert got["sd"] == pytest.approx(sd, rel=1e-9, abs=1e-12)
-            half = T_975_2 * sd / math.sqrt(3)
-            assert got["ci_low"] == pytest.approx(mean - half, rel=1e-9, abs=1e-9)
-            assert got["ci_high"] == pytest.approx(mean + half, rel=1e-9, abs=1e-9)
+            low, high = interval_of(values, RANGES[metric], got["method"])
+            assert got["ci_low"] == pytest.approx(low, rel=1e-9, abs=1e-9)
+            assert got["ci_high"] == pytest.approx(high, rel=1e-9, abs=1e-9)
 
     assert len(study["comparisons"]) == 2
     for comparison in study["comparisons"]:
