@@ -350,9 +350,10 @@ class _Loaded:
 
 
 def study_answer(studies: StudyStore, reports: Reports, record: StudyRecord) -> Study:
-    """The study as GET /studies/{id} answers it. Its counts and progress are one aggregate;
-    its report is read from the finished study, or taken from ``reports`` while nothing it
-    depends on has changed, so that polling a large study costs no job's metrics."""
+    """The study as GET /studies/{id} answers it. Its counts and progress are one aggregate,
+    always current; its report is read from the finished study, or taken from ``reports``
+    (while the study runs, at most about a second behind its counts), so that polling a large
+    study costs no job's metrics."""
     found = studies.progress([record.id]).get(record.id)
     if found is None:
         raise StudyNotFound(record.id)
@@ -363,8 +364,12 @@ def study_answer(studies: StudyStore, reports: Reports, record: StudyRecord) -> 
     if done and record.report is not None:
         statistics = record.report
     else:
-        key = (record.id, found.by_point)
-        statistics = reports.get(key, lambda: _Loaded.of(studies, record).report(studies))
+        statistics = reports.get(
+            record.id,
+            found.by_point,
+            lambda: _Loaded.of(studies, record).report(studies),
+            exact=done,  # a finished study's statistics are its final ones
+        )
     return Study(
         id=record.id,
         name=record.name,

@@ -1,5 +1,5 @@
-"""A running study's report is computed once per change of its jobs, not once per GET, and
-is always the report its jobs give now."""
+"""A running study's report is computed once per change of its jobs, and at most about once a
+second, not once per GET; with no minimum interval it is always the report its jobs give now."""
 
 from __future__ import annotations
 
@@ -47,6 +47,7 @@ def polled(sqlite_url: str) -> Iterator[Polled]:
     upgrade(sqlite_url)
     app = create_app(Settings(database_url=sqlite_url))
     store = JobStore.from_url(sqlite_url)
+    app.state.reports = Reports(min_interval_s=0.0)  # every change shows at once
     with serve(app) as url, httpx.Client(base_url=url, headers=SCRIPTED, timeout=30) as client:
         study = client.post("/studies", json=STUDY).json()["id"]
         yield Polled(client, store, StudyStore(store.engine), app.state.reports, study)
@@ -109,7 +110,7 @@ def test_the_finished_study_answers_as_before_and_keeps_its_report(polled: Polle
     assert polled.studies.get(polled.study).report == statistics(answer)
 
 
-def test_clients_that_miss_at_once_wait_for_one_computation() -> None:
+def test_clients_that_miss_a_first_report_at_once_wait_for_one_computation() -> None:
     reports = Reports()
     started = threading.Barrier(8)
     calls = []
@@ -120,16 +121,58 @@ def test_clients_that_miss_at_once_wait_for_one_computation() -> None:
 
     def get(_: int) -> dict[str, Any]:
         started.wait()
-        return reports.get(("study", 1), compute)
+        return reports.get(1, ("v", 1), compute)
 
     with ThreadPoolExecutor(max_workers=8) as pool:
         found = list(pool.map(get, range(8)))
     assert len(calls) == 1 and all(f == {"n": 1} for f in found)
 
 
-def test_only_the_last_reports_are_kept() -> None:
-    reports = Reports(size=2)
-    for key in ("a", "b", "c"):
-        reports.get(key, lambda key=key: {"key": key})
-    assert reports.get("a", lambda: {"key": "again"}) == {"key": "again"}
-    assert reports.get("c", lambda: {"key": "never"}) == {"key": "c"}
+class Clock:
+    def __init__(self) -> None:
+        self.now = 100.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+def test_a_changing_study_is_computed_again_at_most_once_per_interval() -> None:
+    clock = Clock()
+    reports = Reports(min_interval_s=1.0, clock=clock)
+    assert reports.get(1, "v1", lambda: {"v": 1}) == {"v": 1}
+    clock.now += 0.5
+    assert reports.get(1, "v2", lambda: {"v": 2}) == {"v": 1}  # too soon: the last one
+    assert reports.get(1, "v2", lambda: {"v": 2}, exact=True) == {"v": 2}  # a finished study
+    clock.now += 0.2
+    assert reports.get(1, "v3", lambda: {"v": 3}) == {"v": 2}
+    clock.now += 1.0
+    assert reports.get(1, "v3", lambda: {"v": 3}) == {"v": 3}
+    assert reports.get(1, "v3", lambda: {"v": -1}) == {"v": 3}
+    assert reports.computed == 3
+
+
+def test_while_one_request_computes_a_new_report_the_others_get_the_last() -> None:
+    reports = Reports(min_interval_s=0.0)
+    reports.get(1, "v1", lambda: {"v": 1})
+    inside, release = threading.Event(), threading.Event()
+
+    def slow() -> dict[str, Any]:
+        inside.set()
+        release.wait(10)
+        return {"v": 2}
+
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        computing = pool.submit(reports.get, 1, "v2", slow)
+        assert inside.wait(10)
+        assert reports.get(1, "v2", lambda: {"v": -1}) == {"v": 1}
+        release.set()
+        assert computing.result(10) == {"v": 2}
+    assert reports.get(1, "v2", lambda: {"v": -1}) == {"v": 2}
+
+
+def test_only_the_last_studies_are_kept() -> None:
+    reports = Reports(size=2, min_interval_s=0.0)
+    for study in ("a", "b", "c"):
+        reports.get(study, 1, lambda study=study: {"study": study})
+    assert reports.get("a", 1, lambda: {"study": "again"}) == {"study": "again"}
+    assert reports.get("c", 1, lambda: {"study": "never"}) == {"study": "c"}
