@@ -5,25 +5,11 @@ jobs still run."""
 from __future__ import annotations
 
 from datetime import UTC, datetime, timedelta
-from pathlib import Path
 
-import pytest
-
-from nanonav.settings import Settings
 from nanonav.store.deliveries import DeliveryStore
-from tests.conftest import Api, sqlite_url_in
-
-SECRET = "kq3N9vTz0bX7mR2sW5yC8dF1gH4jL6pA"
-HOOK = "https://hooks.example.org/nanonav"
-
-
-@pytest.fixture
-def api_settings(tmp_path: Path) -> Settings:
-    return Settings(
-        database_url=sqlite_url_in(tmp_path),
-        webhook_hosts=("hooks.example.org",),
-        webhook_secret=SECRET,  # type: ignore[arg-type]
-    )
+from tests.conftest import Api
+from tests.service.test_callbacks import HOOK
+from tests.service.test_callbacks import api_settings as api_settings  # webhooks allowed
 
 
 def test_healthz_counts_due_webhooks_and_says_when_no_sender_sends_them(api: Api) -> None:
