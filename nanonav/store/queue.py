@@ -224,11 +224,10 @@ class JobStore:
         study_id: int | None = None,
         policy: str | None = None,
         owner: str | None = None,
-        standalone: bool = False,
     ) -> Page:
         """Up to ``limit`` jobs, newest first, older than ``before_id`` when given; only those
         in ``status``, of ``study_id``, whose robots follow ``policy``, or of ``owner``, when
-        given; only those of no study if ``standalone``."""
+        given."""
         query = select(Job).order_by(Job.id.desc()).limit(limit + 1)
         if owner is not None:
             query = query.where(Job.owner == owner)
@@ -236,8 +235,6 @@ class JobStore:
             query = query.where(Job.status == status)
         if study_id is not None:
             query = query.where(Job.study_id == study_id)
-        if standalone:
-            query = query.where(Job.study_id.is_(None))
         if policy is not None:
             query = query.where(Job.scenario[("robots", "policy")].as_string() == policy)
         if before_id is not None:
