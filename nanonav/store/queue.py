@@ -8,7 +8,7 @@ three are fenced by the lease token. ``recover_expired`` hands back the jobs of 
 from __future__ import annotations
 
 import secrets
-from collections.abc import Collection, Mapping
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
 from datetime import UTC, datetime, timedelta
 from typing import Any
@@ -224,10 +224,11 @@ class JobStore:
         study_id: int | None = None,
         policy: str | None = None,
         owner: str | None = None,
+        standalone: bool = False,
     ) -> Page:
         """Up to ``limit`` jobs, newest first, older than ``before_id`` when given; only those
         in ``status``, of ``study_id``, whose robots follow ``policy``, or of ``owner``, when
-        given."""
+        given; only those of no study if ``standalone``."""
         query = select(Job).order_by(Job.id.desc()).limit(limit + 1)
         if owner is not None:
             query = query.where(Job.owner == owner)
@@ -235,6 +236,8 @@ class JobStore:
             query = query.where(Job.status == status)
         if study_id is not None:
             query = query.where(Job.study_id == study_id)
+        if standalone:
+            query = query.where(Job.study_id.is_(None))
         if policy is not None:
             query = query.where(Job.scenario[("robots", "policy")].as_string() == policy)
         if before_id is not None:
@@ -271,6 +274,19 @@ class JobStore:
         with unit_of_work(self._sessions) as session:
             metrics: dict[str, Any] = _result_column(session, job_id, JobResult.metrics, kept=True)
             return metrics
+
+    def headlines(self, job_ids: Sequence[int]) -> dict[int, dict[str, Any]]:
+        """What a list of jobs shows of each succeeded one's results (its study metrics: success
+        rate, steps...), in one query for the whole list."""
+        if not job_ids:
+            return {}
+        with unit_of_work(self._sessions) as session:
+            rows = session.execute(
+                select(JobResult.job_id, JobResult.study_metrics).where(
+                    JobResult.job_id.in_(list(job_ids)), JobResult.study_metrics.is_not(None)
+                )
+            ).all()
+            return {int(job_id): dict(found) for job_id, found in rows if found}
 
     def trajectory(self, job_id: int) -> dict[str, NDArray[Any]]:
         blob = self.trajectory_npz(job_id)

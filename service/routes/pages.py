@@ -24,7 +24,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from nanonav import table1
 from nanonav.scenario import MAX_EXACT_INT, PRESETS, ActionSet, FieldModel, Policy, Scenario
-from nanonav.store import JobNotFound, JobStatus, StudyNotFound
+from nanonav.store import JobNotFound, JobStatus, JobStore, StudyNotFound
 from nanonav.store.queue import PRESENCE_WINDOW_S
 from nanonav.studies.report import METRICS
 from nanonav.studies.spec import GRID_KEYS
@@ -85,14 +85,37 @@ def _form_choices() -> dict[str, Any]:
     }
 
 
+def _visible_job(store: JobStore, caller: Caller, job_id: int) -> Job | None:
+    """The job, if it exists and the caller may see it."""
+    try:
+        record = store.get(job_id)
+    except JobNotFound:
+        return None
+    if caller.scoped and record.owner != caller.owner:
+        return None
+    return Job.of(record)
+
+
 @router.get("/", response_class=HTMLResponse)
 def index(
-    request: Request, store: StoreDep, studies: StudiesDep, caller: CallerDep
+    request: Request,
+    store: StoreDep,
+    studies: StudiesDep,
+    caller: CallerDep,
+    from_: Annotated[str, Query(alias="from", max_length=20)] = "",
 ) -> HTMLResponse:
-    page = store.page(status=None, limit=10, before_id=None, owner=caller.only)
+    """The new-job form (filled in from job ``from`` if given); recent studies and lone jobs."""
+    source = None
+    if from_.isdigit() and 0 < int(from_) <= MAX_EXACT_INT:
+        source = _visible_job(store, caller, int(from_))
+    page = store.page(status=None, limit=10, before_id=None, owner=caller.only, standalone=True)
     jobs = [Job.of(j) for j in page.jobs]
     recent = list_studies(studies, caller, limit=5).studies
-    return _page(request, "index.html", nav="new", jobs=jobs, studies=recent, **_form_choices())
+    return _page(
+        request, "index.html", nav="new", jobs=jobs, studies=recent, source=source,
+        headlines=store.headlines([j.id for j in jobs]),
+        form_json=json.dumps(source.scenario, indent=2) if source else "{}", **_form_choices(),
+    )  # fmt: skip
 
 
 @router.get("/ui/jobs", response_class=HTMLResponse)
@@ -122,8 +145,10 @@ def jobs_page(
         next_url = (
             f"/ui/jobs?{query}{'&' if query else ''}cursor={encode_cursor(page.next_before_id)}"
         )
+    jobs = [Job.of(j) for j in page.jobs]
     return _page(
-        request, "jobs.html", nav="jobs", jobs=[Job.of(j) for j in page.jobs],
+        request, "jobs.html", nav="jobs", jobs=jobs,
+        headlines=store.headlines([j.id for j in jobs]),
         filters=filters, statuses=[s.value for s in JobStatus], policies=get_args(Policy),
         next=next_url, first=f"/ui/jobs?{query}" if cursor else None,
     )  # fmt: skip
@@ -132,13 +157,9 @@ def jobs_page(
 @router.get("/ui/jobs/{job_id}", response_class=HTMLResponse)
 def job_page(request: Request, job_id: PageId, store: StoreDep, caller: CallerDep) -> HTMLResponse:
     """A job: its progress live, then its Table 1, pictures and 3-D paths."""
-    try:
-        record = store.get(job_id)
-    except JobNotFound:
+    job = _visible_job(store, caller, job_id)
+    if job is None:
         return _missing(request, f"job {job_id}")
-    if caller.scoped and record.owner != caller.owner:
-        return _missing(request, f"job {job_id}")
-    job = Job.of(record)
     metrics = store.metrics(job_id) if job.status == "succeeded" else None
     stride = 1
     if metrics is not None and metrics.get("worlds"):

@@ -93,3 +93,22 @@ document.getElementById("logout")?.addEventListener("click", async () => {
   await nanonav.send("POST", "/ui/logout");
   window.location.assign("/ui/login");
 });
+
+// A picture is drawn the first time it is asked for, which takes a moment: its box says
+// "drawing…" until it has loaded. Listening on the document also covers the pictures a page
+// puts in later (a study's results as its jobs finish).
+(() => {
+  const settle = (image) => {
+    const box = image.closest("a.picture");
+    if (box && image.complete && image.naturalWidth > 0) box.classList.add("loaded");
+  };
+  document.addEventListener("load", (event) => {
+    if (event.target instanceof HTMLImageElement) settle(event.target);
+  }, true);
+  document.addEventListener("error", (event) => {
+    const note = event.target instanceof HTMLImageElement
+      && event.target.closest("a.picture")?.querySelector(".drawing");
+    if (note) note.textContent = "could not draw this picture: reload the page to try again";
+  }, true);
+  document.querySelectorAll("a.picture img").forEach(settle);
+})();

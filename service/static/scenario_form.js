@@ -34,6 +34,15 @@
     return numeric.has(input.name) ? Number(input.value) : input.value;
   }
 
+  function getPath(source, path) {
+    let node = source;
+    for (const part of path.split(".")) {
+      if (typeof node !== "object" || node === null || !(part in node)) return undefined;
+      node = node[part];
+    }
+    return node;
+  }
+
   function syncEditor(event) {
     const scenario = parsed() || {};
     const input = event.target;
@@ -42,8 +51,23 @@
     editor.value = JSON.stringify(scenario, null, 2);
   }
 
+  // The fields show what the JSON says, whether typed or pasted there or filled in by the page;
+  // a menu with no such choice shows none rather than a wrong one.
+  function syncFields() {
+    const scenario = parsed();
+    if (scenario === null) return;
+    for (const input of form.querySelectorAll("input[name], select[name]")) {
+      const value = getPath(scenario, input.name);
+      const text = value === undefined || value === null || typeof value === "object" ? "" : String(value);
+      input.value = text;
+      if (input.tagName === "SELECT" && input.value !== text) input.selectedIndex = -1;
+    }
+  }
+
   form.addEventListener("input", syncEditor);
   form.addEventListener("change", syncEditor);
+  editor.addEventListener("input", syncFields);
+  syncFields();
 
   form.addEventListener("submit", async (event) => {
     event.preventDefault();

@@ -6,10 +6,11 @@ from __future__ import annotations
 
 import re
 import time
+from typing import Any
 
 import httpx
 import pytest
-from playwright.sync_api import Page, expect
+from playwright.sync_api import Page, Route, expect
 
 from tests.browser.conftest import Site, screenshot
 
@@ -52,9 +53,11 @@ def test_a_job_submitted_through_the_form_runs_live_and_shows_its_results(
     deadline = time.monotonic() + 120
     while page.locator("#table-1").count() == 0:
         assert time.monotonic() < deadline, "the job did not finish"
-        text = page.locator("#progress-text")
-        if text.count():
-            seen.add(text.inner_text())
+        # read in one step: the progress card goes when the job ends, and a locator that
+        # counted it a moment ago would then wait for it
+        text = page.evaluate("document.getElementById('progress-text')?.innerText ?? null")
+        if text is not None:
+            seen.add(text)
         page.wait_for_timeout(100)
     moving = [s for s in seen if not s.startswith(("0%", "100%"))]
     assert moving, f"progress never moved between 0 and 100%: {seen}"
@@ -162,7 +165,7 @@ def test_jobs_are_browsed_and_filtered(page: Page, site: Site) -> None:
     page.select_option("select[name=policy]", "gradient")
     page.click(".filters button")
     page.wait_for_url(re.compile(r"policy=gradient"))
-    policies = page.locator("table.list tbody tr td:nth-child(5)").all_inner_texts()
+    policies = page.locator("table.list tbody tr td:nth-child(6)").all_inner_texts()
     assert policies and set(policies) == {"gradient"}
     screenshot(page, "jobs")
 
@@ -172,3 +175,84 @@ def test_the_api_page_works_offline(page: Page, site: Site) -> None:
     expect(page.locator(".swagger-ui .opblock").first).to_be_visible(timeout=30_000)
     assert page.locator(".swagger-ui .opblock").count() >= 15
     screenshot(page, "docs")
+
+
+def finished(site: Site, kind: str, body: dict[str, Any]) -> int:
+    """The id of a new job or study, once it has succeeded."""
+    made = httpx.post(f"{site.url}/{kind}", json=body).json()["id"]
+    deadline = time.monotonic() + 60
+    while httpx.get(f"{site.url}/{kind}/{made}").json()["status"] != "succeeded":
+        assert time.monotonic() < deadline, f"{kind} {made} did not succeed"
+        time.sleep(0.1)
+    return int(made)
+
+
+def test_pasted_json_sets_the_fields_and_the_preset_menu(page: Page, site: Site) -> None:
+    page.goto(site.url + "/")
+    page.click("#json-details summary")
+    page.fill("#scenario-json", '{"preset": "paper-swarm", "seed": 3, "robots": {"count": 4}}')
+    expect(page.locator("select[name=preset]")).to_have_value("paper-swarm")
+    expect(page.locator("input[name=seed]")).to_have_value("3")
+    expect(page.locator("input[name='robots.count']")).to_have_value("4")
+    page.fill("#scenario-json", "{}")
+    expect(page.locator("select[name=preset]")).to_have_value("")
+    expect(page.locator("input[name=seed]")).to_have_value("")
+
+
+def test_run_again_repeats_a_job_with_its_seed(page: Page, site: Site) -> None:
+    job = httpx.post(f"{site.url}/jobs", json={**QUICK, "preset": "paper-single", "seed": 11})
+    job_id = job.json()["id"]
+    page.goto(f"{site.url}/ui/jobs/{job_id}")
+    page.click("#run-again")
+    page.wait_for_url(re.compile(rf"/\?from={job_id}$"))
+    expect(page.locator("#from-job")).to_contain_text("seed 11")
+    expect(page.locator("select[name=preset]")).to_have_value("paper-single")
+    expect(page.locator("input[name=seed]")).to_have_value("11")
+    screenshot(page, "new-job-again")
+    page.click("button[type=submit]")
+    page.wait_for_url(re.compile(r"/ui/jobs/\d+$"))
+    again = page.url.rsplit("/", 1)[1]
+    assert again != str(job_id)
+    scenario = httpx.get(f"{site.url}/jobs/{again}").json()["scenario"]
+    assert scenario == job.json()["scenario"]
+
+
+PICTURES = re.compile(r"/jobs/\d+/(plots/|heatmap)")
+
+
+def test_a_picture_says_drawing_until_it_loads_and_opens_full_size(page: Page, site: Site) -> None:
+    job_id = finished(site, "jobs", QUICK)
+    held: list[Route] = []
+    page.route(PICTURES, lambda route: held.append(route))
+    page.goto(f"{site.url}/ui/jobs/{job_id}")
+    first = page.locator(".pictures a.picture").first
+    expect(first.locator(".drawing")).to_be_visible()
+    expect(first.locator(".drawing")).to_have_text("drawing…")
+    src = first.locator("img").get_attribute("src")
+    assert src and first.get_attribute("href") == src and first.get_attribute("target") == "_blank"
+    screenshot(page, "job-drawing")
+    page.unroute(PICTURES)
+    for route in held:
+        route.continue_()
+    wait_for_images(page)
+    expect(page.locator(".pictures a.picture:not(.loaded)")).to_have_count(0)
+    expect(first.locator(".drawing")).to_be_hidden()
+    screenshot(page, "job-drawn")
+
+
+def test_a_studys_tables_fit_a_1400_pixel_window(page: Page, site: Site) -> None:
+    base = {**QUICK, "learning": {"episodes": 1, "max_steps": 1200}}
+    grid = {"robots.policy": ["q_learning", "gradient"],
+            "biomarker.detection_threshold": [0, 0.005]}  # fmt: skip
+    study = {"name": "fits", "base": base, "grid": grid, "seeds": [1, 2],
+             "compare": "robots.policy"}  # fmt: skip
+    study_id = finished(site, "studies", study)
+    page.set_viewport_size({"width": 1400, "height": 900})
+    page.goto(f"{site.url}/ui/studies/{study_id}")
+    expect(page.locator("#comparisons-table tbody tr")).to_have_count(2)
+    widths = page.evaluate(
+        "Array.from(document.querySelectorAll('.study-table')).map((table) =>"
+        " [table.id, table.scrollWidth, table.parentElement.clientWidth])"
+    )
+    assert len(widths) == 2 and all(inside <= room for _, inside, room in widths), widths
+    screenshot(page, "study-1400")

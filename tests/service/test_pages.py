@@ -3,6 +3,8 @@ page, the filters that ignore junk, and browser code served from installed packa
 
 from __future__ import annotations
 
+import html as markup
+import json
 import re
 import threading
 
@@ -88,3 +90,78 @@ def test_a_studys_page_shows_its_table(api: Api) -> None:
     assert 'id="points-table"' in html and html.count("0/1") == 2
     fragment = api.client.get(f"/ui/studies/{record.id}/results").text
     assert 'data-status="queued"' in fragment
+
+
+def a_study_of_two_jobs(api: Api) -> list[int]:
+    """The ids of the two queued jobs of a new study."""
+    spec = {"name": "s", "base": {}, "grid": {"robots.count": [1, 2]}, "seeds": [0],
+            "compare": None}  # fmt: skip
+    record = StudyStore(api.store.engine).create(
+        name="s", spec=spec,
+        jobs=[StudyJob({"robots": {"count": n}}, 1, 1, i, 0) for i, n in enumerate((1, 2))],
+    )  # fmt: skip
+    page = api.store.page(status=None, limit=10, before_id=None, study_id=record.id)
+    return [job.id for job in page.jobs]
+
+
+def test_the_home_page_lists_only_the_jobs_of_no_study(api: Api) -> None:
+    alone = api.client.post("/jobs", json={"robots": {"policy": "rule"}}).json()["id"]
+    in_study = a_study_of_two_jobs(api)
+    html = api.client.get("/").text
+    listed = {int(i) for i in re.findall(r'href="/ui/jobs/(\d+)"', html)}
+    assert listed == {alone}, (listed, in_study)
+    assert len(api.store.page(status=None, limit=10, before_id=None, standalone=True).jobs) == 1
+
+
+def test_job_lists_show_each_succeeded_jobs_success_rate(api: Api, api_settings: Settings) -> None:
+    done = succeeded(api, api_settings)
+    waiting = api.client.post("/jobs", json=TINY).json()["id"]
+    expected = api.store.metrics(done)["summary"]["success_rate"]
+    assert api.store.headlines([done, waiting, 10**6]).keys() == {done}
+    for path in ("/", "/ui/jobs"):
+        html = api.client.get(path).text
+        assert 'title="greedy success rate over the evaluation worlds">Success</th>' in html
+        row = r'<tr>\s*<td><a href="/ui/jobs/(\d+)">(.*?)</tr>'
+        rows = {int(job): cells for job, cells in re.findall(row, html, re.S)}
+        shown = re.findall(r'<td class="num">([^<]*)</td>', rows[done])
+        assert shown == [f"{expected:.2f}"], (path, rows[done])
+        assert re.findall(r'<td class="num">([^<]*)</td>', rows[waiting]) == [""], path
+
+
+def form_json(html: str) -> object:
+    found = re.search(r'<textarea id="scenario-json"[^>]*>(.*?)</textarea>', html, re.S)
+    assert found is not None
+    return json.loads(markup.unescape(found.group(1)))
+
+
+def test_a_job_is_run_again_from_the_form_filled_in_with_its_scenario_and_seed(
+    api: Api,
+) -> None:
+    job_id = api.client.post("/jobs", json={"preset": "paper-swarm", "seed": 7}).json()["id"]
+    page = api.client.get(f"/ui/jobs/{job_id}").text
+    assert f'href="/?from={job_id}"' in page and "seed 7" in page and "repeats" in page
+    home = api.client.get("/", params={"from": job_id}).text
+    assert form_json(home) == api.store.get(job_id).scenario
+    assert f"job #{job_id}</a>, with its seed 7" in home and "repeats that job exactly" in home
+    for junk in ("abc", "-1", "0", "999", "9" * 20):
+        answer = api.client.get("/", params={"from": junk})
+        assert answer.status_code == 200 and form_json(answer.text) == {}, junk
+        assert 'id="from-job"' not in answer.text
+
+
+def test_every_picture_says_it_is_drawing_and_links_to_itself(
+    api: Api, api_settings: Settings
+) -> None:
+    job_id = succeeded(api, api_settings)
+    study_job = a_study_of_two_jobs(api)[0]
+    study_id = api.client.get(f"/jobs/{study_job}").json()["study_id"]
+    for path in (f"/ui/jobs/{job_id}", f"/ui/studies/{study_id}"):
+        html = api.client.get(path).text
+        images = re.findall(r'<img src="([^"]+)"', html)
+        wrapped = re.findall(
+            r'<a class="picture" href="([^"]+)"[^>]*><span class="drawing">drawing…</span>'
+            r'<img src="([^"]+)"',
+            html,
+        )
+        assert len(images) >= 4 and len(wrapped) == len(images), path
+        assert all(href == src for href, src in wrapped), wrapped
