@@ -10,7 +10,8 @@ Sections:
    greedy success beside 'gradient''s, and the share of gradient-sign states whose greedy move
    climbs the gradient.
 3. trained against untrained, for each action set, paired seed by seed.
-4. settings: learned policies against gradient, run_and_tumble and rule in the paper's worlds
+4. settings: learned policies against gradient, run_and_tumble, simple_rule and rule (the
+   strongest fixed rule, designed on seeds 1000-1019) in the paper's worlds
    and in harder ones, paired seed by seed.
 5. authors-script: Table 1 over 30 seeds beside the paper's and the authors' script's figures.
 
@@ -72,6 +73,22 @@ class Outcome:
     worst_final_distance: float  # the largest final distance of any world (robots' mean)
     worst_success: float  # the lowest success rate of any evaluation world
     worlds: list[dict[str, Any]]  # every evaluation world's own summary
+    # a shared table's visited states: state label -> (visits, greedy action, or "tied")
+    habits: dict[str, tuple[int, str]] | None = None
+
+
+def habits_of(
+    states: Sequence[str], actions: Sequence[str], values: Any, visits: Any
+) -> dict[str, tuple[int, str]]:
+    """What a shared table does in each state it visited: its greedy action (or "tied")."""
+    found = {}
+    for i, state in enumerate(states):
+        seen = int(visits[i].sum())
+        if seen:
+            row = values[i]
+            best = np.flatnonzero(row == row.max())
+            found[state] = (seen, actions[int(best[0])] if len(best) == 1 else "tied")
+    return found
 
 
 def run_one(scenario: dict[str, Any]) -> Outcome:
@@ -82,9 +99,14 @@ def run_one(scenario: dict[str, Any]) -> Outcome:
         found = chemotaxis(q.states, q.actions, q.values, q.visits, near_obstacles=False)
         clear, strict, chance = found.share, found.strict_share, found.chance
         every = chemotaxis(q.states, q.actions, q.values, q.visits).share
+    habits = None
+    if q is not None and q.values.ndim == 2 and result.scenario.learning.actions == "behaviors":
+        habits = habits_of(q.states, q.actions, q.values, q.visits)
     worst = max(w["final_distance"] for w in result.worlds)
     lowest = min(w["success_rate"] for w in result.worlds)
-    return Outcome(result.summary, clear, every, strict, chance, worst, lowest, result.worlds)
+    return Outcome(
+        result.summary, clear, every, strict, chance, worst, lowest, result.worlds, habits
+    )
 
 
 class Runner:
@@ -107,6 +129,11 @@ class Runner:
 
     def close(self) -> None:
         self.pool.shutdown()
+
+
+def fixed_policy(world: dict[str, Any], policy: str) -> dict[str, Any]:
+    """The world run with a policy that learns nothing (no training episodes)."""
+    return merge(world, {"robots": {"policy": policy}, "learning": {"episodes": 0}})
 
 
 def values(outcomes: Sequence[Outcome], key: str | Callable[[Outcome], Any]) -> list[float]:
@@ -141,6 +168,29 @@ def difference(treated: Sequence[Outcome], baseline: Sequence[Outcome], key: str
     return f"{found.mean_difference:+.2f} [{low:+.2f}, {high:+.2f}] p={found.p_value:.3f}{mark}"
 
 
+def seeds_to_resolve(treated: Sequence[Outcome], baseline: Sequence[Outcome], key: str) -> str:
+    """Seeds a paired difference needs to be resolved (80 % power), with these seeds' worlds
+    and with 100 worlds each: the spread of seeds' differences splits into a part between
+    seeds and a part from the worlds each seed averages, which more worlds shrink."""
+    by_seed = []
+    within = []
+    for a, b in zip(treated, baseline, strict=True):
+        diffs = [x[key] - y[key] for x, y in zip(a.worlds, b.worlds, strict=True)
+                 if x.get(key) is not None and y.get(key) is not None]  # fmt: skip
+        if len(diffs) >= 2:
+            by_seed.append(float(np.mean(diffs)))
+            within.append(float(np.var(diffs, ddof=1)))
+    if len(by_seed) < 2:
+        return "n/a"
+    worlds = len(treated[0].worlds)
+    mean = float(np.mean(by_seed))
+    spread = float(np.std(by_seed, ddof=1))
+    between = max(0.0, spread**2 - float(np.mean(within)) / worlds)
+    many = math.sqrt(between + float(np.mean(within)) / 100)
+    found = [stats.pairs_to_resolve(mean, sd) for sd in (spread, many)]
+    return " / ".join("never" if n is None else str(n) for n in found)
+
+
 def table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> None:
     widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(header)]
     print("  ".join(h.ljust(w) for h, w in zip(header, widths, strict=True)))
@@ -156,14 +206,16 @@ def table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> None:
 def defaults(run: Runner, episodes: int) -> None:
     print(f"1. Defaults: 'directions' Q-learning, paper-swarm, {episodes} training episodes")
     base = {"preset": "paper-swarm", "learning": {"episodes": episodes, "actions": "directions"}}
-    variants = {
+    variants: dict[str, dict[str, Any]] = {
         "constant alpha 0.5": {"learning": {"alpha_schedule": "constant", "alpha": 0.5}},
         "constant alpha 0.1": {"learning": {"alpha_schedule": "constant", "alpha": 0.1}},
         "visits, omega 0.7": {"learning": {"alpha_exponent": 0.7}},
         "visits, omega 1 (default)": {},
         "visits, omega 1, no step cost": {"rewards": {"step": 0.0}},
     }
-    rows = []
+    fixed = run(fixed_policy({"preset": "paper-swarm"}, "rule"))
+    rows = [("rule (fixed, no learning)", mean_ci(values(fixed, "success_rate")), "-", "-", "-",
+             "-")]  # fmt: skip
     for name, change in variants.items():
         found = run(merge(base, change))
         rows.append(
@@ -184,8 +236,10 @@ def chemotaxis_from_scratch(run: Runner, schedule: Sequence[int], out: Path | No
     print("2. Chemotaxis from scratch: 'directions' Q-learning in paper-swarm")
     gradient = run({"preset": "paper-swarm", "robots": {"policy": "gradient"},
                     "learning": {"episodes": 0}})  # fmt: skip
-    rows = [("gradient (no learning)", "-", mean_ci(values(gradient, "success_rate")), "-", "-",
-             "-", "-")]  # fmt: skip
+    rule = run(fixed_policy({"preset": "paper-swarm"}, "rule"))
+    rows = [(name, "-", mean_ci(values(found, "success_rate")), "-", "-", "-", "-")
+            for name, found in (("gradient (no learning)", gradient),
+                                ("rule (no learning)", rule))]  # fmt: skip
     curve: dict[str, list[Any]] = {"x": [], "mean": [], "low": [], "high": []}
     for episodes in schedule:
         found = run({"preset": "paper-swarm",
@@ -230,6 +284,7 @@ def trained_against_untrained(run: Runner, episodes: dict[str, int]) -> None:
             base = {"preset": preset, "learning": {"actions": actions}}
             untrained = run(merge(base, {"learning": {"episodes": 0}}))
             trained = run(merge(base, {"learning": {"episodes": trained_episodes}}))
+            rule = run(fixed_policy({"preset": preset}, "rule"))
             rows.append(
                 (
                     preset,
@@ -238,10 +293,12 @@ def trained_against_untrained(run: Runner, episodes: dict[str, int]) -> None:
                     mean_ci(values(trained, "success_rate")),
                     difference(trained, untrained, "success_rate"),
                     difference(trained, untrained, "total_steps"),
+                    difference(trained, rule, "success_rate"),
                 )
             )
     header = ("world", "trained", "success untrained", "success trained",
-              "success: trained - untrained", "total steps: trained - untrained")  # fmt: skip
+              "success: trained - untrained", "total steps: trained - untrained",
+              "success: trained - rule")  # fmt: skip
     table(header, rows)
 
 
@@ -257,13 +314,17 @@ SETTINGS: dict[str, dict[str, Any]] = {
     "hard-single": {"preset": "hard-single"},
     "hard-swarm": {"preset": "hard-swarm"},
 }
-FIXED = ("gradient", "run_and_tumble", "rule")
+FIXED = ("gradient", "run_and_tumble", "simple_rule", "rule")
 
 
 def settings(run: Runner, episodes: dict[str, int], out: Path | None) -> None:
     print("4. Learned against fixed policies (success rate; differences paired by seed)")
+    print("   'strongest fixed' is the fixed policy of highest mean success in that world on these")
+    print("   very seeds (a bar picked after the fact, so it favours the fixed side); 'seeds to")
+    print("   resolve' the difference from rule with 80 % power, at 20 / at 100 worlds a seed")
     rows = []
     series: dict[str, dict[str, list[Any]]] = {}
+    habits: dict[str, list[Outcome]] = {}
     for name, world in SETTINGS.items():
         policies = {
             f"{actions} ({n} ep.)": run(
@@ -271,9 +332,9 @@ def settings(run: Runner, episodes: dict[str, int], out: Path | None) -> None:
             )
             for actions, n in episodes.items()
         }
+        habits[name] = policies[f"behaviors ({episodes['behaviors']} ep.)"]
         for fixed in FIXED:
-            fixed_run = {"robots": {"policy": fixed}, "learning": {"episodes": 0}}
-            policies[fixed] = run(merge(world, fixed_run))
+            policies[fixed] = run(fixed_policy(world, fixed))
         for label, found in policies.items():
             d = stats.describe(values(found, "success_rate"), bounds=(0.0, 1.0))
             line = series.setdefault(label, {"x": [], "mean": [], "low": [], "high": []})
@@ -281,6 +342,7 @@ def settings(run: Runner, episodes: dict[str, int], out: Path | None) -> None:
             line["mean"].append(d.mean)
             line["low"].append(d.ci_low)
             line["high"].append(d.ci_high)
+        strongest = max(FIXED, key=lambda f: float(np.mean(values(policies[f], "success_rate"))))
         for actions, n in episodes.items():
             learned = policies[f"{actions} ({n} ep.)"]
             rows.append(
@@ -288,28 +350,57 @@ def settings(run: Runner, episodes: dict[str, int], out: Path | None) -> None:
                     name,
                     f"{actions} ({n} ep.)",
                     mean_ci(values(learned, "success_rate")),
-                    *(difference(learned, policies[f], "success_rate") for f in FIXED),
+                    difference(learned, policies["rule"], "success_rate"),
+                    f"{strongest}: {difference(learned, policies[strongest], 'success_rate')}",
+                    seeds_to_resolve(learned, policies["rule"], "success_rate"),
                 )
             )
         rows.append(
             (
                 name,
-                "(fixed: gradient / run_and_tumble / rule)",
+                "(fixed: " + " / ".join(FIXED) + ")",
                 " / ".join(mean_ci(values(policies[f], "success_rate")) for f in FIXED),
-                "",
+                difference(policies["rule"], policies["simple_rule"], "success_rate")
+                + " (rule - simple_rule)",
                 "",
                 "",
             )
         )
-    header = ("world", "learned policy", "success", "minus gradient", "minus run_and_tumble",
-              "minus rule")  # fmt: skip
+    header = ("world", "learned policy", "success", "minus rule", "minus the strongest fixed",
+              "seeds to resolve")  # fmt: skip
     table(header, rows)
+    what_the_learned_behaviors_do(habits)
     if out is not None:
         drawn = [charts.Series(k, **v) for k, v in series.items()]
         png = charts.metric_png(
             "success_rate", drawn, x_label=None, title="Greedy success by world and policy"
         )
         (out / "settings.png").write_bytes(png)
+
+
+def what_the_learned_behaviors_do(habits: dict[str, list[Outcome]], top: int = 3) -> None:
+    """The mechanism behind each score: in the states a learned 'behaviors' table visits most
+    (visits summed over seeds), the greedy action of each seed's table."""
+    print("4b. What the learned behaviours do: the most visited states (share of all visits)")
+    print("    and the greedy action there, counted over seeds")
+    rows = []
+    for name, found in habits.items():
+        tables = [o.habits for o in found if o.habits is not None]
+        visits: dict[str, int] = {}
+        for habit in tables:
+            for state, (seen, _) in habit.items():
+                visits[state] = visits.get(state, 0) + seen
+        total = sum(visits.values()) or 1
+        for state in sorted(visits, key=lambda k: -visits[k])[:top]:
+            picks: dict[str, int] = {}
+            for habit in tables:
+                if state in habit:
+                    picks[habit[state][1]] = picks.get(habit[state][1], 0) + 1
+            chosen = ", ".join(
+                f"{a} {k}/{len(tables)}" for a, k in sorted(picks.items(), key=lambda x: -x[1])
+            )
+            rows.append((name, state, f"{visits[state] / total:.0%}", chosen))
+    table(("world", "state", "visits", "greedy action (seeds)"), rows)
 
 
 def authors_script(run: Runner, seeds: Sequence[int]) -> None:

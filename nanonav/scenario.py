@@ -17,7 +17,7 @@ from pydantic_core import InitErrorDetails, PydanticCustomError
 PresetName = Literal["paper-single", "paper-swarm", "authors-script", "hard-single", "hard-swarm"]
 FieldModel = Literal["gaussian", "inverse_square", "diffusion", "sampled_gaussian"]
 RobotStart = Literal["anywhere", "corner"]
-Policy = Literal["q_learning", "gradient", "run_and_tumble", "rule", "random"]
+Policy = Literal["q_learning", "gradient", "run_and_tumble", "rule", "simple_rule", "random"]
 AlphaSchedule = Literal["constant", "visits"]
 ActionSet = Literal["behaviors", "directions"]
 
@@ -280,8 +280,11 @@ class Robots(_Part):
         "climbs the sensed gradient, sliding along an obstacle's surface rather than into it, "
         "and keeps its heading where it senses no gradient; 'run_and_tumble' keeps its heading "
         "while the reading rises and turns to a random heading otherwise (bacterial "
-        "chemotaxis); 'rule' is the fixed behaviour rule a learner must beat: advance on a "
-        "sensed cell, else climb the gradient as 'gradient' does; 'random' walks at random.",
+        "chemotaxis); 'rule' is the strongest fixed rule found for the paper's sensors, the bar a "
+        "learner must clear: advance on a sensed cell; else, on a reading above the 'mid' "
+        "level, run and tumble (straight on while the reading rises, a random heading when it "
+        "does not); else climb the gradient as 'gradient' does; 'simple_rule' advances on a "
+        "sensed cell, else climbs the gradient; 'random' walks at random.",
     )
 
 

@@ -333,3 +333,51 @@ def paired(
         ci_high=summary.ci_high,
         p_value=_wilcoxon_p_value(differences) if summary.n >= 2 else None,
     )
+
+
+def pairs_to_resolve(
+    mean_difference: float,
+    sd: float,
+    power: float = 0.8,
+    confidence: float = DEFAULT_CONFIDENCE,
+    most: int = 100_000,
+) -> int | None:
+    """How many pairs a paired comparison needs for its Student t interval to exclude zero with
+    probability ``power``, if the differences have this mean and standard deviation: the
+    smallest n whose two-sided t test at ``1 - confidence`` has that power (noncentral t). A
+    small gain measured on few seeds says, with it, how many seeds would settle it.
+
+    ``None`` when no n up to ``most`` does (a zero mean difference never resolves)."""
+    _check_confidence(confidence)
+    if not 0.0 < power < 1.0:
+        raise ValueError(f"power must lie in (0, 1), not {power!r}")
+    if not (math.isfinite(mean_difference) and math.isfinite(sd)) or sd < 0.0:
+        raise ValueError("mean_difference and sd must be finite, sd not negative")
+    if mean_difference == 0.0:
+        return None
+    if sd == 0.0:
+        return 2
+
+    def achieved(n: int) -> float:
+        critical = _t_quantile((1.0 + confidence) / 2.0, n - 1)
+        shift = abs(mean_difference) * math.sqrt(n) / sd
+        return float(stats.nct.sf(critical, n - 1, shift) + stats.nct.cdf(-critical, n - 1, shift))
+
+    # the normal approximation brackets the answer; bisection finds the exact n
+    z = stats.norm.ppf((1.0 + confidence) / 2.0) + stats.norm.ppf(power)
+    normal = (z * sd / abs(mean_difference)) ** 2  # the t test needs at least this many
+    if normal > most:
+        return None
+    high = min(most, max(2, math.ceil(normal) + 2))
+    while achieved(high) < power:
+        if high >= most:
+            return None
+        high = min(most, high * 2)
+    low = 1  # achieved(low) < power, or low is below the smallest n (2)
+    while high - low > 1:
+        middle = (low + high) // 2
+        if middle >= 2 and achieved(middle) >= power:
+            high = middle
+        else:
+            low = middle
+    return int(high)

@@ -327,3 +327,36 @@ def test_a_range_keeping_interval_stays_in_range_and_covers_about_95_percent(
 def test_other_bounds_are_refused() -> None:
     with pytest.raises(ValueError, match="bounds"):
         describe([1.0, 2.0], bounds=(1.0, 2.0))
+
+
+@pytest.mark.parametrize(("mean", "sd"), [(0.05, 0.1), (0.02, 0.08), (0.3, 0.5)])
+def test_pairs_to_resolve_give_the_asked_power(mean: float, sd: float) -> None:
+    # simulate the comparison at the planned size: the interval excludes zero in about 80 % of
+    # samples, and one pair fewer falls short of it
+    n = stats.pairs_to_resolve(mean, sd)
+    assert n is not None and n >= 2
+    rng = np.random.default_rng(11)
+    repeats = 4000
+    samples = rng.normal(mean, sd, size=(repeats, n))
+    found = [stats.paired(list(row), [0.0] * n) for row in samples]
+    resolved = np.mean([f.ci_low is not None and f.ci_low > 0 for f in found])
+    # the binomial standard error of the share is 0.0063 at 4000 repeats: 4 of them
+    assert abs(resolved - 0.8) < 0.025, (n, resolved)
+    assert stats.pairs_to_resolve(mean, sd, power=0.5) < n
+
+
+def test_pairs_to_resolve_match_the_normal_rule_of_thumb_for_large_n() -> None:
+    # n ~ ((z_0.975 + z_0.8) sd / d)^2 = 7.85 (sd / d)^2 when n is large
+    n = stats.pairs_to_resolve(0.01, 0.1)
+    assert n is not None and abs(n - 7.849 * 100) <= 4
+
+
+def test_pairs_to_resolve_refuse_what_cannot_be_planned() -> None:
+    assert stats.pairs_to_resolve(0.0, 0.1) is None
+    assert stats.pairs_to_resolve(1e-6, 1.0, most=1000) is None
+    assert stats.pairs_to_resolve(0.1, 0.0) == 2
+    for bad in ((0.1, -1.0), (math.nan, 0.1), (0.1, math.inf)):
+        with pytest.raises(ValueError):
+            stats.pairs_to_resolve(*bad)
+    with pytest.raises(ValueError):
+        stats.pairs_to_resolve(0.1, 0.1, power=1.0)

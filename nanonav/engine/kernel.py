@@ -47,6 +47,7 @@ from nanonav.engine.state import (
     ROBOT_STEPS,
     RULE,
     RUN_AND_TUMBLE,
+    SIMPLE_RULE,
     STEP,
     KernelParams,
     Learner,
@@ -681,9 +682,23 @@ def _run_steps(
                 step = p.speed
                 if p.policy == GRADIENT:
                     behavior = AVOID_OBSTACLE  # up the gradient, round obstacles
-                elif p.policy == RULE:
+                elif p.policy == SIMPLE_RULE:
                     sensed = cell_d <= p.cell_sensing_radius and cell_d > 0.0
                     behavior = APPROACH_CELL if sensed else AVOID_OBSTACLE
+                elif p.policy == RULE:
+                    # advance on a sensed cell; on a reading above the 'mid' level, run and
+                    # tumble (a gradient is flat and noisy there, between cells and round a
+                    # field's maximum); below it, climb the gradient
+                    behavior = AVOID_OBSTACLE
+                    if cell_d <= p.cell_sensing_radius and cell_d > 0.0:
+                        behavior = APPROACH_CELL
+                    elif c > p.level_2:
+                        if c > s.prev_conc[i]:
+                            gx = 0.0  # no gradient to climb: straight on, round obstacles
+                            gy = 0.0
+                            gz = 0.0
+                        else:
+                            behavior = EXPLORE
                 elif p.policy == RUN_AND_TUMBLE and c > s.prev_conc[i]:
                     dx = s.heading[i, 0]
                     dy = s.heading[i, 1]

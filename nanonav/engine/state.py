@@ -13,8 +13,9 @@ GRADIENT = 1
 RUN_AND_TUMBLE = 2
 RANDOM = 3
 RULE = 4
+SIMPLE_RULE = 5
 POLICY_CODES = {"q_learning": Q_LEARNING, "gradient": GRADIENT, "run_and_tumble": RUN_AND_TUMBLE,
-                "random": RANDOM, "rule": RULE}  # fmt: skip
+                "random": RANDOM, "rule": RULE, "simple_rule": SIMPLE_RULE}  # fmt: skip
 BEHAVIORS = 0
 DIRECTIONS = 1
 ACTION_SET_CODES = {"behaviors": BEHAVIORS, "directions": DIRECTIONS}

@@ -51,6 +51,22 @@ def test_with_honest_sensing_learned_behaviours_beat_the_chemotaxis_baselines() 
         assert all(a > b for a, b in zip(learned, fixed, strict=True)), baseline
 
 
+def test_the_rule_beats_the_simple_rule_where_fields_merge_or_emitters_trap_climbers() -> None:
+    # two close cells and scattered emitters (benchmarks/science.py SETTINGS), seed by seed: on
+    # the plateau between merged fields and at an emitter's own peak, run and tumble moves on
+    # where climbing the gradient stays put
+    merged = {"biomarker": {"spread": 20.0}}
+    scattered = {"biomarker": {"model": "inverse_square", "emitter_scatter": 4.0}}
+    for world in (merged, scattered):
+        rule = runs("paper-swarm", robots={"policy": "rule"}, learning={"episodes": 0}, **world)
+        simple = runs(
+            "paper-swarm", robots={"policy": "simple_rule"}, learning={"episodes": 0}, **world
+        )
+        pairs = list(zip(success(rule), success(simple), strict=True))
+        assert all(better > worse for better, worse in pairs), (world, pairs)
+        assert statistics.fmean(better - worse for better, worse in pairs) > 0.1, (world, pairs)
+
+
 def test_the_authors_script_world_gives_the_scripts_distances_and_concentrations() -> None:
     results = runs("authors-script", learning={"episodes": 20})
     distance = statistics.fmean(r.summary["average_distance"] for r in results)

@@ -62,14 +62,54 @@ def test_below_the_detection_threshold_a_robot_senses_nothing_and_keeps_its_head
         assert np.allclose(directions, directions[0], atol=1e-12)  # straight on: nothing to climb
 
 
-def test_the_rule_is_gradient_climbing_when_cells_cannot_be_sensed() -> None:
+def test_the_simple_rule_is_gradient_climbing_when_cells_cannot_be_sensed() -> None:
     world = {"preset": "paper-swarm", "seed": 3, "learning": {"episodes": 0, "max_steps": 200},
              "evaluation": {"worlds": 2}}  # fmt: skip
-    rule = simulate(scenario(**world, robots={"policy": "rule", "cell_sensing_radius": 0.0}))
+    simple = {"policy": "simple_rule", "cell_sensing_radius": 0.0}
+    rule = simulate(scenario(**world, robots=simple))
     gradient = simulate(scenario(**world, robots={"policy": "gradient"}))
     assert without_timings(rule.worlds) == without_timings(gradient.worlds)
-    sensing = simulate(scenario(**world, robots={"policy": "rule"}))
+    sensing = simulate(scenario(**world, robots={"policy": "simple_rule"}))
     assert sensing.summary["success_rate"] > gradient.summary["success_rate"]
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_the_rule_runs_and_tumbles_above_the_mid_level_and_climbs_below(seed: int) -> None:
+    # one still cell, exact readings, no cell sensor: a reading is a function of the distance
+    # alone, and every move can be checked against what the rule says for its reading
+    s = scenario(
+        seed=seed, robots={"count": 1, "policy": "rule", "cell_sensing_radius": 0.0},
+        cells={"count": 1, "motion_std": 0.0}, obstacles={"count": 0},
+        biomarker={"sensor_noise": 0.0, "noise_floor": 0.0, "detection_threshold": 0.0},
+        learning={"episodes": 0, "max_steps": 400}, evaluation={"worlds": 1},
+        reach_distance=0.01,  # so that it passes the cell and tumbles
+    )  # fmt: skip
+    mid = _params(s).level_2
+    t = simulate(s).trajectory
+    assert t is not None and t.stride == 1
+    rows = int(t.robot_steps[0]) + 1
+    path, reading, cell = t.robots[:rows, 0], t.concentration[:rows, 0], t.cells[0, 0]
+    moves = np.diff(path, axis=0)
+    units = moves / np.linalg.norm(moves, axis=1, keepdims=True)
+    kept = off_gradient = tumbled = climbed = 0
+    for k in range(1, len(moves)):  # move k starts at row k, on reading k (the last: k - 1)
+        if np.abs(path[k + 1]).max() >= s.space.size / 2 - 1e-9:
+            continue  # a wall reflected this move
+        toward = (cell - path[k]) / np.linalg.norm(cell - path[k])
+        up = np.allclose(units[k], toward, atol=1e-6)
+        if reading[k] > mid and reading[k] > reading[k - 1]:
+            assert np.allclose(units[k], units[k - 1], atol=1e-9), k  # rising: straight on
+            kept += 1
+            off_gradient += not up
+        elif reading[k] > mid:
+            assert not np.allclose(units[k], units[k - 1], atol=1e-3), k  # a new heading,
+            assert not up, k  # at random, not up the gradient
+            tumbled += 1
+        else:
+            assert np.allclose(units[k], toward, atol=1e-9), k  # up the gradient
+            climbed += 1
+    # straight on is not climbing: after a tumble the robot keeps a heading off the gradient
+    assert off_gradient and tumbled and climbed, (kept, off_gradient, tumbled, climbed)
 
 
 def test_moves_never_pass_through_an_obstacle_and_start_a_step_clear() -> None:

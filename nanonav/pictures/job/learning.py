@@ -24,10 +24,11 @@ _POLICY_NAMES = {
     "gradient": "gradient climbing",
     "run_and_tumble": "run and tumble",
     "rule": "the fixed rule",
+    "simple_rule": "the simple rule",
     "random": "the random walk",
 }
 # Policies that learn nothing: their episodes are independent trials of the same behaviour.
-BASELINES = frozenset({"gradient", "run_and_tumble", "rule", "random"})
+BASELINES = frozenset({"gradient", "run_and_tumble", "rule", "simple_rule", "random"})
 # The moving mean spans about an eighth of the episodes, within these bounds; runs shorter than
 # SMOOTH_FROM episodes show the raw values only.
 SMOOTH_FROM = 4
