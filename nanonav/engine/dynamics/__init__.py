@@ -1,2 +1,2 @@
-"""How things move, one module per physics: the paper's lattice steps, and active Brownian motion in SI
-units."""
+"""How things move, one module per physics: the paper's lattice steps, and active Brownian
+motion in SI units."""
