@@ -1,0 +1,236 @@
+"""Active Brownian motion in SI units: a sphere of radius R swimming at speed v along a heading n
+that diffuses on the unit sphere, in a fluid of viscosity eta at temperature T (the standard model
+of a microswimmer; Volpe, Gigan & Volpe, Am. J. Phys. 82, 659 (2014)).
+
+Units throughout: lengths in um, times in s, concentrations in nM (1 nM = 0.6022 molecules per
+um^3), diffusion coefficients in um^2/s, rates in 1/s, viscosity in mPa s, temperature in K.
+
+Per step ``dt_s`` (overdamped Langevin, Euler-Maruyama):
+    position += v n dt + sqrt(2 D_T dt) xi        xi: three standard normals
+    n        <- n cos(theta) + u sin(theta)       u: a random direction perpendicular to n
+with theta Rayleigh-distributed, its scale chosen so that E[cos theta] = exp(-2 D_R dt) exactly:
+each step's rotation is isotropic about n, so the heading correlation after k steps is
+<n(k dt) . n(0)> = exp(-2 D_R k dt) for any dt, and |n| stays 1.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+from scipy.optimize import brentq
+from scipy.special import dawsn
+
+BOLTZMANN_J_K = 1.380649e-23  # exact since the 2019 SI
+AVOGADRO_PER_MOL = 6.02214076e23  # exact since the 2019 SI
+MOLECULES_PER_UM3_PER_NM = AVOGADRO_PER_MOL * 1e-9 / 1e15  # 1 nM in molecules per um^3: 0.6022
+# Rayleigh(sigma) rotation angles: E[cos theta] = 1 - 2 x F(x), x = sigma / sqrt(2), F Dawson's
+# integral. It falls from 1 to 0 as x grows to about 0.9241, the largest step this allows.
+_LARGEST_X = float(brentq(lambda x: 1.0 - 2.0 * x * dawsn(x), 0.5, 1.5))
+
+
+def translational_diffusion_um2_s(
+    temperature_k: float, viscosity_mpa_s: float, radius_um: float
+) -> float:
+    """Stokes-Einstein: D_T = k_B T / (6 pi eta R), in um^2/s."""
+    eta = viscosity_mpa_s * 1e-3
+    radius = radius_um * 1e-6
+    return BOLTZMANN_J_K * temperature_k / (6.0 * math.pi * eta * radius) * 1e12
+
+
+def rotational_diffusion_s(temperature_k: float, viscosity_mpa_s: float, radius_um: float) -> float:
+    """Stokes-Einstein-Debye: D_R = k_B T / (8 pi eta R^3), in 1/s."""
+    eta = viscosity_mpa_s * 1e-3
+    radius = radius_um * 1e-6
+    return BOLTZMANN_J_K * temperature_k / (8.0 * math.pi * eta * radius**3)
+
+
+def persistence_length_um(swim_speed_um_s: float, rotational_diffusion: float) -> float:
+    """How far a swimmer goes before it forgets its heading: v tau_R, with tau_R = 1 / (2 D_R)
+    the decay time of <n(t) . n(0)> in three dimensions."""
+    return swim_speed_um_s / (2.0 * rotational_diffusion)
+
+
+def peclet_translational(swim_speed_um_s: float, radius_um: float, diffusion: float) -> float:
+    """v R / D_T: swimming against translational diffusion over one body radius."""
+    return swim_speed_um_s * radius_um / diffusion
+
+
+def peclet_rotational(
+    swim_speed_um_s: float, radius_um: float, rotational_diffusion: float
+) -> float:
+    """v / (R D_R): body radii swum in the time the heading takes to turn by a radian."""
+    return swim_speed_um_s / (radius_um * rotational_diffusion)
+
+
+def heading_correlation(rotational_diffusion: float, lag_s: float) -> float:
+    """<n(t) . n(0)> of a heading diffusing on the sphere: exp(-2 D_R t)."""
+    return math.exp(-2.0 * rotational_diffusion * lag_s)
+
+
+def mean_squared_displacement_um2(
+    diffusion: float, swim_speed_um_s: float, rotational_diffusion: float, lag_s: float
+) -> float:
+    """The active Brownian particle's MSD in three dimensions:
+    6 D_T t + (v^2 / D_R) [t - (1 - exp(-2 D_R t)) / (2 D_R)]."""
+    t = lag_s
+    active = 0.0
+    if swim_speed_um_s and rotational_diffusion > 0.0:
+        d_r = rotational_diffusion
+        active = swim_speed_um_s**2 / d_r * (t - (1.0 - math.exp(-2.0 * d_r * t)) / (2.0 * d_r))
+    elif swim_speed_um_s:
+        active = (swim_speed_um_s * t) ** 2  # no rotational diffusion: straight on
+    return 6.0 * diffusion * t + active
+
+
+def heading_kick_scale(rotational_diffusion: float, dt_s: float) -> float:
+    """The Rayleigh scale sigma of one step's rotation angle, such that E[cos theta] =
+    exp(-2 D_R dt). Any step has one (the scale grows toward about 1.31 as the step forgets
+    the heading entirely); the scenario's own bound keeps D_R dt small."""
+    if rotational_diffusion < 0.0 or dt_s <= 0.0:
+        raise ValueError("rotational diffusion must be >= 0 and dt_s > 0")
+    target = math.exp(-2.0 * rotational_diffusion * dt_s)
+    if target >= 1.0:
+        return 0.0
+
+    def gap(x: float) -> float:
+        return 1.0 - 2.0 * x * float(dawsn(x)) - target
+
+    if gap(_LARGEST_X) >= 0.0:  # the heading forgets itself within the step
+        return _LARGEST_X * math.sqrt(2.0)
+    return float(brentq(gap, 0.0, _LARGEST_X, xtol=1e-15)) * math.sqrt(2.0)
+
+
+def berg_purcell_relative_error(
+    molecule_diffusion_um2_s: float, sensor_radius_um: float, concentration_nm: float, time_s: float
+) -> float:
+    """The relative error of one reading of a concentration by a sensor at its physical limit:
+    delta c / c = 1 / sqrt(pi D a c tau), for a perfectly absorbing sphere of radius a reading for
+    a time tau molecules that diffuse with D at concentration c (molecules per um^3) (Berg &
+    Purcell, Biophys. J. 20, 193 (1977); in this form, Bialek & Setayeshgar, PNAS 102, 10040
+    (2005), eq. 1). Infinite where nothing is there to count."""
+    molecules = concentration_nm * MOLECULES_PER_UM3_PER_NM
+    counted = math.pi * molecule_diffusion_um2_s * sensor_radius_um * molecules * time_s
+    return math.inf if counted <= 0.0 else 1.0 / math.sqrt(counted)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _tangent_basis(
+    nx: float, ny: float, nz: float
+) -> tuple[float, float, float, float, float, float]:
+    """Two unit vectors perpendicular to the unit vector n and to each other."""
+    ax, ay, az = (0.0, 1.0, 0.0) if abs(nx) > 0.9 else (1.0, 0.0, 0.0)
+    dot = ax * nx + ay * ny + az * nz
+    ex = ax - dot * nx
+    ey = ay - dot * ny
+    ez = az - dot * nz
+    norm = math.sqrt(ex * ex + ey * ey + ez * ez)
+    ex /= norm
+    ey /= norm
+    ez /= norm
+    return ex, ey, ez, ny * ez - nz * ey, nz * ex - nx * ez, nx * ey - ny * ex
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _unit(x: float, y: float, z: float) -> tuple[float, float, float]:
+    norm = math.sqrt(x * x + y * y + z * z)
+    return x / norm, y / norm, z / norm
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def diffuse_heading(
+    rng: np.random.Generator, nx: float, ny: float, nz: float, sigma: float
+) -> tuple[float, float, float]:
+    """One step of rotational diffusion: n cos(theta) + u sin(theta), where sigma (g1, g2) in the
+    tangent plane gives the direction u and the angle theta (Rayleigh with scale sigma)."""
+    if sigma == 0.0:
+        return nx, ny, nz
+    ex, ey, ez, fx, fy, fz = _tangent_basis(nx, ny, nz)
+    g1 = rng.standard_normal()
+    g2 = rng.standard_normal()
+    g = math.sqrt(g1 * g1 + g2 * g2)
+    if g == 0.0:
+        return nx, ny, nz
+    theta = sigma * g
+    c = math.cos(theta)
+    s = math.sin(theta) / g
+    return _unit(
+        c * nx + s * (g1 * ex + g2 * fx),
+        c * ny + s * (g1 * ey + g2 * fy),
+        c * nz + s * (g1 * ez + g2 * fz),
+    )
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def turn_toward(
+    nx: float, ny: float, nz: float, tx: float, ty: float, tz: float, largest: float
+) -> tuple[float, float, float]:
+    """The unit heading n turned toward the direction t by its angle to it, at most ``largest``
+    radians, in the plane of the two (n unchanged where t is zero)."""
+    t = math.sqrt(tx * tx + ty * ty + tz * tz)
+    if t == 0.0 or largest <= 0.0:
+        return nx, ny, nz
+    tx /= t
+    ty /= t
+    tz /= t
+    cosine = min(1.0, max(-1.0, nx * tx + ny * ty + nz * tz))
+    angle = math.acos(cosine)
+    if angle <= largest:
+        return tx, ty, tz
+    ux = tx - cosine * nx
+    uy = ty - cosine * ny
+    uz = tz - cosine * nz
+    u = math.sqrt(ux * ux + uy * uy + uz * uz)
+    if u < 1e-12:  # t is opposite n: every way round is as short
+        ux, uy, uz, _, _, _ = _tangent_basis(nx, ny, nz)
+    else:
+        ux /= u
+        uy /= u
+        uz /= u
+    c = math.cos(largest)
+    s = math.sin(largest)
+    return _unit(c * nx + s * ux, c * ny + s * uy, c * nz + s * uz)
+
+
+@njit(cache=True, error_model="numpy")
+def swim(
+    rng: np.random.Generator,
+    pos: NDArray[np.float64],
+    heading: NDArray[np.float64],
+    active: NDArray[np.bool_],
+    swim_speed_um_s: float,
+    diffusion_um2_s: float,
+    heading_sigma: float,
+    dt_s: float,
+) -> None:
+    """Advance every active robot one step in free space: swim along its heading, diffuse, and
+    let the heading diffuse (the module docstring gives the scheme)."""
+    jiggle = math.sqrt(2.0 * diffusion_um2_s * dt_s)
+    stride = swim_speed_um_s * dt_s
+    for i in range(pos.shape[0]):
+        if not active[i]:
+            continue
+        nx = heading[i, 0]
+        ny = heading[i, 1]
+        nz = heading[i, 2]
+        pos[i, 0] += stride * nx + jiggle * rng.standard_normal()
+        pos[i, 1] += stride * ny + jiggle * rng.standard_normal()
+        pos[i, 2] += stride * nz + jiggle * rng.standard_normal()
+        nx, ny, nz = diffuse_heading(rng, nx, ny, nz, heading_sigma)
+        heading[i, 0] = nx
+        heading[i, 1] = ny
+        heading[i, 2] = nz
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def read_concentration(rng: np.random.Generator, concentration: float, relative_sd: float) -> float:
+    """One reading of a true concentration with the given relative error: a gamma draw, whose
+    mean is the concentration and whose sd is ``relative_sd`` times it, never negative."""
+    if concentration <= 0.0:
+        return 0.0
+    if relative_sd <= 0.0:
+        return concentration
+    shape = 1.0 / (relative_sd * relative_sd)
+    return rng.gamma(shape, concentration / shape)
