@@ -1,9 +1,12 @@
-"""The compiled simulation step: cells drift, obstacles drift, every active robot senses, acts,
-moves, collides or reaches, and learns (eq. 2.7).
+"""The compiled step, and the episode loop around it: each step the world moves, every active
+robot senses, chooses, moves, collides or reaches, and learns (eq. 2.7).
 
-Everything here runs under numba; the loop over robots is compiled, never a Python loop. Robots
-are processed in index order within a step, so a shared Q-table written by many robots in one
-step receives every update in a fixed order: the result is exact and reproducible.
+The step composes the engine's rooms: ``dynamics.lattice`` (how cells, obstacles and robots
+move), ``sensing`` (readings and the state), ``policies`` (the choice of an action) and
+``learning`` (the Q update). Everything here runs under numba; the loop over robots is compiled,
+never a Python loop, and the rooms' small functions are inlined into it. Robots are processed in
+index order within a step, so a shared Q-table written by many robots in one step receives every
+update in a fixed order: the result is exact and reproducible.
 """
 
 from __future__ import annotations
@@ -14,15 +17,19 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from nanonav.engine.fields import SAMPLED_GAUSSIAN, place_sources, sample_many
-from nanonav.engine.qlearning import (
-    APPROACH_CELL,
-    AVOID_OBSTACLE,
-    EXPLORE,
-    SIGN_THRESHOLD,
+from nanonav.engine.dynamics.lattice import (
+    _move_cells,
+    _move_obstacles,
+    _move_robot,
+    _nearest,
+    _nearest_obstacle,
+    _redraw_emitters,
 )
+from nanonav.engine.fields import SAMPLED_GAUSSIAN, place_sources
+from nanonav.engine.learning import _learn, _learn_bootstrapped
+from nanonav.engine.policies import NO_BEHAVIOR, _baseline, _behavior_direction, _choose
+from nanonav.engine.sensing import _sense, _sense_all, _state
 from nanonav.engine.state import (
-    ALPHA_VISITS,
     BEHAVIORS,
     CURVE_COLLISIONS,
     CURVE_REACHED,
@@ -41,13 +48,9 @@ from nanonav.engine.state import (
     EV_SUM_CONCENTRATION,
     EV_SUM_DISTANCE,
     EV_SWEPT,
-    GRADIENT,
     LAYOUT_STATUS,
     Q_LEARNING,
     ROBOT_STEPS,
-    RULE,
-    RUN_AND_TUMBLE,
-    SIMPLE_RULE,
     STEP,
     KernelParams,
     Learner,
@@ -56,383 +59,6 @@ from nanonav.engine.state import (
     World,
 )
 from nanonav.engine.world import draw_world
-
-# Proximity cut-offs, in robot steps: an obstacle surface within 2 steps is 'near', a cell within
-# 3 steps is 'near'.
-OBSTACLE_NEAR_STEPS = 2.0
-CELL_NEAR_STEPS = 3.0
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _random_unit(rng: np.random.Generator) -> tuple[float, float, float]:
-    while True:
-        x = rng.standard_normal()
-        y = rng.standard_normal()
-        z = rng.standard_normal()
-        n = math.sqrt(x * x + y * y + z * z)
-        if n > 1e-12:
-            return x / n, y / n, z / n
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _reflect(v: float, half: float) -> float:
-    if v > half:
-        return 2.0 * half - v
-    if v < -half:
-        return -2.0 * half - v
-    return v
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _nearest(points: NDArray[np.float64], x: float, y: float, z: float) -> tuple[int, float]:
-    """Index of the point nearest to (x, y, z) and its distance (-1 and inf if none)."""
-    best = -1
-    best_d2 = np.inf
-    for j in range(points.shape[0]):
-        dx = points[j, 0] - x
-        dy = points[j, 1] - y
-        dz = points[j, 2] - z
-        d2 = dx * dx + dy * dy + dz * dz
-        if d2 < best_d2:
-            best_d2 = d2
-            best = j
-    return best, math.sqrt(best_d2)
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _nearest_obstacle(
-    obstacles: NDArray[np.float64], radius: float, x: float, y: float, z: float
-) -> tuple[int, float]:
-    """Index of the nearest obstacle and the distance to its surface (inf if none)."""
-    best, distance = _nearest(obstacles, x, y, z)
-    return best, distance - radius
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _inside_obstacle(
-    obstacles: NDArray[np.float64], radius: float, x: float, y: float, z: float
-) -> bool:
-    r2 = radius * radius
-    for j in range(obstacles.shape[0]):
-        dx = obstacles[j, 0] - x
-        dy = obstacles[j, 1] - y
-        dz = obstacles[j, 2] - z
-        if dx * dx + dy * dy + dz * dz < r2:
-            return True
-    return False
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _segment_hit(
-    obstacles: NDArray[np.float64], radius: float,
-    px: float, py: float, pz: float, nx: float, ny: float, nz: float,
-) -> int:  # fmt: skip
-    """The first obstacle (by index) that the move from p to n passes through, or -1: the whole
-    segment is checked, so a fast robot cannot tunnel through a small obstacle."""
-    ux = nx - px
-    uy = ny - py
-    uz = nz - pz
-    length2 = ux * ux + uy * uy + uz * uz
-    r2 = radius * radius
-    # an obstacle whose centre is farther than radius + the move's length cannot be touched
-    reach = radius + math.sqrt(length2)
-    reach2 = reach * reach
-    for j in range(obstacles.shape[0]):
-        cx = obstacles[j, 0] - px
-        cy = obstacles[j, 1] - py
-        cz = obstacles[j, 2] - pz
-        if cx * cx + cy * cy + cz * cz >= reach2:
-            continue
-        # the segment's point nearest the centre: p + f u, f clamped to [0, 1]
-        f = 0.0
-        if length2 > 0.0:
-            f = min(max((cx * ux + cy * uy + cz * uz) / length2, 0.0), 1.0)
-        dx = cx - f * ux
-        dy = cy - f * uy
-        dz = cz - f * uz
-        if dx * dx + dy * dy + dz * dz < r2:
-            return j
-    return -1
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _slide(
-    p: KernelParams, rng: np.random.Generator, w: World,
-    px: float, py: float, pz: float, dx: float, dy: float, dz: float, step: float,
-) -> tuple[float, float, float]:  # fmt: skip
-    """The direction (dx, dy, dz), or, if a step along it would run into an obstacle, its part
-    along that obstacle's surface: a robot that meets an obstacle goes round it rather than
-    pushing against it."""
-    j = _segment_hit(
-        w.obstacles, p.obstacle_radius, px, py, pz, px + step * dx, py + step * dy, pz + step * dz
-    )
-    if j < 0:
-        return dx, dy, dz
-    nx, ny, nz = _unit_or_random(
-        rng, px - w.obstacles[j, 0], py - w.obstacles[j, 1], pz - w.obstacles[j, 2]
-    )
-    inward = dx * nx + dy * ny + dz * nz
-    if inward >= 0.0:
-        return dx, dy, dz
-    tx = dx - inward * nx
-    ty = dy - inward * ny
-    tz = dz - inward * nz
-    if tx * tx + ty * ty + tz * tz < 1e-18:
-        # head-on: any tangent will do
-        tx, ty, tz = ny, -nx, 0.0
-        if tx * tx + ty * ty < 1e-18:
-            tx, ty, tz = 0.0, nz, -ny
-    return _unit_or_random(rng, tx, ty, tz)
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _climb(
-    p: KernelParams, rng: np.random.Generator, w: World, s: Swarm, i: int,
-    px: float, py: float, pz: float, gx: float, gy: float, gz: float,
-) -> tuple[float, float, float]:  # fmt: skip
-    """Up the sensed gradient, sliding round obstacles; straight on where nothing is sensed."""
-    if gx * gx + gy * gy + gz * gz > 0.0:
-        dx, dy, dz = _unit_or_random(rng, gx, gy, gz)
-    else:
-        dx = s.heading[i, 0]
-        dy = s.heading[i, 1]
-        dz = s.heading[i, 2]
-    return _slide(p, rng, w, px, py, pz, dx, dy, dz, p.speed)
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _sense_all(p: KernelParams, w: World, s: Swarm, wanted: NDArray[np.bool_]) -> None:
-    """The true field and gradient at every ``wanted`` robot, in one pass over the swarm (the
-    sources' loop vectorises there, unlike inside the robot loop)."""
-    sample_many(
-        p.model, w.sx, w.sy, w.sz, p.weight, p.length, p.softening, s.pos, wanted,
-        s.reading, s.reading_grad,
-    )  # fmt: skip
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _sense(p: KernelParams, rng: np.random.Generator, s: Swarm, i: int) -> tuple[float, ...]:
-    """Robot ``i``'s reading of the concentration and its gradient, with relative sensor noise."""
-    c = s.reading[i]
-    gx = s.reading_grad[i, 0]
-    gy = s.reading_grad[i, 1]
-    gz = s.reading_grad[i, 2]
-    if p.noise > 0.0:
-        c *= 1.0 + p.noise * rng.standard_normal()
-        gx *= 1.0 + p.noise * rng.standard_normal()
-        gy *= 1.0 + p.noise * rng.standard_normal()
-        gz *= 1.0 + p.noise * rng.standard_normal()
-    if p.noise_floor > 0.0:
-        c += p.noise_floor * rng.standard_normal()
-        gx += p.gradient_noise * rng.standard_normal()
-        gy += p.gradient_noise * rng.standard_normal()
-        gz += p.gradient_noise * rng.standard_normal()
-    if p.detection_threshold > 0.0 and c < p.detection_threshold:
-        return 0.0, 0.0, 0.0, 0.0  # below the threshold a robot senses nothing
-    return c, gx, gy, gz
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _state(
-    p: KernelParams,
-    c: float,
-    prev_c: float,
-    gx: float,
-    gy: float,
-    gz: float,
-    obstacle_gap: float,
-    cell_d: float,
-) -> int:
-    """Mixed-radix state index, in the order of ``qlearning.behavior_states`` or
-    ``qlearning.direction_states``."""
-    near_obstacle = obstacle_gap <= OBSTACLE_NEAR_STEPS * p.speed
-    if p.action_set == BEHAVIORS:
-        level = int(c > p.level_1) + int(c > p.level_2) + int(c > p.level_3)
-        trend = 1 if c > prev_c else 0
-        obstacle = 0
-        if obstacle_gap <= p.sensing_radius:
-            obstacle = 2 if near_obstacle else 1
-        cell = 0
-        if cell_d <= p.cell_sensing_radius:
-            cell = 2 if cell_d <= CELL_NEAR_STEPS * p.speed else 1
-        return ((level * 2 + trend) * 3 + obstacle) * 3 + cell
-    g = math.sqrt(gx * gx + gy * gy + gz * gz)
-    index = 0
-    for v in (gx, gy, gz):
-        sign = 1
-        if g > 0.0:
-            if v >= SIGN_THRESHOLD * g:
-                sign = 2
-            elif v <= -SIGN_THRESHOLD * g:
-                sign = 0
-        index = index * 3 + sign
-    return index * 2 + (1 if near_obstacle else 0)
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _choose(
-    epsilon: float, rng: np.random.Generator, q: NDArray[np.float64], table: int, state: int
-) -> int:
-    """Epsilon-greedy over one row of the table; ties among the best are broken at random."""
-    actions = q.shape[2]
-    if epsilon > 0.0 and rng.random() < epsilon:
-        return int(rng.integers(0, actions))
-    best = q[table, state, 0]
-    ties = 1
-    for a in range(1, actions):
-        v = q[table, state, a]
-        if v > best:
-            best = v
-            ties = 1
-        elif v == best:
-            ties += 1
-    pick = 0 if ties == 1 else int(rng.integers(0, ties))
-    for a in range(actions):
-        if q[table, state, a] == best:
-            if pick == 0:
-                return a
-            pick -= 1
-    return 0
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _unit_or_random(
-    rng: np.random.Generator, x: float, y: float, z: float
-) -> tuple[float, float, float]:
-    n = math.sqrt(x * x + y * y + z * z)
-    if n > 1e-300:
-        return x / n, y / n, z / n
-    return _random_unit(rng)
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _behavior_direction(
-    p: KernelParams,
-    rng: np.random.Generator,
-    w: World,
-    s: Swarm,
-    robot: int,
-    action: int,
-    px: float,
-    py: float,
-    pz: float,
-    gx: float,
-    gy: float,
-    gz: float,
-    cell: int,
-    cell_d: float,
-) -> tuple[float, float, float, float]:
-    """Unit direction and step length of one of the paper's behaviours. (Arrays are indexed
-    element by element here: taking row views in this hot path costs reference counting.)"""
-    if action == EXPLORE:
-        dx, dy, dz = _random_unit(rng)
-        return dx, dy, dz, p.speed
-    if action == APPROACH_CELL:
-        if cell_d <= p.cell_sensing_radius and cell_d > 0.0:
-            return (
-                (w.cells[cell, 0] - px) / cell_d,
-                (w.cells[cell, 1] - py) / cell_d,
-                (w.cells[cell, 2] - pz) / cell_d,
-                min(p.speed, cell_d),
-            )
-        return s.heading[robot, 0], s.heading[robot, 1], s.heading[robot, 2], p.speed
-    if action == AVOID_OBSTACLE:
-        # up the gradient, and round an obstacle only if the step would run into it
-        dx, dy, dz = _climb(p, rng, w, s, robot, px, py, pz, gx, gy, gz)
-        return dx, dy, dz, p.speed
-    if gx * gx + gy * gy + gz * gz > 0.0:
-        dx, dy, dz = _unit_or_random(rng, gx, gy, gz)
-        return dx, dy, dz, p.speed
-    return s.heading[robot, 0], s.heading[robot, 1], s.heading[robot, 2], p.speed
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _learn(
-    p: KernelParams,
-    q: NDArray[np.float64],
-    visits: NDArray[np.int64],
-    table: int,
-    s: int,
-    a: int,
-    target: float,
-) -> None:
-    # eq. 2.7: Q(s,a) <- Q(s,a) + alpha [r + gamma max_a' Q(s',a') - Q(s,a)], alpha constant or
-    # alpha / N(s,a)^omega over the visits N of (s, a)
-    alpha = p.alpha
-    if p.alpha_schedule == ALPHA_VISITS and visits[table, s, a] > 1:
-        n = visits[table, s, a]
-        alpha = p.alpha / n if p.alpha_exponent == 1.0 else p.alpha / n**p.alpha_exponent
-    q[table, s, a] += alpha * (target - q[table, s, a])
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _bootstrap(p: KernelParams, q: NDArray[np.float64], table: int, s: int, reward: float) -> float:
-    best: float = q[table, s, 0]
-    for a in range(1, q.shape[2]):
-        best = max(best, q[table, s, a])
-    return reward + p.gamma * best
-
-
-@njit(cache=True, error_model="numpy")
-def _move_cells(p: KernelParams, rng: np.random.Generator, w: World) -> None:
-    """Random walk of the cells (paper 3.1); a move into an obstacle is refused. Without walls
-    a cell may drift out of the cube."""
-    for j in range(w.cells.shape[0]):
-        x = w.cells[j, 0] + p.cell_std * rng.standard_normal()
-        y = w.cells[j, 1] + p.cell_std * rng.standard_normal()
-        z = w.cells[j, 2] + p.cell_std * rng.standard_normal()
-        if p.walls:
-            x = _reflect(x, p.half)
-            y = _reflect(y, p.half)
-            z = _reflect(z, p.half)
-        if not _inside_obstacle(w.obstacles, p.obstacle_radius, x, y, z):
-            w.cells[j, 0] = x
-            w.cells[j, 1] = y
-            w.cells[j, 2] = z
-
-
-@njit(cache=True, error_model="numpy")
-def _redraw_emitters(p: KernelParams, rng: np.random.Generator, w: World) -> None:
-    """The sampled Gaussian's emitters, drawn anew around their cells: uniform within
-    ``emitter_scatter`` on each axis (the authors' script redraws them every step)."""
-    for k in range(w.offsets.shape[0]):
-        for a in range(3):
-            w.offsets[k, a] = p.emitter_scatter * (2.0 * rng.random() - 1.0)
-
-
-@njit(cache=True, error_model="numpy")
-def _move_obstacles(p: KernelParams, rng: np.random.Generator, w: World, s: Swarm) -> None:
-    """Obstacle drift (paper 2.6); a move that would engulf a robot or a cell is refused."""
-    r = p.obstacle_radius
-    for j in range(w.obstacles.shape[0]):
-        x = w.obstacles[j, 0] + p.obstacle_std * rng.standard_normal()
-        y = w.obstacles[j, 1] + p.obstacle_std * rng.standard_normal()
-        z = w.obstacles[j, 2] + p.obstacle_std * rng.standard_normal()
-        if p.walls:
-            x = _reflect(x, p.half)
-            y = _reflect(y, p.half)
-            z = _reflect(z, p.half)
-        clear = True
-        for i in range(s.pos.shape[0]):
-            dx = s.pos[i, 0] - x
-            dy = s.pos[i, 1] - y
-            dz = s.pos[i, 2] - z
-            if dx * dx + dy * dy + dz * dz < r * r:
-                clear = False
-                break
-        if clear:
-            margin = r + p.reach_distance
-            for k in range(w.cells.shape[0]):
-                dx = w.cells[k, 0] - x
-                dy = w.cells[k, 1] - y
-                dz = w.cells[k, 2] - z
-                if dx * dx + dy * dy + dz * dz < margin * margin:
-                    clear = False
-                    break
-        if clear:
-            w.obstacles[j, 0] = x
-            w.obstacles[j, 1] = y
-            w.obstacles[j, 2] = z
 
 
 @njit(cache=True, error_model="numpy")
@@ -621,6 +247,9 @@ def _run_steps(
         if n_active == 0:
             break
         counters[ROBOT_STEPS] += n_active
+        # the world's motion and (below) the pending slots are written out in this loop: moved
+        # into functions handed the world and the swarm, they cost up to a quarter of the
+        # robot-steps per second (reference counts of the swarm's arrays, or the call's arguments)
         if p.cell_std > 0.0:
             _move_cells(p, rng, w)
         if p.obstacle_std > 0.0 and w.obstacles.shape[0] > 0:
@@ -660,13 +289,15 @@ def _run_steps(
             c, gx, gy, gz = _sense(p, rng, s, i)
 
             # one call site for the behaviours, whoever chooses them: the compiled loop stays small
-            behavior = -1
+            behavior = NO_BEHAVIOR
             if p.policy == Q_LEARNING:
                 gap = _nearest_obstacle(w.obstacles, p.obstacle_radius, px, py, pz)[1]
                 state = _state(p, c, s.prev_conc[i], gx, gy, gz, gap, cell_d)
                 if learn and s.pending[i]:
-                    target = _bootstrap(p, lrn.q, table, state, s.last_reward[i])
-                    _learn(p, lrn.q, lrn.visits, table, s.last_state[i], s.last_action[i], target)
+                    _learn_bootstrapped(
+                        p, lrn.q, lrn.visits, table, s.last_state[i], s.last_action[i],
+                        s.last_reward[i], state,
+                    )  # fmt: skip
                 action = _choose(epsilon, rng, lrn.q, table, state)
                 lrn.visits[table, state, action] += 1
                 if p.action_set == BEHAVIORS:
@@ -680,64 +311,19 @@ def _run_steps(
                 state = 0
                 action = 0
                 step = p.speed
-                if p.policy == GRADIENT:
-                    behavior = AVOID_OBSTACLE  # up the gradient, round obstacles
-                elif p.policy == SIMPLE_RULE:
-                    sensed = cell_d <= p.cell_sensing_radius and cell_d > 0.0
-                    behavior = APPROACH_CELL if sensed else AVOID_OBSTACLE
-                elif p.policy == RULE:
-                    # advance on a sensed cell; on a reading above the 'mid' level, run and
-                    # tumble (a gradient is flat and noisy there, between cells and round a
-                    # field's maximum); below it, climb the gradient
-                    behavior = AVOID_OBSTACLE
-                    if cell_d <= p.cell_sensing_radius and cell_d > 0.0:
-                        behavior = APPROACH_CELL
-                    elif c > p.level_2:
-                        if c > s.prev_conc[i]:
-                            gx = 0.0  # no gradient to climb: straight on, round obstacles
-                            gy = 0.0
-                            gz = 0.0
-                        else:
-                            behavior = EXPLORE
-                elif p.policy == RUN_AND_TUMBLE and c > s.prev_conc[i]:
-                    dx = s.heading[i, 0]
-                    dy = s.heading[i, 1]
-                    dz = s.heading[i, 2]
-                else:
-                    dx, dy, dz = _random_unit(rng)
+                behavior, dx, dy, dz, gx, gy, gz = _baseline(
+                    p, rng, s.heading, i, c, s.prev_conc[i], gx, gy, gz, cell_d
+                )
             if behavior >= 0:
                 dx, dy, dz, step = _behavior_direction(
                     p, rng, w, s, i, behavior, px, py, pz, gx, gy, gz, cell, cell_d
                 )
             s.prev_conc[i] = c
 
-            nx = px + step * dx
-            ny = py + step * dy
-            nz = pz + step * dz
-            if p.walls and abs(nx) > p.half:
-                nx = _reflect(nx, p.half)
-                dx = -dx
-            if p.walls and abs(ny) > p.half:
-                ny = _reflect(ny, p.half)
-                dy = -dy
-            if p.walls and abs(nz) > p.half:
-                nz = _reflect(nz, p.half)
-                dz = -dz
+            nx, ny, nz, blocked = _move_robot(p, w, s, i, px, py, pz, dx, dy, dz, step)
             reward = p.reward_step
-            if _segment_hit(w.obstacles, p.obstacle_radius, px, py, pz, nx, ny, nz) >= 0:
-                s.collisions[i] += 1
+            if blocked:
                 reward += p.reward_collision
-                nx = px
-                ny = py
-                nz = pz
-            else:
-                s.path_length[i] += step
-                s.heading[i, 0] = dx
-                s.heading[i, 1] = dy
-                s.heading[i, 2] = dz
-            s.pos[i, 0] = nx
-            s.pos[i, 1] = ny
-            s.pos[i, 2] = nz
             s.steps[i] += 1
             new_d = _nearest(w.cells, nx, ny, nz)[1]
             # paper 2.7: +approach per unit moved toward the source, +reach on arrival
@@ -752,6 +338,7 @@ def _run_steps(
                     _learn(p, lrn.q, lrn.visits, table, state, action, reward)
                     s.pending[i] = False
                 else:
+                    # eq. 2.7 needs the next state: the transition waits for it
                     s.pending[i] = True
                     s.last_state[i] = state
                     s.last_action[i] = action
@@ -785,6 +372,8 @@ def _finish_episode(
         gap = _nearest_obstacle(w.obstacles, p.obstacle_radius, px, py, pz)[1]
         cell_d = _nearest(w.cells, px, py, pz)[1]
         state = _state(p, c, s.prev_conc[i], gx, gy, gz, gap, cell_d)
-        target = _bootstrap(p, lrn.q, table, state, s.last_reward[i])
-        _learn(p, lrn.q, lrn.visits, table, s.last_state[i], s.last_action[i], target)
+        _learn_bootstrapped(
+            p, lrn.q, lrn.visits, table, s.last_state[i], s.last_action[i], s.last_reward[i],
+            state,
+        )  # fmt: skip
         s.pending[i] = False

@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from nanonav.engine import kernel, qlearning, simulate
+from nanonav.engine import qlearning, sensing, simulate
 from nanonav.engine.result import without_timings
 from nanonav.engine.simulate import _params, _Run
 from nanonav.scenario import Scenario, preset_scenario
@@ -38,7 +38,7 @@ def test_each_sensed_gradient_component_carries_the_noise_of_two_readings_a_base
     run = _Run(s, _params(s))
     run.swarm.reading[0] = 1.0  # above any threshold; the true gradient is 0
     rng = np.random.default_rng(11)
-    samples = np.array([kernel._sense(run.params, rng, run.swarm, 0) for _ in range(20_000)])
+    samples = np.array([sensing._sense(run.params, rng, run.swarm, 0) for _ in range(20_000)])
     expected = math.sqrt(2.0) * floor / baseline
     # the sample sd of n normal draws has a relative standard error of 1 / sqrt(2 (n - 1))
     tolerance = 4.0 / math.sqrt(2.0 * (len(samples) - 1))

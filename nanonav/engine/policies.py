@@ -1,0 +1,152 @@
+"""Choosing an action: the epsilon-greedy choice over a Q-table row, the fixed baselines
+(gradient, run_and_tumble, rule, simple_rule, random), and the paper's behaviours (2.5) turned
+into a direction to move along.
+
+A room of its own because what a robot decides is apart from how the world then moves it and
+from how it learns. Everything here runs under numba, inlined into the compiled step.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+from nanonav.engine.dynamics.lattice import _random_unit, _slide, _unit_or_random
+from nanonav.engine.qlearning import APPROACH_CELL, AVOID_OBSTACLE, EXPLORE
+from nanonav.engine.state import (
+    GRADIENT,
+    RULE,
+    RUN_AND_TUMBLE,
+    SIMPLE_RULE,
+    KernelParams,
+    Swarm,
+    World,
+)
+
+# The behaviour code of a choice that is a direction already, not one of the paper's behaviours.
+NO_BEHAVIOR = -1
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _choose(
+    epsilon: float, rng: np.random.Generator, q: NDArray[np.float64], table: int, state: int
+) -> int:
+    """Epsilon-greedy over one row of the table; ties among the best are broken at random."""
+    actions = q.shape[2]
+    if epsilon > 0.0 and rng.random() < epsilon:
+        return int(rng.integers(0, actions))
+    best = q[table, state, 0]
+    ties = 1
+    for a in range(1, actions):
+        v = q[table, state, a]
+        if v > best:
+            best = v
+            ties = 1
+        elif v == best:
+            ties += 1
+    pick = 0 if ties == 1 else int(rng.integers(0, ties))
+    for a in range(actions):
+        if q[table, state, a] == best:
+            if pick == 0:
+                return a
+            pick -= 1
+    return 0
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _baseline(
+    p: KernelParams, rng: np.random.Generator, heading: NDArray[np.float64], i: int,
+    c: float, prev_c: float, gx: float, gy: float, gz: float, cell_d: float,
+) -> tuple[int, float, float, float, float, float, float]:  # fmt: skip
+    """A fixed policy's choice for robot ``i`` from its reading ``c`` (and the last one,
+    ``prev_c``), sensed gradient ``g``, distance to the nearest cell and ``heading``:
+    ``(behavior, dx, dy, dz, gx, gy, gz)``. Either one of the paper's behaviours, for
+    ``_behavior_direction`` to turn into a move up the gradient ``g`` returned (``rule`` blanks
+    it to go straight on), or ``NO_BEHAVIOR`` and the unit direction ``d`` to move along."""
+    behavior = NO_BEHAVIOR
+    dx = 0.0
+    dy = 0.0
+    dz = 0.0
+    if p.policy == GRADIENT:
+        behavior = AVOID_OBSTACLE  # up the gradient, round obstacles
+    elif p.policy == SIMPLE_RULE:
+        sensed = cell_d <= p.cell_sensing_radius and cell_d > 0.0
+        behavior = APPROACH_CELL if sensed else AVOID_OBSTACLE
+    elif p.policy == RULE:
+        # advance on a sensed cell; on a reading above the 'mid' level, run and
+        # tumble (a gradient is flat and noisy there, between cells and round a
+        # field's maximum); below it, climb the gradient
+        behavior = AVOID_OBSTACLE
+        if cell_d <= p.cell_sensing_radius and cell_d > 0.0:
+            behavior = APPROACH_CELL
+        elif c > p.level_2:
+            if c > prev_c:
+                gx = 0.0  # no gradient to climb: straight on, round obstacles
+                gy = 0.0
+                gz = 0.0
+            else:
+                behavior = EXPLORE
+    elif p.policy == RUN_AND_TUMBLE and c > prev_c:
+        dx = heading[i, 0]
+        dy = heading[i, 1]
+        dz = heading[i, 2]
+    else:
+        dx, dy, dz = _random_unit(rng)
+    return behavior, dx, dy, dz, gx, gy, gz
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _climb(
+    p: KernelParams, rng: np.random.Generator, w: World, s: Swarm, i: int,
+    px: float, py: float, pz: float, gx: float, gy: float, gz: float,
+) -> tuple[float, float, float]:  # fmt: skip
+    """Up the sensed gradient, sliding round obstacles; straight on where nothing is sensed."""
+    if gx * gx + gy * gy + gz * gz > 0.0:
+        dx, dy, dz = _unit_or_random(rng, gx, gy, gz)
+    else:
+        dx = s.heading[i, 0]
+        dy = s.heading[i, 1]
+        dz = s.heading[i, 2]
+    return _slide(p, rng, w, px, py, pz, dx, dy, dz, p.speed)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _behavior_direction(
+    p: KernelParams,
+    rng: np.random.Generator,
+    w: World,
+    s: Swarm,
+    robot: int,
+    action: int,
+    px: float,
+    py: float,
+    pz: float,
+    gx: float,
+    gy: float,
+    gz: float,
+    cell: int,
+    cell_d: float,
+) -> tuple[float, float, float, float]:
+    """Unit direction and step length of one of the paper's behaviours. (Arrays are indexed
+    element by element here: taking row views in this hot path costs reference counting.)"""
+    if action == EXPLORE:
+        dx, dy, dz = _random_unit(rng)
+        return dx, dy, dz, p.speed
+    if action == APPROACH_CELL:
+        if cell_d <= p.cell_sensing_radius and cell_d > 0.0:
+            return (
+                (w.cells[cell, 0] - px) / cell_d,
+                (w.cells[cell, 1] - py) / cell_d,
+                (w.cells[cell, 2] - pz) / cell_d,
+                min(p.speed, cell_d),
+            )
+        return s.heading[robot, 0], s.heading[robot, 1], s.heading[robot, 2], p.speed
+    if action == AVOID_OBSTACLE:
+        # up the gradient, and round an obstacle only if the step would run into it
+        dx, dy, dz = _climb(p, rng, w, s, robot, px, py, pz, gx, gy, gz)
+        return dx, dy, dz, p.speed
+    if gx * gx + gy * gy + gz * gz > 0.0:
+        dx, dy, dz = _unit_or_random(rng, gx, gy, gz)
+        return dx, dy, dz, p.speed
+    return s.heading[robot, 0], s.heading[robot, 1], s.heading[robot, 2], p.speed
