@@ -25,6 +25,7 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import NDArray
 
 from nanonav.engine.dynamics import brownian
 
@@ -67,10 +68,10 @@ def swimmers(
     radius_um: float,
     dt_s: float,
     seed: int,
-) -> tuple[np.ndarray, np.ndarray]:  # type: ignore[type-arg]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Positions and headings of free swimmers every ``record_every`` steps, rows from t = 0."""
-    d_t = brownian.translational_diffusion_um2_s(TEMPERATURE_K, VISCOSITY_MPA_S, radius_um)
-    d_r = brownian.rotational_diffusion_s(TEMPERATURE_K, VISCOSITY_MPA_S, radius_um)
+    d_t = brownian.stokes_einstein_um2_s(TEMPERATURE_K, VISCOSITY_MPA_S, radius_um)
+    d_r = brownian.stokes_einstein_debye_s(TEMPERATURE_K, VISCOSITY_MPA_S, radius_um)
     sigma = brownian.heading_kick_scale(d_r, dt_s)
     rng = np.random.default_rng(seed)
     pos = np.zeros((robots, 3))
@@ -97,7 +98,7 @@ def euler_msd_um2(d_t: float, speed: float, d_r: float, dt_s: float, steps: int)
 
 
 def msd_checks(
-    label: str, positions: np.ndarray, lags: list[int], dt_s: float, record_every: int,  # type: ignore[type-arg]
+    label: str, positions: NDArray[np.float64], lags: list[int], dt_s: float, record_every: int,
     d_t: float, speed: float, d_r: float,
 ) -> list[Check]:  # fmt: skip
     checks = []
@@ -119,17 +120,18 @@ def all_checks(robots: int, seed: int = 1) -> list[Check]:
     eta = VISCOSITY_MPA_S * 1e-3
     for radius in (0.1, 1.0, 5.0):
         r = radius * 1e-6
-        d_t = brownian.translational_diffusion_um2_s(TEMPERATURE_K, VISCOSITY_MPA_S, radius)
-        d_r = brownian.rotational_diffusion_s(TEMPERATURE_K, VISCOSITY_MPA_S, radius)
-        checks.append(Check(f"D_T (um^2/s), R = {radius} um", None, d_t, 0.0,
+        d_t = brownian.stokes_einstein_um2_s(TEMPERATURE_K, VISCOSITY_MPA_S, radius)
+        d_r = brownian.stokes_einstein_debye_s(TEMPERATURE_K, VISCOSITY_MPA_S, radius)
+        # exact formulas: equal to rounding (1e-12 of the value stands for the error)
+        checks.append(Check(f"D_T (um^2/s), R = {radius} um", None, d_t, 1e-12 * d_t,
                             kt / (6 * math.pi * eta * r) * 1e12))  # fmt: skip
-        checks.append(Check(f"D_R (1/s), R = {radius} um", None, d_r, 0.0,
+        checks.append(Check(f"D_R (1/s), R = {radius} um", None, d_r, 1e-12 * d_r,
                             kt / (8 * math.pi * eta * r**3)))  # fmt: skip
 
     # 2. passive: R = 1 um, dt 0.01 s, lags 0.1, 1, 5 s
     radius, dt, every = 1.0, 0.01, 10
-    d_t = brownian.translational_diffusion_um2_s(TEMPERATURE_K, VISCOSITY_MPA_S, radius)
-    d_r = brownian.rotational_diffusion_s(TEMPERATURE_K, VISCOSITY_MPA_S, radius)
+    d_t = brownian.stokes_einstein_um2_s(TEMPERATURE_K, VISCOSITY_MPA_S, radius)
+    d_r = brownian.stokes_einstein_debye_s(TEMPERATURE_K, VISCOSITY_MPA_S, radius)
     positions, _ = swimmers(robots, 500, every, 0.0, radius, dt, seed)
     checks += msd_checks("passive", positions, [1, 10, 50], dt, every, d_t, 0.0, d_r)
 
@@ -145,7 +147,7 @@ def all_checks(robots: int, seed: int = 1) -> list[Check]:
                             brownian.heading_correlation(d_r, t)))  # fmt: skip
     # a small robot: R = 0.2 um, D_R 31 1/s, so the heading decorrelates within 0.05 s
     small = 0.2
-    d_r_small = brownian.rotational_diffusion_s(TEMPERATURE_K, VISCOSITY_MPA_S, small)
+    d_r_small = brownian.stokes_einstein_debye_s(TEMPERATURE_K, VISCOSITY_MPA_S, small)
     _, headings = swimmers(robots, 100, 1, speed, small, 1e-4, seed + 2)
     for row in (10, 50, 100):
         dots = np.sum(headings[row] * headings[0], axis=1)

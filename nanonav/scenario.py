@@ -2,8 +2,11 @@
 
 The same schema is used unchanged by the library, the ``nanonav`` command and the REST API.
 Every field has a default and a bound, unknown keys are rejected, and a ``preset`` supplies base
-values that explicit fields override. Lengths are in simulation units (the paper's cube is 50 units
-a side), times in steps, concentrations in arbitrary units relative to ``biomarker.peak``.
+values that explicit fields override. Two physics: ``lattice`` (the paper's), where lengths are in
+simulation units (the paper's cube is 50 units a side), times in steps and concentrations in
+arbitrary units relative to ``biomarker.peak``; and ``active_brownian``, where every length is in
+um, every time in s (a step is ``physics.dt_s``) and every concentration in nM, and the
+quantities only it has carry their unit in their name (``physics``).
 """
 
 from __future__ import annotations
@@ -17,9 +20,25 @@ from pydantic_core import InitErrorDetails, PydanticCustomError
 PresetName = Literal["paper-single", "paper-swarm", "authors-script", "hard-single", "hard-swarm"]
 FieldModel = Literal["gaussian", "inverse_square", "diffusion", "sampled_gaussian"]
 RobotStart = Literal["anywhere", "corner"]
-Policy = Literal["q_learning", "gradient", "run_and_tumble", "rule", "simple_rule", "random"]
+Policy = Literal[
+    "q_learning",
+    "gradient",
+    "run_and_tumble",
+    "rule",
+    "simple_rule",
+    "random",
+    "uncontrolled",
+    "exact_gradient",
+]
 AlphaSchedule = Literal["constant", "visits"]
-ActionSet = Literal["behaviors", "directions"]
+ActionSet = Literal["behaviors", "directions", "steering"]
+PhysicsModel = Literal["lattice", "active_brownian"]
+# What each physics runs: the paper's lattice moves choose a direction; an active Brownian robot
+# can only steer its own diffusing heading.
+LATTICE_POLICIES = frozenset({"q_learning", "gradient", "run_and_tumble", "rule", "simple_rule",
+                              "random"})  # fmt: skip
+BROWNIAN_POLICIES = frozenset({"q_learning", "uncontrolled", "run_and_tumble", "gradient",
+                               "exact_gradient"})  # fmt: skip
 
 MAX_OBSTACLE_VOLUME_FRACTION = 0.3
 # The largest seed or id: every integer up to it is exact in a JSON number whatever the client
@@ -30,7 +49,7 @@ MAX_EXACT_INT = 2**53 - 1
 # were fitted on (``python benchmarks/cost.py`` measures how well they track run time). Another
 # machine scales them all alike.
 # C: one robot's step besides its scans and field terms (sense noise, state, choice, move, learn)
-WORK_ROBOT_STEP = {"behaviors": 270, "directions": 160, "baseline": 95}
+WORK_ROBOT_STEP = {"behaviors": 270, "directions": 160, "steering": 270, "baseline": 95}
 WORK_STEP = 195  # one step besides its robots: the loops over the swarm
 WORK_PAIR = 1.25  # one distance test between two points (say, a robot and an obstacle)
 WORK_DRAW = 32  # one random point, direction or offset (three normal draws)
@@ -38,6 +57,30 @@ WORK_PLACE = 2.5  # one source moved with its cell
 # one source's term of the field at one point: an exp for these two, a division for the
 # inverse-square emitters, whose sum the compiler vectorises
 WORK_SOURCE = {"gaussian": 6.5, "diffusion": 6.5, "inverse_square": 0.55, "sampled_gaussian": 6.5}
+
+
+BOLTZMANN_J_K = 1.380649e-23  # exact since the 2019 SI
+
+
+def stokes_einstein_um2_s(temperature_k: float, viscosity_mpa_s: float, radius_um: float) -> float:
+    """D_T = k_B T / (6 pi eta R) of a sphere, um^2/s."""
+    return (
+        BOLTZMANN_J_K
+        * temperature_k
+        / (6 * math.pi * viscosity_mpa_s * 1e-3 * radius_um * 1e-6)
+        * 1e12
+    )
+
+
+def stokes_einstein_debye_s(
+    temperature_k: float, viscosity_mpa_s: float, radius_um: float
+) -> float:
+    """D_R = k_B T / (8 pi eta R^3) of a sphere, 1/s."""
+    return (
+        BOLTZMANN_J_K
+        * temperature_k
+        / (8 * math.pi * viscosity_mpa_s * 1e-3 * (radius_um * 1e-6) ** 3)
+    )
 
 
 def whole(value: Any) -> Any:
@@ -401,6 +444,183 @@ class Evaluation(_Part):
     )
 
 
+class Physics(_Part):
+    """How robots, cells and molecules move. 'lattice' (the paper's, the default): a robot moves
+    exactly robots.speed along the direction its policy chooses, every step. 'active_brownian':
+    a sphere of robot_radius_um swims at swim_speed_um_s along a heading that diffuses, jiggles
+    with translational diffusion, and can only steer (at most max_turn_rate_rad_s); the field is
+    the steady state of what each cell secretes, read at the Berg-Purcell limit. Every quantity
+    below belongs to 'active_brownian' (and is refused with 'lattice'); the README gives each
+    default's source."""
+
+    model: PhysicsModel = Field(
+        "lattice",
+        description="'lattice' (the paper's model, in simulation units and steps) or "
+        "'active_brownian' (SI: um, s, nM; every length of the scenario is then in um).",
+    )
+    dt_s: float = Field(
+        0.01,
+        gt=0.0,
+        le=10.0,
+        description="Time step, s. It must resolve the motion: the heading may turn by "
+        "D_R dt <= 0.05 per step, and a step (swimming or jiggling) may cover at most half of "
+        "robot_radius_um; a coarser step is refused with the dt_s that would do.",
+    )
+    temperature_k: float = Field(
+        310.15, ge=250.0, le=400.0, description="Temperature, K (37 degrees C: the body's)."
+    )
+    viscosity_mpa_s: float = Field(
+        0.69,
+        gt=0.0,
+        le=1e5,
+        description="Viscosity of the fluid, mPa s (water at 37 degrees C: 0.69; interstitial "
+        "fluid is close to water, a mucus or matrix far more).",
+    )
+    robot_radius_um: float = Field(
+        1.0, ge=0.01, le=50.0, description="Radius of a (spherical) robot, um."
+    )
+    swim_speed_um_s: float = Field(
+        10.0,
+        ge=0.0,
+        le=1000.0,
+        description="Self-propulsion speed along the heading, um/s (0: a passive Brownian "
+        "particle).",
+    )
+    max_turn_rate_rad_s: float = Field(
+        10.0,
+        ge=0.0,
+        le=1e4,
+        description="The fastest a robot can steer its heading, rad/s; a tumble is a random new "
+        "heading and not bound by it.",
+    )
+    diffusion_um2_s: float | None = Field(
+        None,
+        ge=0.0,
+        le=1e4,
+        description="Translational diffusion D_T, um^2/s. null: Stokes-Einstein, "
+        "k_B T / (6 pi eta R), filled in in the resolved scenario.",
+    )
+    rotational_diffusion_s: float | None = Field(
+        None,
+        ge=0.0,
+        le=1e6,
+        description="Rotational diffusion D_R, 1/s: the heading correlation decays as "
+        "exp(-2 D_R t). null: Stokes-Einstein-Debye, k_B T / (8 pi eta R^3), filled in in the "
+        "resolved scenario.",
+    )
+    cell_radius_um: float = Field(
+        7.5,
+        gt=0.0,
+        le=100.0,
+        description="Radius of a cancer cell, um; a robot reaches a cell when its surface "
+        "touches the cell's.",
+    )
+    cell_diffusion_um2_s: float = Field(
+        0.005,
+        ge=0.0,
+        le=100.0,
+        description="Cells move as a random walk with this diffusion coefficient, um^2/s "
+        "(0.005: about 1.3 um a minute).",
+    )
+    secretion_molecules_s: float = Field(
+        100.0,
+        gt=0.0,
+        le=1e9,
+        description="Biomarker molecules a cell secretes per second.",
+    )
+    molecule_diffusion_um2_s: float = Field(
+        100.0,
+        gt=0.0,
+        le=1e4,
+        description="Diffusion coefficient of the biomarker molecule, um^2/s (about 100 for a "
+        "small protein, 60 for an antibody).",
+    )
+    decay_rate_s: float = Field(
+        0.01,
+        gt=0.0,
+        le=1e3,
+        description="Rate at which the biomarker is cleared or decays, 1/s. The field of a cell "
+        "is Q exp(-r/lambda) / (4 pi D_m r) with lambda = sqrt(D_m / decay_rate_s).",
+    )
+    tumble_rate_s: float = Field(
+        1.0,
+        ge=0.0,
+        le=1e4,
+        description="run_and_tumble: tumbles per second while the reading does not rise.",
+    )
+    tumble_rate_rising_s: float = Field(
+        0.25,
+        ge=0.0,
+        le=1e4,
+        description="run_and_tumble: tumbles per second while the reading rises (fewer: runs up "
+        "the gradient last longer).",
+    )
+    memory_s: float = Field(
+        1.0,
+        ge=0.0,
+        le=1e4,
+        description="Temporal sensing: a reading is compared with the mean of the robot's "
+        "readings over this past time to tell whether it rises (0: with the last reading).",
+    )
+
+    @model_validator(mode="before")
+    @classmethod
+    def _stokes(cls, data: Any) -> Any:
+        """D_T and D_R default to Stokes-Einstein(-Debye), filled in so the resolved scenario
+        shows what ran."""
+        if not isinstance(data, dict) or data.get("model") != "active_brownian":
+            return data
+        fields = cls.model_fields
+        got = {k: data.get(k, fields[k].default) for k in fields}
+        try:
+            t, eta, r = (float(got[k]) for k in ("temperature_k", "viscosity_mpa_s",
+                                                  "robot_radius_um"))  # fmt: skip
+        except (TypeError, ValueError):
+            return data  # the fields' own validation says what is wrong
+        if not (t > 0 and eta > 0 and r > 0):
+            return data
+        filled = dict(data)
+        if filled.get("diffusion_um2_s") is None:
+            filled["diffusion_um2_s"] = stokes_einstein_um2_s(t, eta, r)
+        if filled.get("rotational_diffusion_s") is None:
+            filled["rotational_diffusion_s"] = stokes_einstein_debye_s(t, eta, r)
+        return filled
+
+    @model_validator(mode="after")
+    def _resolves_the_motion(self) -> Physics:
+        if self.model != "active_brownian":
+            fields = type(self).model_fields
+            changed = [k for k in fields if k != "model" and getattr(self, k) != fields[k].default]
+            if changed:
+                raise _field_error(
+                    "Physics", (changed[0],), getattr(self, changed[0]),
+                    "belongs to physics.model 'active_brownian'; the lattice physics has no use "
+                    "for it",
+                )  # fmt: skip
+            return self
+        d_t = self.diffusion_um2_s or 0.0
+        d_r = self.rotational_diffusion_s or 0.0
+        half = self.robot_radius_um / 2
+        bounds = [
+            (d_r * self.dt_s, 0.05, 0.05 / d_r if d_r else math.inf,
+             "the heading would turn by D_R dt = {value:.3g} per step (at most 0.05)"),
+            (self.swim_speed_um_s * self.dt_s, half,
+             half / self.swim_speed_um_s if self.swim_speed_um_s else math.inf,
+             "a step would swim {value:.3g} um, over half of robot_radius_um"),
+            (math.sqrt(2 * d_t * self.dt_s), half, half**2 / (2 * d_t) if d_t else math.inf,
+             "a step would jiggle sqrt(2 D_T dt) = {value:.3g} um, over half of robot_radius_um"),
+        ]  # fmt: skip
+        fine = min(b[2] for b in bounds)  # a dt that keeps every bound
+        for value, largest, _, message in bounds:
+            if value > largest * (1 + 1e-12):
+                raise _field_error(
+                    "Physics", ("dt_s",), self.dt_s,
+                    f"dt_s {self.dt_s:g} s is too coarse: " + message.format(value=value)
+                    + f"; dt_s <= {_round_down(fine)} s would do",
+                )  # fmt: skip
+        return self
+
+
 class Scenario(_Part):
     """A complete simulation run: the world, the swarm, the learning and the seed.
 
@@ -438,6 +658,7 @@ class Scenario(_Part):
     learning: Learning = Learning()
     rewards: Rewards = Rewards()
     evaluation: Evaluation = Evaluation()
+    physics: Physics = Physics()
     reach_distance: float = Field(
         0.5,
         gt=0.0,
@@ -462,8 +683,44 @@ class Scenario(_Part):
         if isinstance(data, dict) and isinstance(data.get("preset"), str):
             base = PRESETS.get(data["preset"])
             if base is not None:
-                return _deep_merge(base, data)
-        return data
+                data = _deep_merge(base, data)
+        return _steering_by_default(data)
+
+    @model_validator(mode="after")
+    def _one_physics(self) -> Scenario:
+        """Each physics takes its own policies and action set, and a field that only the other
+        has a use for is refused rather than ignored."""
+        brownian = self.physics.model == "active_brownian"
+        allowed = BROWNIAN_POLICIES if brownian else LATTICE_POLICIES
+        if self.robots.policy not in allowed:
+            raise _field_error(
+                "Scenario", ("robots", "policy"), self.robots.policy,
+                f"is not a policy of physics.model '{self.physics.model}', which takes "
+                + ", ".join(sorted(allowed)),
+            )  # fmt: skip
+        if (self.learning.actions == "steering") != brownian:
+            wanted = "steering" if brownian else "behaviors or directions"
+            raise _field_error(
+                "Scenario", ("learning", "actions"), self.learning.actions,
+                f"physics.model '{self.physics.model}' takes the action set {wanted}",
+            )  # fmt: skip
+        if brownian:
+            # a value other than the default: a resolved scenario, which lists every field,
+            # validates again as it was
+            for part, name, instead in LATTICE_ONLY:
+                section = getattr(self, part)
+                if getattr(section, name) != type(section).model_fields[name].default:
+                    raise _field_error(
+                        "Scenario", (part, name), getattr(section, name),
+                        f"has no use in physics.model 'active_brownian': {instead}",
+                    )  # fmt: skip
+            if self.reach_distance != type(self).model_fields["reach_distance"].default:
+                raise _field_error(
+                    "Scenario", ("reach_distance",), self.reach_distance,
+                    "has no use in physics.model 'active_brownian': a robot reaches a cell "
+                    "when their surfaces touch (physics.robot_radius_um, cell_radius_um)",
+                )  # fmt: skip
+        return self
 
     @model_validator(mode="after")
     def _learned_policy(self) -> Scenario:
@@ -628,6 +885,43 @@ PRESETS: dict[str, dict[str, Any]] = {
         "obstacles": HARD["obstacles"],
     },
 }
+
+
+# Fields that only the lattice physics reads, and what stands for each in active_brownian.
+_NOISE = "readings carry the Berg-Purcell noise of the robot's size (physics)"
+_FIELD = ("the field is the steady state of physics.secretion_molecules_s, "
+          "molecule_diffusion_um2_s and decay_rate_s")  # fmt: skip
+LATTICE_ONLY: tuple[tuple[str, str, str], ...] = (
+    ("robots", "speed", "robots swim at physics.swim_speed_um_s"),
+    ("robots", "sensor_baseline", "the gradient is sensed across the body (robot_radius_um)"),
+    ("cells", "motion_std", "cells diffuse with physics.cell_diffusion_um2_s"),
+    ("obstacles", "motion_std", "obstacles (tissue) stand still"),
+    *(("biomarker", name, _FIELD) for name in ("model", "peak", "spread", "emitters_per_cell",
+                                                "emitter_scatter", "decay_length", "softening")),
+    *(("biomarker", name, _NOISE) for name in ("sensor_noise", "noise_floor",
+                                                "detection_threshold")),
+)  # fmt: skip
+
+
+def _round_down(value: float) -> str:
+    """A time step to suggest: two significant figures, rounded down so that it keeps the bound."""
+    if not math.isfinite(value) or value <= 0:
+        return f"{value:g}"
+    scale = 10 ** (math.floor(math.log10(value)) - 1)
+    return f"{math.floor(value / scale) * scale:.3g}"
+
+
+def _steering_by_default(data: Any) -> Any:
+    """An active Brownian scenario learns among steering actions unless it says otherwise."""
+    if not isinstance(data, dict):
+        return data
+    physics = data.get("physics")
+    if not isinstance(physics, dict) or physics.get("model") != "active_brownian":
+        return data
+    learning = data.get("learning", {})
+    if isinstance(learning, dict) and "actions" not in learning:
+        return {**data, "learning": {**learning, "actions": "steering"}}
+    return data
 
 
 def _deep_merge(base: dict[str, Any], override: dict[str, Any]) -> dict[str, Any]:

@@ -314,6 +314,16 @@ class Trajectory(BaseModel):
     distance: list[list[float]] = Field(description="[row][robot] distance to nearest cell")
     reached: list[bool] = Field(description="[robot] whether it reached a cell")
     robot_steps: list[int] = Field(description="[robot] steps it was active")
+    headings: list[list[list[float]]] | None = Field(
+        None,
+        description="[row][robot][x, y, z] the robot's unit heading (physics.model "
+        "active_brownian only; null otherwise)",
+    )
+    sensed: list[list[float]] | None = Field(
+        None,
+        description="[row][robot] the reading the robot took, with its Berg-Purcell noise, "
+        "beside the true concentration (active_brownian only; null otherwise)",
+    )
 
 
 class GreedyState(BaseModel):

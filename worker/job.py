@@ -36,6 +36,8 @@ TRAJECTORY_KEYS = (
     "obstacles",
     "concentration",
     "distance",
+    "headings",  # the active Brownian physics only
+    "sensed",
     "robot_steps",
     "reached",
     "emitter_offsets",

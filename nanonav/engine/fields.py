@@ -14,7 +14,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from nanonav.scenario import Biomarker
+from nanonav.scenario import Biomarker, Scenario
 
 GAUSSIAN = 0
 INVERSE_SQUARE = 1
@@ -143,6 +143,33 @@ def sample_many(
         grad[p, 0] = gx
         grad[p, 1] = gy
         grad[p, 2] = gz
+
+
+MOLECULES_PER_UM3_PER_NM = 6.02214076e23 * 1e-9 / 1e15  # 1 nM in molecules per um^3: 0.6022
+# In the active Brownian physics the field is read outside the cells only (a robot stops at a
+# cell's surface), so the diffusion model's softening, um, only keeps r = 0 finite.
+PHYSICAL_SOFTENING_UM = 1e-3
+
+
+def biomarker_of(scenario: Scenario) -> Biomarker:
+    """The field the engine computes. In the lattice physics, the scenario's ``biomarker``; in
+    the active Brownian physics, the steady state of what each cell secretes at rate Q
+    (molecules/s), diffusing with D_m (um^2/s) and decaying at k (1/s): c = Q exp(-r/lambda) /
+    (4 pi D_m r), lambda = sqrt(D_m / k), in nM: the diffusion model with peak = Q / (4 pi D_m)
+    (nM um)."""
+    if scenario.physics.model != "active_brownian":
+        return scenario.biomarker
+    ph = scenario.physics
+    peak = ph.secretion_molecules_s / (4 * math.pi * ph.molecule_diffusion_um2_s)
+    return Biomarker.model_construct(
+        **{
+            **scenario.biomarker.model_dump(),
+            "model": "diffusion",
+            "peak": peak / MOLECULES_PER_UM3_PER_NM,
+            "decay_length": math.sqrt(ph.molecule_diffusion_um2_s / ph.decay_rate_s),
+            "softening": PHYSICAL_SOFTENING_UM,
+        }
+    )
 
 
 def source_weight(biomarker: Biomarker) -> float:

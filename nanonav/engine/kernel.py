@@ -17,6 +17,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from nanonav.engine.dynamics import brownian
 from nanonav.engine.dynamics.lattice import (
     _move_cells,
     _move_obstacles,
@@ -27,9 +28,25 @@ from nanonav.engine.dynamics.lattice import (
 )
 from nanonav.engine.fields import SAMPLED_GAUSSIAN, place_sources
 from nanonav.engine.learning import _learn, _learn_bootstrapped
-from nanonav.engine.policies import NO_BEHAVIOR, _baseline, _behavior_direction, _choose
-from nanonav.engine.sensing import _sense, _sense_all, _state
+from nanonav.engine.policies import (
+    NO_BEHAVIOR,
+    _baseline,
+    _behavior_direction,
+    _choose,
+    _steer,
+    _steering_baseline,
+)
+from nanonav.engine.qlearning import STEER_TO_CELL, STEER_UP_GRADIENT
+from nanonav.engine.sensing import (
+    _read,
+    _sense,
+    _sense_all,
+    _sensed_gradient,
+    _state,
+    _steering_state,
+)
 from nanonav.engine.state import (
+    ACTIVE_BROWNIAN,
     BEHAVIORS,
     CURVE_COLLISIONS,
     CURVE_REACHED,
@@ -48,6 +65,7 @@ from nanonav.engine.state import (
     EV_SUM_CONCENTRATION,
     EV_SUM_DISTANCE,
     EV_SWEPT,
+    EXACT_GRADIENT,
     LAYOUT_STATUS,
     Q_LEARNING,
     ROBOT_STEPS,
@@ -85,6 +103,11 @@ def observe(
         if keep:
             rec.conc[row, i] = c
             rec.dist[row, i] = d
+            if rec.sensed.shape[0]:
+                rec.sensed[row, i] = s.sensed[i]
+                rec.heading[row, i, 0] = s.heading[i, 0]
+                rec.heading[row, i, 1] = s.heading[i, 1]
+                rec.heading[row, i, 2] = s.heading[i, 2]
     if keep:
         rec.pos[row] = s.pos
         rec.cells[row] = w.cells
@@ -103,6 +126,8 @@ def _begin_episode(
     """Reset the swarm and draw a fresh world; returns ``draw_world``'s status."""
     s.active[:] = True
     s.swept[:] = False
+    s.blocked[:] = False
+    s.sensed[:] = 0.0
     s.steps[:] = 0
     s.prev_conc[:] = -1.0
     s.returns[:] = 0.0
@@ -191,9 +216,14 @@ def run(
                 counters[LAYOUT_STATUS] = status
                 break
         spent = counters[ROBOT_STEPS]
-        t = _run_steps(
-            p, eps, learn, evaluating, record, rng, w, s, lrn, rec, t, budget, counters
-        )  # fmt: skip
+        if p.physics == ACTIVE_BROWNIAN:
+            t = _swim_steps(
+                p, eps, learn, evaluating, record, rng, w, s, lrn, rec, t, budget, counters
+            )  # fmt: skip
+        else:
+            t = _run_steps(
+                p, eps, learn, evaluating, record, rng, w, s, lrn, rec, t, budget, counters
+            )  # fmt: skip
         budget -= counters[ROBOT_STEPS] - spent
         if not _over(p, s, t):
             continue
@@ -372,6 +402,162 @@ def _finish_episode(
         gap = _nearest_obstacle(w.obstacles, p.obstacle_radius, px, py, pz)[1]
         cell_d = _nearest(w.cells, px, py, pz)[1]
         state = _state(p, c, s.prev_conc[i], gx, gy, gz, gap, cell_d)
+        _learn_bootstrapped(
+            p, lrn.q, lrn.visits, table, s.last_state[i], s.last_action[i], s.last_reward[i],
+            state,
+        )  # fmt: skip
+        s.pending[i] = False
+
+
+@njit(cache=True, error_model="numpy")
+def _swim_steps(
+    p: KernelParams,
+    epsilon: float,
+    learn: bool,
+    evaluating: bool,
+    record: bool,
+    rng: np.random.Generator,
+    w: World,
+    s: Swarm,
+    lrn: Learner,
+    rec: Recording,
+    t: int,
+    budget: int,
+    counters: NDArray[np.int64],
+) -> int:
+    """``_run_steps`` in the active Brownian physics (um, s, nM; a step is dt_s): cells diffuse,
+    every robot reads the field at the Berg-Purcell limit, its policy steers its heading (all a
+    policy can do), then it swims, jiggles, and its heading diffuses (``dynamics.brownian``)."""
+    n = s.pos.shape[0]
+    stop_at = counters[ROBOT_STEPS] + budget
+    while t < p.max_steps and counters[ROBOT_STEPS] < stop_at:
+        n_active = 0
+        for i in range(n):
+            if s.active[i]:
+                n_active += 1
+        if n_active == 0:
+            break
+        counters[ROBOT_STEPS] += n_active
+        if p.cell_jiggle > 0.0:
+            brownian.move_cells(p, rng, w)
+        place_sources(p.model, w.cells, w.offsets, w.sx, w.sy, w.sz)
+        _sense_all(p, w, s, s.active)
+        for i in range(n):
+            if not s.active[i]:
+                continue
+            table = 0 if p.shared else i
+            px = s.pos[i, 0]
+            py = s.pos[i, 1]
+            pz = s.pos[i, 2]
+            cell, cell_d = _nearest(w.cells, px, py, pz)
+            if cell_d <= p.reach_distance:
+                # a diffusing cell touched the robot: as in _run_steps (written out there too:
+                # a shared function taking the swarm would cost every step its reference counts)
+                toward = (
+                    s.heading[i, 0] * (w.cells[cell, 0] - px)
+                    + s.heading[i, 1] * (w.cells[cell, 1] - py)
+                    + s.heading[i, 2] * (w.cells[cell, 2] - pz)
+                )
+                s.swept[i] = toward <= 0.0
+                s.steps[i] += 1
+                s.returns[i] += p.reward_reach + p.reward_step
+                if learn and s.pending[i]:
+                    _learn(
+                        p, lrn.q, lrn.visits, table, s.last_state[i], s.last_action[i],
+                        s.last_reward[i] + p.reward_reach + p.reward_step,
+                    )  # fmt: skip
+                s.pending[i] = False
+                s.active[i] = False
+                continue
+            c = _read(p, rng, s.reading[i])
+            s.sensed[i] = c
+            if s.prev_conc[i] < 0.0:
+                s.prev_conc[i] = c  # the first reading starts the memory
+            # temporal sensing: above the memory of past readings
+            rising = c > s.prev_conc[i]
+            # a cell within the receptor range of the robot's surface
+            sensed = cell_d - p.reach_distance <= p.cell_sensing_radius
+            if p.policy == Q_LEARNING:
+                state = _steering_state(p, c, rising, s.blocked[i], sensed)
+                if learn and s.pending[i]:
+                    _learn_bootstrapped(
+                        p, lrn.q, lrn.visits, table, s.last_state[i], s.last_action[i],
+                        s.last_reward[i], state,
+                    )  # fmt: skip
+                action = _choose(epsilon, rng, lrn.q, table, state)
+                lrn.visits[table, state, action] += 1
+            else:
+                state = 0
+                action = _steering_baseline(p, rng, rising)
+            gx = 0.0
+            gy = 0.0
+            gz = 0.0
+            if action == STEER_UP_GRADIENT:
+                if p.policy == EXACT_GRADIENT:
+                    gx = s.reading_grad[i, 0]
+                    gy = s.reading_grad[i, 1]
+                    gz = s.reading_grad[i, 2]
+                else:
+                    gx, gy, gz = _sensed_gradient(p, rng, s, i)
+            tx = 0.0
+            ty = 0.0
+            tz = 0.0
+            if action == STEER_TO_CELL and sensed:
+                tx = w.cells[cell, 0] - px
+                ty = w.cells[cell, 1] - py
+                tz = w.cells[cell, 2] - pz
+            _steer(p, rng, s, i, action, gx, gy, gz, tx, ty, tz)
+            s.prev_conc[i] += p.memory_weight * (c - s.prev_conc[i])
+
+            nx, ny, nz, blocked = brownian.move_robot(p, rng, w, s, i, px, py, pz)
+            s.blocked[i] = blocked
+            reward = p.reward_step
+            if blocked:
+                reward += p.reward_collision
+            s.steps[i] += 1
+            new_d = _nearest(w.cells, nx, ny, nz)[1]
+            reward += p.reward_approach * (cell_d - new_d)  # per um closed
+            reached = new_d <= p.reach_distance
+            if reached:
+                reward += p.reward_reach
+                s.active[i] = False
+            s.returns[i] += reward
+            if learn:
+                if reached:
+                    _learn(p, lrn.q, lrn.visits, table, state, action, reward)
+                    s.pending[i] = False
+                else:
+                    s.pending[i] = True
+                    s.last_state[i] = state
+                    s.last_action[i] = action
+                    s.last_reward[i] = reward
+        t += 1
+        if evaluating:
+            observe(p, w, s, rec, t, False, record)
+    if _over(p, s, t):
+        if learn:
+            _finish_swim_episode(p, rng, w, s, lrn)
+        if record and t % p.record_stride:
+            observe(p, w, s, rec, t, True, record)
+    return t
+
+
+@njit(cache=True, error_model="numpy")
+def _finish_swim_episode(
+    p: KernelParams, rng: np.random.Generator, w: World, s: Swarm, lrn: Learner
+) -> None:
+    """``_finish_episode`` in the active Brownian physics: bootstrap the last transition of
+    every robot the step limit stopped from the steering state it ended in."""
+    place_sources(p.model, w.cells, w.offsets, w.sx, w.sy, w.sz)
+    _sense_all(p, w, s, s.pending)
+    for i in range(s.pos.shape[0]):
+        if not s.pending[i]:
+            continue
+        table = 0 if p.shared else i
+        c = _read(p, rng, s.reading[i])
+        cell_d = _nearest(w.cells, s.pos[i, 0], s.pos[i, 1], s.pos[i, 2])[1]
+        sensed = cell_d - p.reach_distance <= p.cell_sensing_radius
+        state = _steering_state(p, c, c > s.prev_conc[i], s.blocked[i], sensed)
         _learn_bootstrapped(
             p, lrn.q, lrn.visits, table, s.last_state[i], s.last_action[i], s.last_reward[i],
             state,

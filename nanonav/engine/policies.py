@@ -1,6 +1,7 @@
 """Choosing an action: the epsilon-greedy choice over a Q-table row, the fixed baselines
 (gradient, run_and_tumble, rule, simple_rule, random), and the paper's behaviours (2.5) turned
-into a direction to move along.
+into a direction to move along; in the active Brownian physics, the steering a robot's policy
+commands of its own diffusing heading.
 
 A room of its own because what a robot decides is apart from how the world then moves it and
 from how it learns. Everything here runs under numba, inlined into the compiled step.
@@ -12,9 +13,19 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from nanonav.engine.dynamics.brownian import turn_toward
 from nanonav.engine.dynamics.lattice import _random_unit, _slide, _unit_or_random
-from nanonav.engine.qlearning import APPROACH_CELL, AVOID_OBSTACLE, EXPLORE
+from nanonav.engine.qlearning import (
+    APPROACH_CELL,
+    AVOID_OBSTACLE,
+    EXPLORE,
+    KEEP_HEADING,
+    STEER_TO_CELL,
+    STEER_UP_GRADIENT,
+    TUMBLE,
+)
 from nanonav.engine.state import (
+    EXACT_GRADIENT,
     GRADIENT,
     RULE,
     RUN_AND_TUMBLE,
@@ -150,3 +161,38 @@ def _behavior_direction(
         dx, dy, dz = _unit_or_random(rng, gx, gy, gz)
         return dx, dy, dz, p.speed
     return s.heading[robot, 0], s.heading[robot, 1], s.heading[robot, 2], p.speed
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _steering_baseline(p: KernelParams, rng: np.random.Generator, rising: bool) -> int:
+    """A fixed active Brownian policy's steering action this step: 'uncontrolled' keeps its
+    heading; 'run_and_tumble' tumbles with probability 1 - exp(-rate dt), at a lower rate while
+    the reading rises; 'gradient' and 'exact_gradient' steer up the gradient (the sensed one, or
+    the true one: an upper bound no robot can have)."""
+    if p.policy == RUN_AND_TUMBLE:
+        chance = p.tumble_rising if rising else p.tumble
+        return TUMBLE if rng.random() < chance else KEEP_HEADING
+    if p.policy == GRADIENT or p.policy == EXACT_GRADIENT:
+        return STEER_UP_GRADIENT
+    return KEEP_HEADING
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _steer(
+    p: KernelParams, rng: np.random.Generator, s: Swarm, i: int, action: int,
+    gx: float, gy: float, gz: float, tx: float, ty: float, tz: float,
+) -> None:  # fmt: skip
+    """Turn robot ``i``'s heading as ``action`` says: up the gradient g, or toward a sensed
+    cell at t, by at most ``turn`` radians this step; or tumble to a random heading."""
+    hx = s.heading[i, 0]
+    hy = s.heading[i, 1]
+    hz = s.heading[i, 2]
+    if action == STEER_UP_GRADIENT:
+        hx, hy, hz = turn_toward(hx, hy, hz, gx, gy, gz, p.turn)
+    elif action == STEER_TO_CELL:
+        hx, hy, hz = turn_toward(hx, hy, hz, tx, ty, tz, p.turn)
+    elif action == TUMBLE:
+        hx, hy, hz = _random_unit(rng)
+    s.heading[i, 0] = hx
+    s.heading[i, 1] = hy
+    s.heading[i, 2] = hz

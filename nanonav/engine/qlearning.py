@@ -39,6 +39,20 @@ OBSTACLE_NEAR = ["clear", "near"]
 SIGN_THRESHOLD = 0.3827
 
 
+# The 'steering' action set of active Brownian robots, which cannot choose where they will be,
+# only turn their own diffusing heading (at most physics.max_turn_rate_rad_s).
+KEEP_HEADING = 0
+STEER_UP_GRADIENT = 1  # toward the sensed (noisy) spatial gradient
+TUMBLE = 2  # a new heading at random
+STEER_TO_CELL = 3  # toward a cell within the receptor range, else as keep_heading
+STEERING_ACTIONS = ["keep_heading", "steer_up_gradient", "tumble", "steer_to_cell"]
+OBSTACLE_CONTACT = ["clear", "touching"]  # touching: the last move was stopped by an obstacle
+CELL_SENSED = ["none", "sensed"]
+# The steering state's levels are cut at the lone cell's field at these multiples of its
+# radius from its centre.
+STEERING_LEVEL_RADII = (6.0, 3.0, 1.5)
+
+
 def _axis_label(v: float) -> str:
     return "0" if v == 0 else ("+" if v > 0 else "-")
 
@@ -65,10 +79,21 @@ def direction_states() -> list[str]:
     ]
 
 
+def steering_states() -> list[str]:
+    return [
+        f"conc={c}|trend={t}|obstacle={o}|cell={k}"
+        for c, t, o, k in itertools.product(
+            CONCENTRATION_LEVELS, TRENDS, OBSTACLE_CONTACT, CELL_SENSED
+        )
+    ]
+
+
 def labels(actions: str) -> tuple[list[str], list[str]]:
     """(state labels, action labels) of an action set."""
     if actions == "behaviors":
         return behavior_states(), BEHAVIOR_ACTIONS
+    if actions == "steering":
+        return steering_states(), STEERING_ACTIONS
     return direction_states(), DIRECTION_ACTIONS
 
 

@@ -46,6 +46,10 @@ class Trajectory:
     emitter_offsets: NDArray[np.float64]  # (cells, emitters, 3); the inverse-square field's
     obstacle_radius: float
     stride: int = 1
+    # active Brownian physics only: each robot's unit heading (rows, robots, 3) and the reading
+    # it took, with its Berg-Purcell noise (rows, robots), beside the true concentration
+    headings: NDArray[np.float64] | None = None
+    sensed: NDArray[np.float64] | None = None
 
     @property
     def length(self) -> int:
@@ -106,6 +110,9 @@ class SimulationResult:
     completed: bool = True
     uncertainty: dict[str, dict[str, Any]] = field(default_factory=dict)
     worlds: list[dict[str, Any]] = field(default_factory=list)
+    # the active Brownian physics' derived numbers (diffusion, persistence length, Peclet
+    # numbers, times in s); empty in the lattice physics
+    physics: dict[str, float] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
         """The metrics document: scenario, Table 1 summary and its uncertainty over the
@@ -119,6 +126,7 @@ class SimulationResult:
             "robots": self.robots,
             "episodes": self.episodes,
             "work": self.work,
+            **({"physics": self.physics} if self.physics else {}),
         }
 
     @classmethod
@@ -144,6 +152,8 @@ class SimulationResult:
                 emitter_offsets=arrays["emitter_offsets"],
                 obstacle_radius=float(arrays["obstacle_radius"]),
                 stride=int(step[1] - step[0]) if step.shape[0] > 1 else 1,
+                headings=arrays.get("headings"),
+                sensed=arrays.get("sensed"),
             )
         return cls(
             scenario=Scenario.model_validate(document["scenario"]),
@@ -156,6 +166,7 @@ class SimulationResult:
             completed=bool(document.get("completed", True)),
             uncertainty=document.get("uncertainty") or {},
             worlds=document.get("worlds") or [],
+            physics=document.get("physics") or {},
         )
 
     def arrays(self) -> dict[str, NDArray[Any]]:
@@ -176,6 +187,8 @@ class SimulationResult:
                 emitter_offsets=t.emitter_offsets,
                 obstacle_radius=np.array(t.obstacle_radius),
             )
+            if t.headings is not None and t.sensed is not None:
+                out.update(headings=t.headings, sensed=t.sensed)
         if self.qtable is not None:
             out.update(q_values=self.qtable.values, q_visits=self.qtable.visits)
         return out

@@ -1,6 +1,6 @@
 """What a robot perceives: the field and its gradient where it is, read with the sensor's noise
-and detection threshold, and the discrete Q-learning state those readings and the distances to
-obstacles and cells map to.
+and detection threshold (in the active Brownian physics, at the Berg-Purcell limit), and the
+discrete Q-learning state those readings and the distances to obstacles and cells map to.
 
 A room of its own because how the robots sense is the same whatever moves them; it holds no
 motion and no choice. Everything here runs under numba, inlined into the compiled step.
@@ -14,6 +14,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from nanonav.engine.dynamics.brownian import read_concentration
 from nanonav.engine.fields import sample_many
 from nanonav.engine.qlearning import SIGN_THRESHOLD
 from nanonav.engine.state import BEHAVIORS, KernelParams, Swarm, World
@@ -91,3 +92,40 @@ def _state(
                 sign = 0
         index = index * 3 + sign
     return index * 2 + (1 if near_obstacle else 0)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _read(p: KernelParams, rng: np.random.Generator, c: float) -> float:
+    """One reading over a step of the true concentration c (nM) by a robot at the Berg-Purcell
+    limit of its size: relative error 1 / sqrt(pi D_m a c dt) (``dynamics.brownian``)."""
+    if c <= 0.0:
+        return 0.0
+    return read_concentration(rng, c, 1.0 / math.sqrt(p.counting * c))
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _across_body(p: KernelParams, rng: np.random.Generator, c: float, g: float) -> float:
+    """One component of the sensed gradient: two readings at the two ends of the body along
+    that axis, (read(c + a g) - read(c - a g)) / 2a, the field taken to first order across it."""
+    a = p.robot_radius
+    return (_read(p, rng, c + a * g) - _read(p, rng, max(c - a * g, 0.0))) / (2.0 * a)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _sensed_gradient(
+    p: KernelParams, rng: np.random.Generator, s: Swarm, i: int
+) -> tuple[float, float, float]:
+    """Robot ``i``'s spatial gradient, each component read across its body."""
+    c = s.reading[i]
+    return (
+        _across_body(p, rng, c, s.reading_grad[i, 0]),
+        _across_body(p, rng, c, s.reading_grad[i, 1]),
+        _across_body(p, rng, c, s.reading_grad[i, 2]),
+    )
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _steering_state(p: KernelParams, c: float, rising: bool, touching: bool, sensed: bool) -> int:
+    """Mixed-radix state index, in the order of ``qlearning.steering_states``."""
+    level = int(c > p.level_1) + int(c > p.level_2) + int(c > p.level_3)
+    return ((level * 2 + int(rising)) * 2 + int(touching)) * 2 + int(sensed)

@@ -16,6 +16,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from nanonav.engine import fields, kernel, metrics, qlearning, state
+from nanonav.engine.dynamics import brownian
+from nanonav.engine.dynamics.brownian import heading_kick_scale
 from nanonav.engine.result import QTable, SimulationResult, Trajectory
 from nanonav.engine.state import KernelParams, Learner, Recording, Swarm, World
 from nanonav.engine.world import (
@@ -55,10 +57,10 @@ ProgressCallback = Callable[[Progress], bool | None]
 
 def _params(scenario: Scenario, record_bytes: int = DEFAULT_RECORD_BYTES) -> KernelParams:
     """The kernel's constants, flattened from the scenario."""
-    b = scenario.biomarker
+    b = fields.biomarker_of(scenario)
     base = max(scenario.robots.sensing_radius, scenario.robots.speed)
     levels = fields.radial_profile(b, base * np.array(qlearning.LEVEL_DISTANCES))
-    return KernelParams(
+    params = KernelParams(
         model=fields.MODEL_CODES[b.model],
         weight=fields.source_weight(b),
         length=fields.length_scale(b),
@@ -99,6 +101,52 @@ def _params(scenario: Scenario, record_bytes: int = DEFAULT_RECORD_BYTES) -> Ker
         walls=scenario.space.walls,
         robot_corner=scenario.robots.start == "corner",
     )
+    if scenario.physics.model == "active_brownian":
+        return _brownian_params(scenario, params)
+    return params
+
+
+def _brownian_params(scenario: Scenario, params: KernelParams) -> KernelParams:
+    """The active Brownian physics' constants per step of dt_s (um, s, nM). A robot reaches a
+    cell when their surfaces touch; its centre stays an obstacle's radius plus its own from the
+    obstacle's centre; the Q-learning levels are cut at the lone cell's field at multiples of
+    the cell's radius."""
+    ph = scenario.physics
+    dt = ph.dt_s
+    d_t = ph.diffusion_um2_s or 0.0
+    d_r = ph.rotational_diffusion_s or 0.0
+    radius = ph.robot_radius_um
+    b = fields.biomarker_of(scenario)
+    levels = fields.radial_profile(b, ph.cell_radius_um * np.array(qlearning.STEERING_LEVEL_RADII))
+    return params._replace(
+        physics=state.ACTIVE_BROWNIAN,
+        speed=ph.swim_speed_um_s * dt,
+        cell_std=0.0,
+        obstacle_std=0.0,
+        noise=0.0,
+        noise_floor=0.0,
+        gradient_noise=0.0,
+        detection_threshold=0.0,
+        reach_distance=radius + ph.cell_radius_um,
+        obstacle_radius=scenario.obstacles.radius + radius,
+        obstacle_core=scenario.obstacles.radius,
+        level_1=float(levels[0]),
+        level_2=float(levels[1]),
+        level_3=float(levels[2]),
+        swim_step=ph.swim_speed_um_s * dt,
+        jiggle=math.sqrt(2.0 * d_t * dt),
+        heading_sigma=heading_kick_scale(d_r, dt),
+        turn=ph.max_turn_rate_rad_s * dt,
+        robot_radius=radius,
+        cell_radius=ph.cell_radius_um,
+        cell_jiggle=math.sqrt(2.0 * ph.cell_diffusion_um2_s * dt),
+        # Berg-Purcell: a reading over dt by a sensor of radius a counts pi D_m a c dt molecules
+        counting=math.pi * ph.molecule_diffusion_um2_s * radius * dt
+        * fields.MOLECULES_PER_UM3_PER_NM,
+        tumble=-math.expm1(-ph.tumble_rate_s * dt),
+        tumble_rising=-math.expm1(-ph.tumble_rate_rising_s * dt),
+        memory_weight=min(1.0, dt / ph.memory_s) if ph.memory_s > 0 else 1.0,
+    )  # fmt: skip
 
 
 def _learner(scenario: Scenario, policy: NDArray[np.float64] | None = None) -> Learner:
@@ -145,8 +193,11 @@ def obstacles_move(scenario: Scenario) -> bool:
 
 def history_row_bytes(scenario: Scenario) -> int:
     """Bytes of one history row: per robot a position (3 floats), the concentration and the
-    distance (1 each); per cell a position; per obstacle a centre if obstacles move; the step."""
+    distance (1 each), and in the active Brownian physics its heading (3) and sensed reading
+    (1); per cell a position; per obstacle a centre if obstacles move; the step."""
     floats = 5 * scenario.robots.count + 3 * scenario.cells.count + 1
+    if scenario.physics.model == "active_brownian":
+        floats += 4 * scenario.robots.count  # the heading and the sensed reading
     if obstacles_move(scenario):
         floats += 3 * scenario.obstacles.count
     return FLOAT_BYTES * floats
@@ -244,8 +295,11 @@ class _Run:
             reading=np.zeros(n),
             reading_grad=np.zeros((n, 3)),
             swept=np.zeros(n, dtype=np.bool_),
+            blocked=np.zeros(n, dtype=np.bool_),
+            sensed=np.zeros(n),
         )
         rows = history_rows(params.max_steps, params.record_stride)
+        brownian = scenario.physics.model == "active_brownian"
         self.recording = Recording(
             pos=np.zeros((rows, n, 3)),
             cells=np.zeros((rows, cells, 3)),
@@ -254,6 +308,8 @@ class _Run:
             dist=np.zeros((rows, n)),
             step=np.zeros(rows, dtype=np.int64),
             offsets=np.zeros_like(self.world.offsets),
+            heading=np.zeros((rows if brownian else 0, n, 3)),
+            sensed=np.zeros((rows if brownian else 0, n)),
         )
         self.counters = np.zeros(state.COUNTERS, dtype=np.int64)
         self.curve = np.zeros((scenario.episodes, state.CURVE_COLUMNS))
@@ -331,8 +387,10 @@ class _Run:
             robot_steps=self.evaluation[0, :, state.EV_STEPS].astype(np.int64),
             reached=self.evaluation[0, :, state.EV_REACHED] > 0.0,
             emitter_offsets=r.offsets.reshape(self.scenario.cells.count, -1, 3).copy(),
-            obstacle_radius=self.params.obstacle_radius,
+            obstacle_radius=self.scenario.obstacles.radius,
             stride=stride,
+            headings=r.heading[:rows].copy() if r.heading.shape[0] else None,
+            sensed=r.sensed[:rows].copy() if r.sensed.shape[0] else None,
         )
 
 
@@ -414,5 +472,32 @@ def simulate(
     summary, uncertainty = metrics.over_worlds(worlds)
     return SimulationResult(
         scenario, summary, rows, curve, work, run.trajectory(), qtable,
-        uncertainty=uncertainty, worlds=worlds,
+        uncertainty=uncertainty, worlds=worlds, physics=derived_physics(scenario, summary),
     )  # fmt: skip
+
+
+def derived_physics(scenario: Scenario, summary: dict[str, Any]) -> dict[str, float]:
+    """What the active Brownian physics derives from its inputs, and the summary's step counts
+    in seconds; empty in the lattice physics."""
+    ph = scenario.physics
+    if ph.model != "active_brownian":
+        return {}
+    d_t = ph.diffusion_um2_s or 0.0
+    d_r = ph.rotational_diffusion_s or 0.0
+    v = ph.swim_speed_um_s
+    r = ph.robot_radius_um
+    out = {
+        "diffusion_um2_s": d_t,
+        "rotational_diffusion_s": d_r,
+        "persistence_length_um": brownian.persistence_length_um(v, d_r) if d_r else math.inf,
+        "peclet_translational": brownian.peclet_translational(v, r, d_t) if d_t else math.inf,
+        "peclet_rotational": brownian.peclet_rotational(v, r, d_r) if d_r else math.inf,
+        "decay_length_um": math.sqrt(ph.molecule_diffusion_um2_s / ph.decay_rate_s),
+        "time_limit_s": scenario.learning.max_steps * ph.dt_s,
+    }
+    for key in ("total_steps", "mean_steps_to_reach"):
+        if isinstance(summary.get(key), (int, float)):
+            out[key.replace("steps", "time").replace("total_time", "time_to_reach") + "_s"] = (
+                float(summary[key]) * ph.dt_s
+            )
+    return {k: v for k, v in out.items() if math.isfinite(v)}

@@ -14,11 +14,18 @@ RUN_AND_TUMBLE = 2
 RANDOM = 3
 RULE = 4
 SIMPLE_RULE = 5
+UNCONTROLLED = 6  # active Brownian: swims along its own diffusing heading, never steers
+EXACT_GRADIENT = 7  # active Brownian: steers by the true gradient (an upper bound)
 POLICY_CODES = {"q_learning": Q_LEARNING, "gradient": GRADIENT, "run_and_tumble": RUN_AND_TUMBLE,
-                "random": RANDOM, "rule": RULE, "simple_rule": SIMPLE_RULE}  # fmt: skip
+                "random": RANDOM, "rule": RULE, "simple_rule": SIMPLE_RULE,
+                "uncontrolled": UNCONTROLLED, "exact_gradient": EXACT_GRADIENT}  # fmt: skip
 BEHAVIORS = 0
 DIRECTIONS = 1
-ACTION_SET_CODES = {"behaviors": BEHAVIORS, "directions": DIRECTIONS}
+STEERING = 2
+ACTION_SET_CODES = {"behaviors": BEHAVIORS, "directions": DIRECTIONS, "steering": STEERING}
+LATTICE = 0
+ACTIVE_BROWNIAN = 1
+PHYSICS_CODES = {"lattice": LATTICE, "active_brownian": ACTIVE_BROWNIAN}
 ALPHA_CONSTANT = 0
 ALPHA_VISITS = 1
 ALPHA_SCHEDULE_CODES = {"constant": ALPHA_CONSTANT, "visits": ALPHA_VISITS}
@@ -64,6 +71,20 @@ class KernelParams(NamedTuple):
     cell_extent: float  # cells start within this share of the half-width
     walls: bool  # the cube's walls reflect robots, cells and obstacles
     robot_corner: bool  # robots start in the (-,-,-) octant
+    # active Brownian physics (um, s, nM); in the lattice physics these keep their defaults
+    physics: int = LATTICE
+    swim_step: float = 0.0  # v dt, um swum along the heading per step
+    jiggle: float = 0.0  # sqrt(2 D_T dt), um: the sd of each axis's Brownian displacement
+    heading_sigma: float = 0.0  # Rayleigh scale of the heading's rotation per step
+    turn: float = 0.0  # the largest commanded turn per step, rad
+    robot_radius: float = 0.0  # um
+    cell_radius: float = 0.0  # um
+    cell_jiggle: float = 0.0  # sqrt(2 D_cell dt), um
+    obstacle_core: float = 0.0  # the obstacles' own radius (obstacle_radius adds the robot's)
+    counting: float = 0.0  # pi D_m a dt N_A: a reading of c nM counts counting * c molecules
+    tumble: float = 0.0  # run_and_tumble: chance of a tumble per step, reading not rising
+    tumble_rising: float = 0.0  # and while it rises
+    memory_weight: float = 1.0  # dt / memory_s: how fast the reading's memory follows it
 
 
 class Swarm(NamedTuple):
@@ -88,6 +109,8 @@ class Swarm(NamedTuple):
     reading: NDArray[np.float64]  # true concentration at the robot this step, before noise
     reading_grad: NDArray[np.float64]  # (N, 3) its gradient
     swept: NDArray[np.bool_]  # reached by a drifting cell while heading away from it
+    blocked: NDArray[np.bool_]  # its last move was stopped by an obstacle
+    sensed: NDArray[np.float64]  # the reading it took this step (with noise)
 
 
 class World(NamedTuple):
@@ -120,6 +143,8 @@ class Recording(NamedTuple):
     dist: NDArray[np.float64]  # (R, N)
     step: NDArray[np.int64]  # (R,) the step each row shows
     offsets: NDArray[np.float64]  # (K, 3) the recorded world's emitter offsets
+    heading: NDArray[np.float64]  # (R, N, 3) in the active Brownian physics, else (0, N, 3)
+    sensed: NDArray[np.float64]  # (R, N) the reading each robot took, likewise (0, N)
 
 
 # counters[] slots: where the run is, and what it has spent

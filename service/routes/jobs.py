@@ -254,6 +254,8 @@ def get_trajectory(
             distance=strided["distance"].tolist(),
             reached=arrays["reached"].tolist(),
             robot_steps=arrays["robot_steps"].tolist(),
+            headings=strided["headings"].tolist() if "headings" in strided else None,
+            sensed=strided["sensed"].tolist() if "sensed" in strided else None,
         ).model_dump(),
         headers=IMMUTABLE,
     )
@@ -424,18 +426,19 @@ def _qtable_png(store: JobStore, job_id: int) -> bytes:
     )
 
 
-PER_ROW = ("step", "robots", "cells", "obstacles", "concentration", "distance")
+PER_ROW = ("step", "robots", "cells", "obstacles", "concentration", "distance", "headings",
+           "sensed")  # fmt: skip
 
 
 def _per_row(arrays: dict[str, NDArray[Any]], key: str) -> bool:
     """Whether ``key`` has a row per recorded step (obstacles that never move have one row)."""
-    return key in PER_ROW and arrays[key].shape[0] == arrays["step"].shape[0]
+    return key in arrays and key in PER_ROW and arrays[key].shape[0] == arrays["step"].shape[0]
 
 
 def _json_values(arrays: dict[str, NDArray[Any]], rows: int) -> int:
     """How many numbers a JSON answer with ``rows`` rows holds."""
     per_row = sum(int(arrays[k][0].size) for k in PER_ROW if _per_row(arrays, k))
-    once = [k for k in PER_ROW if not _per_row(arrays, k)]
+    once = [k for k in PER_ROW if k in arrays and not _per_row(arrays, k)]
     fixed = sum(int(arrays[k].size) for k in (*once, "reached", "robot_steps"))
     return rows * per_row + fixed
 
@@ -460,18 +463,25 @@ def _csv_lines(arrays: dict[str, NDArray[Any]]) -> Iterator[str]:
     """The trajectory as CSV, a recorded step at a time, so a large one is never held whole."""
     out = io.StringIO()
     writer = csv.writer(out, lineterminator="\n")
-    writer.writerow(["step", "kind", "index", "x", "y", "z", "concentration", "distance"])
+    # the active Brownian physics adds each robot's heading and its (noisy) sensed reading
+    swimming = "headings" in arrays and "sensed" in arrays
+    extra = ["heading_x", "heading_y", "heading_z", "sensed"] if swimming else []
+    blank = [""] * len(extra)
+    writer.writerow(["step", "kind", "index", "x", "y", "z", "concentration", "distance", *extra])
     obstacles_move = _per_row(arrays, "obstacles")
     for i, step in enumerate(arrays["step"].tolist()):
         for r, (x, y, z) in enumerate(arrays["robots"][i].tolist()):
             c = arrays["concentration"][i, r]
             d = arrays["distance"][i, r]
-            writer.writerow([step, "robot", r, x, y, z, repr(float(c)), repr(float(d))])
+            more = []
+            if swimming:
+                more = [repr(float(v)) for v in (*arrays["headings"][i, r], arrays["sensed"][i, r])]
+            writer.writerow([step, "robot", r, x, y, z, repr(float(c)), repr(float(d)), *more])
         for k, (x, y, z) in enumerate(arrays["cells"][i].tolist()):
-            writer.writerow([step, "cell", k, x, y, z, "", ""])
+            writer.writerow([step, "cell", k, x, y, z, "", "", *blank])
         if obstacles_move or i == 0:
             for k, (x, y, z) in enumerate(arrays["obstacles"][i].tolist()):
-                writer.writerow([step, "obstacle", k, x, y, z, "", ""])
+                writer.writerow([step, "obstacle", k, x, y, z, "", "", *blank])
         yield out.getvalue()
         out.seek(0)
         out.truncate()

@@ -58,3 +58,46 @@ def test_trajectory_answers_are_bounded_and_say_how_to_get_the_rest(sqlite_url: 
         obstacles = [r for r in table if r["kind"] == "obstacle"]
         assert len(obstacles) == 10 and {r["step"] for r in obstacles} == {"0"}
     store.close()
+
+
+def test_an_active_brownian_trajectory_carries_headings_and_sensed_readings(
+    sqlite_url: str,
+) -> None:
+    # through the API, as a client would check the physics: JSON, CSV and npz alike
+    scenario = {
+        "physics": {"model": "active_brownian"},
+        "robots": {"count": 3, "policy": "run_and_tumble"},
+        "learning": {"episodes": 0, "max_steps": 40},
+        "evaluation": {"worlds": 1},
+    }
+    settings = Settings(database_url=sqlite_url)
+    upgrade(sqlite_url)
+    store = JobStore.from_url(sqlite_url)
+    with serve(create_app(settings)) as url, httpx.Client(base_url=url, timeout=30) as client:
+        answer = client.post("/jobs", json=scenario)
+        assert answer.status_code == 202, answer.text
+        job_id = answer.json()["id"]
+        resolved = client.get(f"/jobs/{job_id}").json()["scenario"]["physics"]
+        assert resolved["diffusion_um2_s"] > 0 and resolved["rotational_diffusion_s"] > 0
+        claim = store.claim("test", lease_s=30)
+        assert claim is not None
+        record = run_job(store, claim, settings, threading.Event())
+        assert record is not None and record.status is JobStatus.SUCCEEDED
+        metrics = client.get(f"/jobs/{job_id}/metrics").json()
+        assert metrics["physics"]["persistence_length_um"] > 0
+        body = client.get(f"/jobs/{job_id}/trajectory").json()
+        headings = np.array(body["headings"])
+        assert headings.shape == (len(body["step"]), 3, 3)
+        assert np.allclose(np.linalg.norm(headings, axis=2), 1.0)
+        assert np.array(body["sensed"]).shape == (len(body["step"]), 3)
+        arrays = unpack(client.get(f"/jobs/{job_id}/trajectory", params={"format": "npz"}).content)
+        assert np.array_equal(arrays["headings"], headings)
+        text = client.get(f"/jobs/{job_id}/trajectory", params={"format": "csv"}).text
+        table = list(csv.DictReader(io.StringIO(text)))
+        robot = next(r for r in table if r["kind"] == "robot")
+        assert float(robot["heading_x"]) == headings[0, 0, 0]
+        assert robot["sensed"] != ""
+        lattice = client.post("/jobs", json={"robots": {"policy": "uncontrolled"}})
+        assert lattice.status_code == 422
+        assert lattice.json()["errors"][0]["pointer"] == "#/robots/policy"
+    store.close()

@@ -23,28 +23,19 @@ from numpy.typing import NDArray
 from scipy.optimize import brentq
 from scipy.special import dawsn
 
-BOLTZMANN_J_K = 1.380649e-23  # exact since the 2019 SI
+from nanonav.engine.dynamics.lattice import _segment_hit
+from nanonav.engine.state import KernelParams, Swarm, World
+
+# Stokes-Einstein(-Debye) lives with the schema, which fills D_T and D_R in from it.
+from nanonav.scenario import BOLTZMANN_J_K as BOLTZMANN_J_K
+from nanonav.scenario import stokes_einstein_debye_s as stokes_einstein_debye_s
+from nanonav.scenario import stokes_einstein_um2_s as stokes_einstein_um2_s
+
 AVOGADRO_PER_MOL = 6.02214076e23  # exact since the 2019 SI
 MOLECULES_PER_UM3_PER_NM = AVOGADRO_PER_MOL * 1e-9 / 1e15  # 1 nM in molecules per um^3: 0.6022
 # Rayleigh(sigma) rotation angles: E[cos theta] = 1 - 2 x F(x), x = sigma / sqrt(2), F Dawson's
 # integral. It falls from 1 to 0 as x grows to about 0.9241, the largest step this allows.
 _LARGEST_X = float(brentq(lambda x: 1.0 - 2.0 * x * dawsn(x), 0.5, 1.5))
-
-
-def translational_diffusion_um2_s(
-    temperature_k: float, viscosity_mpa_s: float, radius_um: float
-) -> float:
-    """Stokes-Einstein: D_T = k_B T / (6 pi eta R), in um^2/s."""
-    eta = viscosity_mpa_s * 1e-3
-    radius = radius_um * 1e-6
-    return BOLTZMANN_J_K * temperature_k / (6.0 * math.pi * eta * radius) * 1e12
-
-
-def rotational_diffusion_s(temperature_k: float, viscosity_mpa_s: float, radius_um: float) -> float:
-    """Stokes-Einstein-Debye: D_R = k_B T / (8 pi eta R^3), in 1/s."""
-    eta = viscosity_mpa_s * 1e-3
-    radius = radius_um * 1e-6
-    return BOLTZMANN_J_K * temperature_k / (8.0 * math.pi * eta * radius**3)
 
 
 def persistence_length_um(swim_speed_um_s: float, rotational_diffusion: float) -> float:
@@ -234,3 +225,83 @@ def read_concentration(rng: np.random.Generator, concentration: float, relative_
         return concentration
     shape = 1.0 / (relative_sd * relative_sd)
     return rng.gamma(shape, concentration / shape)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _reflect_into(v: float, half: float) -> float:
+    if v > half:
+        return 2.0 * half - v
+    if v < -half:
+        return -2.0 * half - v
+    return v
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _clear_of(centres: NDArray[np.float64], margin: float, x: float, y: float, z: float) -> bool:
+    m2 = margin * margin
+    for j in range(centres.shape[0]):
+        dx = centres[j, 0] - x
+        dy = centres[j, 1] - y
+        dz = centres[j, 2] - z
+        if dx * dx + dy * dy + dz * dz < m2:
+            return False
+    return True
+
+
+@njit(cache=True, error_model="numpy")
+def move_cells(p: KernelParams, rng: np.random.Generator, w: World) -> None:
+    """Cells diffuse (``physics.cell_diffusion_um2_s``), reflected by the walls; a move that
+    would overlap an obstacle (their surfaces) is refused."""
+    margin = p.cell_radius + p.obstacle_core
+    for j in range(w.cells.shape[0]):
+        x = w.cells[j, 0] + p.cell_jiggle * rng.standard_normal()
+        y = w.cells[j, 1] + p.cell_jiggle * rng.standard_normal()
+        z = w.cells[j, 2] + p.cell_jiggle * rng.standard_normal()
+        if p.walls:
+            x = _reflect_into(x, p.half)
+            y = _reflect_into(y, p.half)
+            z = _reflect_into(z, p.half)
+        if _clear_of(w.obstacles, margin, x, y, z):
+            w.cells[j, 0] = x
+            w.cells[j, 1] = y
+            w.cells[j, 2] = z
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def move_robot(
+    p: KernelParams, rng: np.random.Generator, w: World, s: Swarm, i: int,
+    px: float, py: float, pz: float,
+) -> tuple[float, float, float, bool]:  # fmt: skip
+    """One overdamped step of robot ``i`` at p: swim along its heading and jiggle, reflected by
+    the walls; a step whose segment would bring its surface into an obstacle's is refused (the
+    robot stays and a collision is counted), whatever the noise. Then its heading diffuses.
+    Returns where it ends and whether it was blocked."""
+    hx = s.heading[i, 0]
+    hy = s.heading[i, 1]
+    hz = s.heading[i, 2]
+    nx = px + p.swim_step * hx + p.jiggle * rng.standard_normal()
+    ny = py + p.swim_step * hy + p.jiggle * rng.standard_normal()
+    nz = pz + p.swim_step * hz + p.jiggle * rng.standard_normal()
+    if p.walls:
+        nx = _reflect_into(nx, p.half)
+        ny = _reflect_into(ny, p.half)
+        nz = _reflect_into(nz, p.half)
+    blocked = _segment_hit(w.obstacles, p.obstacle_radius, px, py, pz, nx, ny, nz) >= 0
+    if blocked:
+        s.collisions[i] += 1
+        nx = px
+        ny = py
+        nz = pz
+    else:
+        dx = nx - px
+        dy = ny - py
+        dz = nz - pz
+        s.path_length[i] += math.sqrt(dx * dx + dy * dy + dz * dz)
+    s.pos[i, 0] = nx
+    s.pos[i, 1] = ny
+    s.pos[i, 2] = nz
+    hx, hy, hz = diffuse_heading(rng, hx, hy, hz, p.heading_sigma)
+    s.heading[i, 0] = hx
+    s.heading[i, 1] = hy
+    s.heading[i, 2] = hz
+    return nx, ny, nz, blocked

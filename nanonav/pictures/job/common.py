@@ -10,7 +10,9 @@ from matplotlib.figure import Figure
 from numpy.typing import NDArray
 
 from nanonav.engine import SimulationResult, Trajectory
+from nanonav.engine.fields import biomarker_of
 from nanonav.pictures.figure import DPI, new_figure
+from nanonav.scenario import Scenario
 
 ColourScale = Literal["auto", "linear", "log"]
 
@@ -29,7 +31,17 @@ learner or a baseline, any heatmap resolution); the Q-table's grows with the tab
 # Paths longer than this are thinned to this many points (their last one kept) to draw fast.
 MAX_LINE_POINTS = 2000
 
-LENGTH = "length units"
+
+def length_unit(scenario: Scenario) -> str:
+    """What lengths are measured in: um in the active Brownian physics, else simulation units."""
+    return "um" if scenario.physics.model == "active_brownian" else "length units"
+
+
+def concentration_unit(scenario: Scenario) -> str:
+    """nM in the active Brownian physics, else arbitrary units."""
+    return "nM" if scenario.physics.model == "active_brownian" else "a.u."
+
+
 ROBOT_BLUE = "tab:blue"
 CELL_RED = "tab:red"
 START_GREEN = "tab:green"
@@ -71,4 +83,4 @@ def resolve_scale(result: SimulationResult, scale: ColourScale) -> Literal["line
     others, which span decades."""
     if scale != "auto":
         return scale
-    return "linear" if result.scenario.biomarker.model == "gaussian" else "log"
+    return "linear" if biomarker_of(result.scenario).model == "gaussian" else "log"

@@ -16,10 +16,11 @@ from nanonav.engine import SimulationResult, Trajectory
 from nanonav.pictures.figure import png
 from nanonav.pictures.job.common import (
     CELL_RED,
-    LENGTH,
     ROBOT_BLUE,
+    concentration_unit,
     evaluation_trajectory,
     last_row,
+    length_unit,
     resolve_scale,
     sized_figure,
 )
@@ -71,8 +72,8 @@ def _reach_summary(trajectory: Trajectory) -> str:
     return f"{reached} of {n} reached a cell within {trajectory.length} steps"
 
 
-def _concentration_label(log_scale: bool) -> str:
-    return f"biomarker concentration (a.u.{', log scale' if log_scale else ''})"
+def _concentration_label(log_scale: bool, unit: str) -> str:
+    return f"biomarker concentration ({unit}{', log scale' if log_scale else ''})"
 
 
 def concentration_figure(result: SimulationResult) -> Figure:
@@ -88,10 +89,11 @@ def concentration_figure(result: SimulationResult) -> Figure:
     trajectory = evaluation_trajectory(result)
     log_scale = resolve_scale(result, "auto") == "log"
     fig = sized_figure("concentration")
+    units = (length_unit(result.scenario), concentration_unit(result.scenario))
     if trajectory.robots.shape[1] == 1:
-        _draw_one_robot(fig, trajectory, log_scale)
+        _draw_one_robot(fig, trajectory, log_scale, units)
     else:
-        _draw_searching_swarm(fig, trajectory, log_scale)
+        _draw_searching_swarm(fig, trajectory, log_scale, units)
     fig.suptitle(
         "Biomarker concentration and distance to the nearest cell, evaluation episode\n"
         + _reach_summary(trajectory)
@@ -99,7 +101,9 @@ def concentration_figure(result: SimulationResult) -> Figure:
     return fig
 
 
-def _draw_one_robot(fig: Figure, trajectory: Trajectory, log_scale: bool) -> None:
+def _draw_one_robot(
+    fig: Figure, trajectory: Trajectory, log_scale: bool, units: tuple[str, str]
+) -> None:
     left = fig.add_subplot()
     right = left.twinx()
     end = last_row(trajectory, 0) + 1
@@ -109,8 +113,8 @@ def _draw_one_robot(fig: Figure, trajectory: Trajectory, log_scale: bool) -> Non
     if log_scale:
         left.set_yscale("log")
     left.set_xlabel("step")
-    left.set_ylabel(_concentration_label(log_scale), color=CELL_RED)
-    right.set_ylabel(f"distance to the nearest cell ({LENGTH})", color=ROBOT_BLUE)
+    left.set_ylabel(_concentration_label(log_scale, units[1]), color=CELL_RED)
+    right.set_ylabel(f"distance to the nearest cell ({units[0]})", color=ROBOT_BLUE)
     left.tick_params(axis="y", colors=CELL_RED)
     right.tick_params(axis="y", colors=ROBOT_BLUE)
     right.set_ylim(bottom=0)
@@ -127,7 +131,9 @@ def _draw_one_robot(fig: Figure, trajectory: Trajectory, log_scale: bool) -> Non
     )
 
 
-def _draw_searching_swarm(fig: Figure, trajectory: Trajectory, log_scale: bool) -> None:
+def _draw_searching_swarm(
+    fig: Figure, trajectory: Trajectory, log_scale: bool, units: tuple[str, str]
+) -> None:
     stats = searching_stats(trajectory)
     n = trajectory.robots.shape[1]
     distance_ax, concentration_ax, count_ax = fig.subplots(
@@ -141,12 +147,12 @@ def _draw_searching_swarm(fig: Figure, trajectory: Trajectory, log_scale: bool) 
                         linewidth=0)  # fmt: skip
         ax.plot(stats.step, quartiles[:, 1], color=colour, linewidth=1.8)
         ax.grid(alpha=0.3)
-    distance_ax.set_ylabel(f"distance\n({LENGTH})")
+    distance_ax.set_ylabel(f"distance\n({units[0]})")
     distance_ax.set_ylim(bottom=0)
     distance_ax.set_title("distance to the nearest cell", fontsize="medium")
     if log_scale:
         concentration_ax.set_yscale("log")
-    concentration_ax.set_ylabel(f"concentration\n(a.u.{', log' if log_scale else ''})")
+    concentration_ax.set_ylabel(f"concentration\n({units[1]}{', log' if log_scale else ''})")
     concentration_ax.set_title("biomarker concentration at the robot", fontsize="medium")
     count_ax.fill_between(stats.step, stats.searching, step="post", color=ROBOT_BLUE, alpha=0.2,
                           linewidth=0)  # fmt: skip

@@ -20,15 +20,17 @@ from matplotlib.patches import Circle, Patch
 from numpy.typing import NDArray
 
 from nanonav.engine import SimulationResult, Trajectory, field_and_gradient
+from nanonav.engine.fields import biomarker_of
 from nanonav.pictures.figure import png
 from nanonav.pictures.job.common import (
     CELL_RED,
-    LENGTH,
     ROBOT_BLUE,
     START_GREEN,
     ColourScale,
+    concentration_unit,
     evaluation_trajectory,
     last_row,
+    length_unit,
     resolve_scale,
     sized_figure,
     thin,
@@ -120,7 +122,7 @@ def heatmap_slices(
     cells = trajectory.cells[-1]
     points = np.concatenate([*blocks, cells])
     concentration, _ = field_and_gradient(
-        result.scenario.biomarker, cells, trajectory.emitter_offsets, points
+        biomarker_of(result.scenario), cells, trajectory.emitter_offsets, points
     )
     peak = float(concentration[-len(cells) :].max())
     grids = concentration[: -len(cells)].reshape(len(planes), resolution, resolution)
@@ -213,8 +215,9 @@ def _draw_slice(ax: Axes, result: SimulationResult, cut: Slice, norm: Normalize)
     ax.set_xlim(-half, half)
     ax.set_ylim(-half, half)
     ax.set_aspect("equal")
-    ax.set_xlabel(f"{_AXIS_NAMES[a]} ({LENGTH})")
-    ax.set_ylabel(f"{_AXIS_NAMES[b]} ({LENGTH})")
+    length = length_unit(result.scenario)
+    ax.set_xlabel(f"{_AXIS_NAMES[a]} ({length})")
+    ax.set_ylabel(f"{_AXIS_NAMES[b]} ({length})")
     ax.set_title(f"{cut.plane.upper()} plane at {_AXIS_NAMES[fixed]} = {cut.level:.1f}")
     return _Drawn(image, obstacles_cut, bool(near.any()), bool((~near).any()), reached, failed)
 
@@ -268,8 +271,11 @@ def heatmap_figure(
     norm = _norm(list(slices.values()), scale)
     drawn = [_draw_slice(ax, result, slices[p], norm) for ax, p in zip(axes, planes, strict=True)]
     colourbar = fig.colorbar(drawn[0].image, ax=list(axes), shrink=0.9)
-    colourbar.set_label(f"biomarker concentration (a.u.{', log scale' if scale == 'log' else ''})")
-    model = _FIELD_NAMES[result.scenario.biomarker.model]
+    unit = concentration_unit(result.scenario)
+    colourbar.set_label(
+        f"biomarker concentration ({unit}{', log scale' if scale == 'log' else ''})"
+    )
+    model = _FIELD_NAMES[biomarker_of(result.scenario).model]
     where = "through the cell nearest to robot 0" if through_target else "at the chosen level"
     fig.suptitle(
         f"Biomarker concentration, {model} field, at the last step ({trajectory.length})\n"

@@ -26,9 +26,21 @@ _POLICY_NAMES = {
     "rule": "the fixed rule",
     "simple_rule": "the simple rule",
     "random": "the random walk",
+    "uncontrolled": "the uncontrolled swimmer",
+    "exact_gradient": "steering by the exact gradient",
 }
 # Policies that learn nothing: their episodes are independent trials of the same behaviour.
-BASELINES = frozenset({"gradient", "run_and_tumble", "rule", "simple_rule", "random"})
+BASELINES = frozenset(
+    {
+        "gradient",
+        "run_and_tumble",
+        "rule",
+        "simple_rule",
+        "random",
+        "uncontrolled",
+        "exact_gradient",
+    }
+)
 # The moving mean spans about an eighth of the episodes, within these bounds; runs shorter than
 # SMOOTH_FROM episodes show the raw values only.
 SMOOTH_FROM = 4

@@ -17,11 +17,11 @@ from nanonav.engine import SimulationResult, Trajectory
 from nanonav.pictures.figure import png
 from nanonav.pictures.job.common import (
     CELL_RED,
-    LENGTH,
     ROBOT_BLUE,
     START_GREEN,
     evaluation_trajectory,
     last_row,
+    length_unit,
     sized_figure,
     thin,
 )
@@ -157,9 +157,10 @@ def trajectory_figure(result: SimulationResult) -> Figure:
     ax.set_ylim(-half, half)
     ax.set_zlim(-half, half)
     ax.set_box_aspect((1, 1, 1), zoom=0.92)
-    ax.set_xlabel(f"x ({LENGTH})")
-    ax.set_ylabel(f"y ({LENGTH})")
-    ax.set_zlabel(f"z ({LENGTH})")
+    length = length_unit(result.scenario)
+    ax.set_xlabel(f"x ({length})")
+    ax.set_ylabel(f"y ({length})")
+    ax.set_zlabel(f"z ({length})")
     who = "robot" if robots_total == 1 else f"{robots_total} robots"
     cells = "cancer cell" if cells_total == 1 else f"{cells_total} cancer cells"
     notes = []

@@ -18,27 +18,25 @@ WATER_37C_MPA_S = 0.69
 
 def test_stokes_einstein_gives_the_textbook_figures() -> None:
     # k_B T / (6 pi eta R) by hand: 1.380649e-23 * 310.15 / (6 pi 0.69e-3 1e-6) = 3.2923e-13 m^2/s
-    assert brownian.translational_diffusion_um2_s(BODY_K, WATER_37C_MPA_S, 1.0) == pytest.approx(
+    assert brownian.stokes_einstein_um2_s(BODY_K, WATER_37C_MPA_S, 1.0) == pytest.approx(
         0.32923, rel=1e-4
     )
     # k_B T / (8 pi eta R^3): 0.24693 1/s at 1 um, a thousand times more at 0.1 um
-    assert brownian.rotational_diffusion_s(BODY_K, WATER_37C_MPA_S, 1.0) == pytest.approx(
+    assert brownian.stokes_einstein_debye_s(BODY_K, WATER_37C_MPA_S, 1.0) == pytest.approx(
         0.24693, rel=1e-4
     )
-    assert brownian.rotational_diffusion_s(BODY_K, WATER_37C_MPA_S, 0.1) == pytest.approx(
+    assert brownian.stokes_einstein_debye_s(BODY_K, WATER_37C_MPA_S, 0.1) == pytest.approx(
         246.93, rel=1e-4
     )
     # Einstein's sphere in water at 20 degrees C (1.002 mPa s): 0.214 um^2/s at 1 um
-    assert brownian.translational_diffusion_um2_s(293.15, 1.002, 1.0) == pytest.approx(
-        0.2142, rel=1e-3
-    )
+    assert brownian.stokes_einstein_um2_s(293.15, 1.002, 1.0) == pytest.approx(0.2142, rel=1e-3)
     # for a sphere, D_T / D_R = 4 R^2 / 3 whatever the fluid
     for radius in (0.2, 3.0):
-        d_t = brownian.translational_diffusion_um2_s(300.0, 1.3, radius)
-        d_r = brownian.rotational_diffusion_s(300.0, 1.3, radius)
+        d_t = brownian.stokes_einstein_um2_s(300.0, 1.3, radius)
+        d_r = brownian.stokes_einstein_debye_s(300.0, 1.3, radius)
         assert d_t / d_r == pytest.approx(4 * radius**2 / 3, rel=1e-12)
     # a 0.1 um swimmer at 10 um/s keeps its heading for some 20 nm
-    d_r = brownian.rotational_diffusion_s(BODY_K, WATER_37C_MPA_S, 0.1)
+    d_r = brownian.stokes_einstein_debye_s(BODY_K, WATER_37C_MPA_S, 0.1)
     assert brownian.persistence_length_um(10.0, d_r) == pytest.approx(0.02025, rel=1e-3)
 
 

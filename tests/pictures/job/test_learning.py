@@ -14,15 +14,19 @@ from nanonav.pictures.job.learning import (
     moving_mean,
     smoothing_window,
 )
-from nanonav.scenario import Policy
+from nanonav.scenario import LATTICE_POLICIES, Policy
 from tests.pictures.job.results import EXPECTED_SIZE, assert_picture, panel_titles, scenario
 
 
 @pytest.mark.parametrize("policy", typing.get_args(Policy))
 def test_every_policy_draws_its_learning_curve(policy: str) -> None:
+    physics = "lattice" if policy in LATTICE_POLICIES else "active_brownian"
     run = simulate(
         scenario(
-            seed=3, robots={"count": 3, "policy": policy}, learning={"episodes": 2, "max_steps": 80}
+            seed=3,
+            robots={"count": 3, "policy": policy},
+            learning={"episodes": 2, "max_steps": 80},
+            physics={"model": physics},
         )
     )
     assert_picture(learning_png(run), EXPECTED_SIZE["learning"])

@@ -1,0 +1,122 @@
+"""The physics section of a scenario: Stokes-Einstein(-Debye) defaults filled in, time steps that
+resolve the motion, and each physics refusing what only the other has a use for, naming the
+field."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import pytest
+from pydantic import ValidationError
+
+from nanonav.scenario import Scenario, stokes_einstein_debye_s, stokes_einstein_um2_s
+
+BROWNIAN = {"physics": {"model": "active_brownian"}}
+
+
+def refused(data: dict[str, Any]) -> tuple[tuple[str | int, ...], str]:
+    with pytest.raises(ValidationError) as caught:
+        Scenario.model_validate(data)
+    error = caught.value.errors()[0]
+    return tuple(error["loc"]), error["msg"]
+
+
+def test_diffusion_defaults_to_stokes_einstein_and_is_stored_filled_in() -> None:
+    s = Scenario.model_validate(
+        {"physics": {"model": "active_brownian", "robot_radius_um": 2.0, "dt_s": 0.02}}
+    )
+    assert s.physics.diffusion_um2_s == pytest.approx(stokes_einstein_um2_s(310.15, 0.69, 2.0))
+    assert s.physics.rotational_diffusion_s == pytest.approx(
+        stokes_einstein_debye_s(310.15, 0.69, 2.0)
+    )
+    assert s.physics.diffusion_um2_s == pytest.approx(0.3292 / 2, rel=1e-3)
+    dumped = s.model_dump(mode="json")
+    assert dumped["physics"]["diffusion_um2_s"] == s.physics.diffusion_um2_s
+    assert Scenario.model_validate(dumped) == s  # what is stored validates again, unchanged
+    given = Scenario.model_validate(
+        {
+            "physics": {
+                "model": "active_brownian",
+                "diffusion_um2_s": 0.1,
+                "rotational_diffusion_s": 0.5,
+            }
+        }
+    )
+    assert (given.physics.diffusion_um2_s, given.physics.rotational_diffusion_s) == (0.1, 0.5)
+    assert given.learning.actions == "steering"
+    assert Scenario().physics.diffusion_um2_s is None  # the lattice physics has none
+
+
+@pytest.mark.parametrize(
+    ("physics", "broken"),
+    [
+        ({"dt_s": 1.0}, "D_R dt"),  # the heading turns too far in a step
+        ({"swim_speed_um_s": 200.0}, "would swim"),  # 2 um a step, over half the radius
+        ({"diffusion_um2_s": 20.0, "rotational_diffusion_s": 0.1}, "jiggle"),
+    ],
+)
+def test_a_time_step_too_coarse_is_refused_with_one_that_would_do(
+    physics: dict[str, Any], broken: str
+) -> None:
+    loc, message = refused({"physics": {"model": "active_brownian", **physics}})
+    assert loc == ("physics", "dt_s") and broken in message
+    suggested = float(message.rsplit("dt_s <= ", 1)[1].split(" s")[0])
+    fixed = Scenario.model_validate(
+        {"physics": {"model": "active_brownian", **physics, "dt_s": suggested}}
+    )
+    assert fixed.physics.dt_s == suggested
+
+
+def test_a_small_robot_needs_a_short_step() -> None:
+    # a 0.1 um sphere forgets its heading at D_R = 247 1/s: 0.01 s is far too coarse
+    loc, message = refused({"physics": {"model": "active_brownian", "robot_radius_um": 0.1}})
+    assert loc == ("physics", "dt_s") and "2.47" in message and "0.0002" in message
+
+
+@pytest.mark.parametrize(
+    ("extra", "field"),
+    [
+        ({"robots": {"speed": 2.0}}, ("robots", "speed")),
+        ({"robots": {"sensor_baseline": 1.0}}, ("robots", "sensor_baseline")),
+        ({"cells": {"motion_std": 0.5}}, ("cells", "motion_std")),
+        ({"obstacles": {"motion_std": 0.5}}, ("obstacles", "motion_std")),
+        ({"biomarker": {"noise_floor": 0.1}}, ("biomarker", "noise_floor")),
+        ({"biomarker": {"model": "gaussian", "spread": 3.0}}, ("biomarker", "spread")),
+        ({"reach_distance": 2.0}, ("reach_distance",)),
+        ({"robots": {"policy": "rule"}}, ("robots", "policy")),
+        ({"learning": {"actions": "behaviors"}}, ("learning", "actions")),
+    ],
+)
+def test_active_brownian_refuses_what_only_the_lattice_uses(
+    extra: dict[str, Any], field: tuple[str, ...]
+) -> None:
+    loc, message = refused({**BROWNIAN, **extra})
+    assert loc == field, message
+    assert "active_brownian" in message
+
+
+@pytest.mark.parametrize(
+    ("physics", "field"),
+    [
+        ({"dt_s": 0.1}, "dt_s"),
+        ({"robot_radius_um": 2.0}, "robot_radius_um"),
+        ({"diffusion_um2_s": 1.0}, "diffusion_um2_s"),
+    ],
+)
+def test_the_lattice_refuses_what_only_active_brownian_uses(
+    physics: dict[str, Any], field: str
+) -> None:
+    loc, message = refused({"physics": physics})
+    assert loc == ("physics", field) and "active_brownian" in message
+    loc, _ = refused({"robots": {"policy": "uncontrolled"}})
+    assert loc == ("robots", "policy")
+    loc, _ = refused({"learning": {"actions": "steering"}})
+    assert loc == ("learning", "actions")
+
+
+def test_every_physical_default_is_finite_and_in_its_own_bounds() -> None:
+    s = Scenario.model_validate(BROWNIAN)
+    for name, value in s.physics.model_dump().items():
+        if isinstance(value, float):
+            assert math.isfinite(value), name
