@@ -444,6 +444,64 @@ class Evaluation(_Part):
     )
 
 
+LARGEST_AUTOMATIC_DT_S = 0.01
+
+
+def _time_step_bounds(
+    d_t: float, d_r: float, speed: float, radius: float, dt: float
+) -> list[tuple[float, float, float, str]]:
+    """Each bound a time step must keep: (its value at dt, the largest allowed, the dt that
+    reaches it, what breaking it means)."""
+    half = radius / 2
+    return [
+        (d_r * dt, 0.05, 0.05 / d_r if d_r else math.inf,
+         "the heading would turn by D_R dt = {value:.3g} per step (at most 0.05)"),
+        (speed * dt, half, half / speed if speed else math.inf,
+         "a step would swim {value:.3g} um, over half of robot_radius_um"),
+        (math.sqrt(2 * d_t * dt), half, half**2 / (2 * d_t) if d_t else math.inf,
+         "a step would jiggle sqrt(2 D_T dt) = {value:.3g} um, over half of robot_radius_um"),
+    ]  # fmt: skip
+
+
+def fill_physics(data: Any) -> Any:
+    """An active Brownian physics section with what it leaves out filled in: D_T and D_R from
+    Stokes-Einstein(-Debye), dt_s the largest step that keeps every bound (at most 0.01 s, two
+    significant figures rounded down). Anything else is returned as it came, for validation to
+    refuse."""
+    if not isinstance(data, dict) or data.get("model") != "active_brownian":
+        return data
+    fields = Physics.model_fields
+    got = {k: data.get(k, fields[k].default) for k in fields}
+    try:
+        t, eta, r, v = (float(got[k]) for k in ("temperature_k", "viscosity_mpa_s",
+                                                 "robot_radius_um", "swim_speed_um_s"))  # fmt: skip
+    except (TypeError, ValueError):
+        return data  # the fields' own validation says what is wrong
+    if not (t > 0 and eta > 0 and r > 0 and v >= 0):
+        return data
+    filled = dict(data)
+    if filled.get("diffusion_um2_s") is None:
+        filled["diffusion_um2_s"] = stokes_einstein_um2_s(t, eta, r)
+    if filled.get("rotational_diffusion_s") is None:
+        filled["rotational_diffusion_s"] = stokes_einstein_debye_s(t, eta, r)
+    if filled.get("dt_s") is None:
+        try:
+            d_t, d_r = float(filled["diffusion_um2_s"]), float(filled["rotational_diffusion_s"])
+        except (TypeError, ValueError):
+            return filled
+        fine = min(b[2] for b in _time_step_bounds(d_t, d_r, v, r, 0.0))
+        filled["dt_s"] = min(LARGEST_AUTOMATIC_DT_S, float(_round_down(fine)))
+    return filled
+
+
+def _round_down(value: float) -> str:
+    """A time step to suggest: two significant figures, rounded down so that it keeps the bound."""
+    if not math.isfinite(value) or value <= 0:
+        return f"{value:g}"
+    scale = 10 ** (math.floor(math.log10(value)) - 1)
+    return f"{math.floor(value / scale) * scale:.3g}"
+
+
 class Physics(_Part):
     """How robots, cells and molecules move. 'lattice' (the paper's, the default): a robot moves
     exactly robots.speed along the direction its policy chooses, every step. 'active_brownian':
@@ -458,13 +516,22 @@ class Physics(_Part):
         description="'lattice' (the paper's model, in simulation units and steps) or "
         "'active_brownian' (SI: um, s, nM; every length of the scenario is then in um).",
     )
-    dt_s: float = Field(
-        0.01,
+    dt_s: float | None = Field(
+        None,
         gt=0.0,
         le=10.0,
         description="Time step, s. It must resolve the motion: the heading may turn by "
         "D_R dt <= 0.05 per step, and a step (swimming or jiggling) may cover at most half of "
-        "robot_radius_um; a coarser step is refused with the dt_s that would do.",
+        "robot_radius_um; a coarser step is refused with the dt_s that would do. null: the "
+        "largest such step, at most 0.01 s, filled in in the resolved scenario (so a study "
+        "over robot_radius_um gets a fitting step at every radius).",
+    )
+    time_limit_s: float | None = Field(
+        None,
+        gt=0.0,
+        le=1e6,
+        description="The episode's time limit, s: learning.max_steps becomes ceil(time_limit_s "
+        "/ dt_s), filled in. null: learning.max_steps steps of dt_s.",
     )
     temperature_k: float = Field(
         310.15, ge=250.0, le=400.0, description="Temperature, K (37 degrees C: the body's)."
@@ -563,28 +630,17 @@ class Physics(_Part):
         "readings over this past time to tell whether it rises (0: with the last reading).",
     )
 
+    @property
+    def step_s(self) -> float:
+        """dt_s, which validation fills in for active Brownian motion (0 for the lattice)."""
+        return self.dt_s or 0.0
+
     @model_validator(mode="before")
     @classmethod
     def _stokes(cls, data: Any) -> Any:
-        """D_T and D_R default to Stokes-Einstein(-Debye), filled in so the resolved scenario
-        shows what ran."""
-        if not isinstance(data, dict) or data.get("model") != "active_brownian":
-            return data
-        fields = cls.model_fields
-        got = {k: data.get(k, fields[k].default) for k in fields}
-        try:
-            t, eta, r = (float(got[k]) for k in ("temperature_k", "viscosity_mpa_s",
-                                                  "robot_radius_um"))  # fmt: skip
-        except (TypeError, ValueError):
-            return data  # the fields' own validation says what is wrong
-        if not (t > 0 and eta > 0 and r > 0):
-            return data
-        filled = dict(data)
-        if filled.get("diffusion_um2_s") is None:
-            filled["diffusion_um2_s"] = stokes_einstein_um2_s(t, eta, r)
-        if filled.get("rotational_diffusion_s") is None:
-            filled["rotational_diffusion_s"] = stokes_einstein_debye_s(t, eta, r)
-        return filled
+        """D_T and D_R default to Stokes-Einstein(-Debye), and dt_s to the largest step that
+        resolves the motion, filled in so the resolved scenario shows what ran."""
+        return fill_physics(data)
 
     @model_validator(mode="after")
     def _resolves_the_motion(self) -> Physics:
@@ -598,24 +654,17 @@ class Physics(_Part):
                     "for it",
                 )  # fmt: skip
             return self
-        d_t = self.diffusion_um2_s or 0.0
-        d_r = self.rotational_diffusion_s or 0.0
-        half = self.robot_radius_um / 2
-        bounds = [
-            (d_r * self.dt_s, 0.05, 0.05 / d_r if d_r else math.inf,
-             "the heading would turn by D_R dt = {value:.3g} per step (at most 0.05)"),
-            (self.swim_speed_um_s * self.dt_s, half,
-             half / self.swim_speed_um_s if self.swim_speed_um_s else math.inf,
-             "a step would swim {value:.3g} um, over half of robot_radius_um"),
-            (math.sqrt(2 * d_t * self.dt_s), half, half**2 / (2 * d_t) if d_t else math.inf,
-             "a step would jiggle sqrt(2 D_T dt) = {value:.3g} um, over half of robot_radius_um"),
-        ]  # fmt: skip
+        dt = self.dt_s or 0.0
+        bounds = _time_step_bounds(
+            self.diffusion_um2_s or 0.0, self.rotational_diffusion_s or 0.0,
+            self.swim_speed_um_s, self.robot_radius_um, dt,
+        )  # fmt: skip
         fine = min(b[2] for b in bounds)  # a dt that keeps every bound
         for value, largest, _, message in bounds:
             if value > largest * (1 + 1e-12):
                 raise _field_error(
                     "Physics", ("dt_s",), self.dt_s,
-                    f"dt_s {self.dt_s:g} s is too coarse: " + message.format(value=value)
+                    f"dt_s {dt:g} s is too coarse: " + message.format(value=value)
                     + f"; dt_s <= {_round_down(fine)} s would do",
                 )  # fmt: skip
         return self
@@ -704,6 +753,13 @@ class Scenario(_Part):
                 "Scenario", ("learning", "actions"), self.learning.actions,
                 f"physics.model '{self.physics.model}' takes the action set {wanted}",
             )  # fmt: skip
+        if brownian and self.physics.time_limit_s is not None and self.physics.dt_s:
+            steps = math.ceil(self.physics.time_limit_s / self.physics.dt_s - 1e-9)
+            if self.learning.max_steps != steps:
+                raise _field_error(
+                    "Scenario", ("learning", "max_steps"), self.learning.max_steps,
+                    f"physics.time_limit_s sets it: {steps} steps of dt_s; give one of the two",
+                )  # fmt: skip
         if brownian:
             # a value other than the default: a resolved scenario, which lists every field,
             # validates again as it was
@@ -903,25 +959,25 @@ LATTICE_ONLY: tuple[tuple[str, str, str], ...] = (
 )  # fmt: skip
 
 
-def _round_down(value: float) -> str:
-    """A time step to suggest: two significant figures, rounded down so that it keeps the bound."""
-    if not math.isfinite(value) or value <= 0:
-        return f"{value:g}"
-    scale = 10 ** (math.floor(math.log10(value)) - 1)
-    return f"{math.floor(value / scale) * scale:.3g}"
-
-
 def _steering_by_default(data: Any) -> Any:
-    """An active Brownian scenario learns among steering actions unless it says otherwise."""
+    """An active Brownian scenario learns among steering actions unless it says otherwise, and
+    a time limit in seconds sets its step limit."""
     if not isinstance(data, dict):
         return data
     physics = data.get("physics")
     if not isinstance(physics, dict) or physics.get("model") != "active_brownian":
         return data
     learning = data.get("learning", {})
-    if isinstance(learning, dict) and "actions" not in learning:
-        return {**data, "learning": {**learning, "actions": "steering"}}
-    return data
+    if not isinstance(learning, dict):
+        return data
+    if "actions" not in learning:
+        learning = {**learning, "actions": "steering"}
+    physics = fill_physics(physics)
+    limit, dt = physics.get("time_limit_s"), physics.get("dt_s")
+    if isinstance(limit, int | float) and isinstance(dt, int | float) and limit > 0 and dt > 0:
+        # both given and at odds: kept, for _one_physics to say so
+        learning = {"max_steps": math.ceil(limit / dt - 1e-9), **learning}
+    return {**data, "physics": physics, "learning": learning}
 
 
 def _deep_merge(base: dict[str, Any], override: dict[str, Any]) -> dict[str, Any]:

@@ -112,7 +112,7 @@ def _brownian_params(scenario: Scenario, params: KernelParams) -> KernelParams:
     obstacle's centre; the Q-learning levels are cut at the lone cell's field at multiples of
     the cell's radius."""
     ph = scenario.physics
-    dt = ph.dt_s
+    dt = ph.step_s
     d_t = ph.diffusion_um2_s or 0.0
     d_r = ph.rotational_diffusion_s or 0.0
     radius = ph.robot_radius_um
@@ -493,11 +493,11 @@ def derived_physics(scenario: Scenario, summary: dict[str, Any]) -> dict[str, fl
         "peclet_translational": brownian.peclet_translational(v, r, d_t) if d_t else math.inf,
         "peclet_rotational": brownian.peclet_rotational(v, r, d_r) if d_r else math.inf,
         "decay_length_um": math.sqrt(ph.molecule_diffusion_um2_s / ph.decay_rate_s),
-        "time_limit_s": scenario.learning.max_steps * ph.dt_s,
+        "time_limit_s": scenario.learning.max_steps * ph.step_s,
     }
     for key in ("total_steps", "mean_steps_to_reach"):
         if isinstance(summary.get(key), (int, float)):
             out[key.replace("steps", "time").replace("total_time", "time_to_reach") + "_s"] = (
-                float(summary[key]) * ph.dt_s
+                float(summary[key]) * ph.step_s
             )
     return {k: v for k, v in out.items() if math.isfinite(v)}

@@ -52,7 +52,7 @@ def displacement_check(s: Scenario, row: int) -> tuple[float, float, float]:
     squared = np.sum((t.robots[row] - t.robots[0]) ** 2, axis=1)
     ph = s.physics
     assert ph.diffusion_um2_s is not None and ph.rotational_diffusion_s is not None
-    lag = float(t.step[row]) * ph.dt_s
+    lag = float(t.step[row]) * ph.step_s
     theory = brownian.mean_squared_displacement_um2(
         ph.diffusion_um2_s, ph.swim_speed_um_s, ph.rotational_diffusion_s, lag
     )
@@ -76,7 +76,7 @@ def test_the_recorded_heading_decorrelates_as_exp_minus_two_d_r_t() -> None:
     assert np.allclose(np.linalg.norm(t.headings, axis=2), 1.0, atol=1e-12)
     for row in (20, 100, 200):
         dots = np.sum(t.headings[row] * t.headings[0], axis=1)
-        lag = float(t.step[row]) * s.physics.dt_s
+        lag = float(t.step[row]) * s.physics.step_s
         error = 4 * dots.std(ddof=1) / math.sqrt(len(dots))
         assert abs(dots.mean() - math.exp(-2 * d_r * lag)) < error, row
 
@@ -97,7 +97,7 @@ def test_readings_carry_the_berg_purcell_error_the_readme_states() -> None:
     sensed = t.sensed[1:][searching]
     relative = np.array([
         brownian.berg_purcell_relative_error(ph.molecule_diffusion_um2_s, ph.robot_radius_um, c,
-                                             ph.dt_s) for c in true
+                                             ph.step_s) for c in true
     ])  # fmt: skip
     # the reading is taken at the start of a step, the true value recorded at its end: the
     # robots do not swim here and jiggle little, so the two agree to first order

@@ -52,8 +52,8 @@ def test_diffusion_defaults_to_stokes_einstein_and_is_stored_filled_in() -> None
     ("physics", "broken"),
     [
         ({"dt_s": 1.0}, "D_R dt"),  # the heading turns too far in a step
-        ({"swim_speed_um_s": 200.0}, "would swim"),  # 2 um a step, over half the radius
-        ({"diffusion_um2_s": 20.0, "rotational_diffusion_s": 0.1}, "jiggle"),
+        ({"swim_speed_um_s": 200.0, "dt_s": 0.01}, "would swim"),  # 2 um a step
+        ({"diffusion_um2_s": 20.0, "rotational_diffusion_s": 0.1, "dt_s": 0.01}, "jiggle"),
     ],
 )
 def test_a_time_step_too_coarse_is_refused_with_one_that_would_do(
@@ -70,7 +70,9 @@ def test_a_time_step_too_coarse_is_refused_with_one_that_would_do(
 
 def test_a_small_robot_needs_a_short_step() -> None:
     # a 0.1 um sphere forgets its heading at D_R = 247 1/s: 0.01 s is far too coarse
-    loc, message = refused({"physics": {"model": "active_brownian", "robot_radius_um": 0.1}})
+    loc, message = refused(
+        {"physics": {"model": "active_brownian", "robot_radius_um": 0.1, "dt_s": 0.01}}
+    )
     assert loc == ("physics", "dt_s") and "2.47" in message and "0.0002" in message
 
 
@@ -120,3 +122,36 @@ def test_every_physical_default_is_finite_and_in_its_own_bounds() -> None:
     for name, value in s.physics.model_dump().items():
         if isinstance(value, float):
             assert math.isfinite(value), name
+
+
+@pytest.mark.parametrize("radius", [0.2, 1.0, 5.0])
+def test_the_time_step_defaults_to_the_largest_that_resolves_the_motion(radius: float) -> None:
+    s = Scenario.model_validate(
+        {"physics": {"model": "active_brownian", "robot_radius_um": radius, "time_limit_s": 60}}
+    )
+    dt = s.physics.dt_s
+    assert dt is not None and dt <= 0.01
+    d_r = s.physics.rotational_diffusion_s
+    assert d_r is not None and d_r * dt <= 0.05
+    # and not much smaller than it need be: the next step up would break a bound or the cap
+    coarser = dt * 1.2
+    if coarser <= 0.01:
+        with pytest.raises(ValidationError):
+            Scenario.model_validate(
+                {
+                    "physics": {
+                        "model": "active_brownian",
+                        "robot_radius_um": radius,
+                        "dt_s": coarser,
+                    }
+                }
+            )
+    assert s.learning.max_steps == math.ceil(60 / dt - 1e-9)  # the time limit in steps
+    assert Scenario.model_validate(s.model_dump(mode="json")) == s
+
+
+def test_a_time_limit_and_a_different_step_limit_are_refused() -> None:
+    loc, message = refused(
+        {"physics": {"model": "active_brownian", "time_limit_s": 10}, "learning": {"max_steps": 5}}
+    )
+    assert loc == ("learning", "max_steps") and "time_limit_s" in message
