@@ -46,6 +46,23 @@ def bench_scenario(model: str, robots: int, robot_steps: int) -> Scenario:
     )
 
 
+def brownian_scenario(policy: str, robots: int, robot_steps: int) -> Scenario:
+    """The same swarm and world sizes in the active Brownian physics: 1 um robots swimming at
+    10 um/s among 10 obstacles of 5 um, 2 cells, a 200 um cube, 1,000 steps of 0.01 s."""
+    episodes = max(1, robot_steps // (robots * 150))
+    return Scenario.model_validate(
+        {
+            "physics": {"model": "active_brownian"},
+            "space": {"size": 200.0},
+            "cells": {"count": 2},
+            "obstacles": {"count": 10, "radius": 5.0},
+            "robots": {"count": robots, "policy": policy},
+            "learning": {"episodes": episodes, "max_steps": 1000},
+            "evaluation": {"worlds": 1},
+        }
+    )
+
+
 def engine_rate(scenario: Scenario, repeats: int) -> tuple[float, int]:
     rates = []
     steps = 0
@@ -87,6 +104,19 @@ def main(argv: list[str] | None = None) -> int:
                 verdicts.append((model, robots, "rate", rate, TARGET_RATE_1000))
             if robots in TARGET_RATIO:
                 verdicts.append((model, robots, "ratio", ratio, TARGET_RATIO[robots]))
+    print()
+    # the second physics beside the first, in the same run
+    print(f"{'physics, policy':<34}{'robots':>7}{'engine rs/s':>14}{'vs lattice':>12}")
+    print("-" * 67)
+    for robots in [n for n in swarms if n in (15, 1000)] or swarms[-1:]:
+        lattice, _ = engine_rate(bench_scenario("diffusion", robots, workload), repeats)
+        print(f"{'lattice, q_learning (diffusion)':<34}{robots:>7}{lattice:>14,.0f}{'1.00':>12}")
+        for policy in ("q_learning", "run_and_tumble", "gradient"):
+            rate, _ = engine_rate(brownian_scenario(policy, robots, workload), repeats)
+            label = f"active_brownian, {policy}"
+            print(f"{label:<34}{robots:>7}{rate:>14,.0f}{rate / lattice:>12.2f}")
+            if robots == 1000:
+                verdicts.append((label, robots, "rate", rate, TARGET_RATE_1000))
     print()
     for model, robots, kind, value, target in verdicts:
         status = "meets" if value >= target else "BELOW"

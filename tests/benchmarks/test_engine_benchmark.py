@@ -20,3 +20,7 @@ def test_engine_benchmark_prints_rates_and_ratios(capsys: pytest.CaptureFixture[
     for _, rate, naive, _ in rows:
         assert int(rate.replace(",", "")) > 0 and int(naive.replace(",", "")) > 0
     assert "target: inverse_square, 15 robots, ratio" in out
+    # the active Brownian physics is measured beside the lattice in the same run
+    brownian = re.findall(r"^active_brownian, (\w+)\s+15\s+([\d,]+)\s+([\d.]+)$", out, re.M)
+    assert {policy for policy, _, _ in brownian} == {"q_learning", "run_and_tumble", "gradient"}
+    assert all(int(rate.replace(",", "")) > 0 for _, rate, _ in brownian)
