@@ -17,7 +17,16 @@ from typing import Any, Literal, get_args
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 from pydantic_core import InitErrorDetails, PydanticCustomError
 
-PresetName = Literal["paper-single", "paper-swarm", "authors-script", "hard-single", "hard-swarm"]
+PresetName = Literal[
+    "paper-single",
+    "paper-swarm",
+    "authors-script",
+    "hard-single",
+    "hard-swarm",
+    "tumour-microswimmers",
+    "tumour-nanorobots",
+    "tumour-passive",
+]
 FieldModel = Literal["gaussian", "inverse_square", "diffusion", "sampled_gaussian"]
 RobotStart = Literal["anywhere", "corner"]
 Policy = Literal[
@@ -689,7 +698,11 @@ class Scenario(_Part):
         "field, no walls, no obstacles) with NanoNav's Q-learning. Hard: "
         "'hard-single' and 'hard-swarm', the paper's worlds with honest sensing (a noise floor "
         "of 0.01 and a detection threshold of 0.005 on the readings, cells sensed within 2 "
-        "units only) and 30 drifting obstacles.",
+        "units only) and 30 drifting obstacles. Physical (physics.model active_brownian, um "
+        "and s): 'tumour-microswimmers', one tumour cell (7.5 um) among 40 tissue obstacles "
+        "(5 um) in a 150 um cube, 20 robots of 1 um swimming at 10 um/s that sense a cell by "
+        "touching it, 60 s; 'tumour-nanorobots', the same with robots of 0.2 um; "
+        "'tumour-passive', robots of 1 um that do not swim (uncontrolled, speed 0).",
     )
     seed: int = Field(
         0,
@@ -988,6 +1001,25 @@ def _deep_merge(base: dict[str, Any], override: dict[str, Any]) -> dict[str, Any
         else:
             merged[key] = value
     return merged
+
+
+# The worlds of the physical question (active Brownian, um and s): see the README.
+TUMOUR: dict[str, Any] = {
+    "physics": {"model": "active_brownian", "time_limit_s": 60.0},
+    "space": {"size": 150.0},
+    "cells": {"count": 1},
+    "obstacles": {"count": 40, "radius": 5.0},
+    "robots": {"count": 20, "cell_sensing_radius": 0.0},
+}
+PRESETS.update(
+    {
+        "tumour-microswimmers": TUMOUR,
+        "tumour-nanorobots": _deep_merge(TUMOUR, {"physics": {"robot_radius_um": 0.2}}),
+        "tumour-passive": _deep_merge(
+            TUMOUR, {"physics": {"swim_speed_um_s": 0.0}, "robots": {"policy": "uncontrolled"}}
+        ),
+    }
+)
 
 
 def preset_scenario(name: str, **overrides: Any) -> Scenario:

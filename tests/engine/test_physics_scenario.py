@@ -155,3 +155,13 @@ def test_a_time_limit_and_a_different_step_limit_are_refused() -> None:
         {"physics": {"model": "active_brownian", "time_limit_s": 10}, "learning": {"max_steps": 5}}
     )
     assert loc == ("learning", "max_steps") and "time_limit_s" in message
+
+
+@pytest.mark.parametrize("name", ["tumour-microswimmers", "tumour-nanorobots", "tumour-passive"])
+def test_the_physical_presets_are_active_brownian_worlds_in_um_and_s(name: str) -> None:
+    s = Scenario.model_validate({"preset": name})
+    assert s.physics.model == "active_brownian" and s.learning.actions == "steering"
+    assert s.space.size == 150.0 and s.obstacles.radius == 5.0 and s.robots.count == 20
+    assert s.physics.time_limit_s == 60.0
+    assert s.learning.max_steps * s.physics.step_s == pytest.approx(60.0, abs=s.physics.step_s)
+    assert Scenario.model_validate(s.model_dump(mode="json")) == s

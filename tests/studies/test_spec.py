@@ -63,3 +63,23 @@ def test_a_bad_spec_names_the_place(fields: dict[str, object], loc: tuple[object
     with pytest.raises(ValidationError) as raised:
         spec(**fields)
     assert raised.value.errors()[0]["loc"] == loc
+
+
+def test_a_study_sweeps_robot_radius_and_gets_a_fitting_step_at_each() -> None:
+    spec = StudySpec.model_validate(
+        {
+            "base": {"preset": "tumour-microswimmers"},
+            "grid": {
+                "physics.robot_radius_um": [0.2, 1.0, 5.0],
+                "robots.policy": ["uncontrolled", "gradient"],
+            },
+            "seeds": [0, 1],
+        }
+    )
+    found = points(spec)
+    assert len(found) == 6
+    steps = {p.values["physics.robot_radius_um"]: p.scenario.physics.step_s for p in found}
+    assert steps[0.2] < steps[1.0] == steps[5.0] == 0.01
+    for point in found:  # 60 s whatever the step
+        ph = point.scenario.physics
+        assert point.scenario.learning.max_steps * ph.step_s == pytest.approx(60.0, abs=ph.step_s)

@@ -1,0 +1,124 @@
+"""The paper's question asked physically: does steering, or learning, help a robot find a tumour
+cell, and for robots of what size? Active Brownian robots of radius 0.2 to 5 um in the
+'tumour-microswimmers' world (one cell among 40 tissue obstacles, 20 robots swimming at 10 um/s,
+60 s), each policy on the same seeds, paired with the robot that does not steer and with a
+passive one (speed 0).
+
+    python benchmarks/physical_question.py [--seeds N] [--worlds N] [--quick]
+
+For every radius: the Peclet numbers, the share of robots that reach the cell within the time
+limit and the time it takes (mean over seeds of each run's mean over its evaluation worlds, with
+the 95 % interval), and each policy minus 'uncontrolled' and minus a passive robot, paired by
+seed. 'exact_gradient' steers by the true gradient: an upper bound no robot has.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor
+from typing import Any
+
+from nanonav import stats
+from nanonav.engine import simulate
+from nanonav.scenario import preset_scenario
+
+RADII = (0.2, 0.5, 1.0, 2.0, 5.0)
+POLICIES = ("uncontrolled", "run_and_tumble", "gradient", "q_learning", "exact_gradient")
+PRESET = "tumour-microswimmers"
+
+
+def run_one(job: tuple[float, str, int, int, int, float]) -> dict[str, Any]:
+    radius, policy, seed, worlds, episodes, speed = job
+    scenario = preset_scenario(
+        PRESET, seed=seed,
+        physics={"model": "active_brownian", "time_limit_s": 60.0, "robot_radius_um": radius,
+                 "swim_speed_um_s": speed},
+        robots={"policy": policy},
+        learning={"episodes": episodes if policy == "q_learning" else 0},
+        evaluation={"worlds": worlds},
+    )  # fmt: skip
+    result = simulate(scenario)
+    return {"summary": result.summary, "physics": result.physics}
+
+
+def shown(sample: list[float], bounds: tuple[float, float] | None, digits: int = 2) -> str:
+    d = stats.describe(sample, bounds=bounds)
+    if d.mean is None:
+        return "n/a"
+    if d.ci_low is None or d.ci_high is None:
+        return f"{d.mean:.{digits}f}"
+    return f"{d.mean:.{digits}f} [{d.ci_low:.{digits}f}, {d.ci_high:.{digits}f}]"
+
+
+def paired(a: list[float], b: list[float]) -> str:
+    found = stats.paired(a, b)
+    if found.mean_difference is None or found.ci_low is None or found.ci_high is None:
+        return "n/a"
+    mark = "*" if found.ci_low > 0 or found.ci_high < 0 else " "
+    return f"{found.mean_difference:+.2f} [{found.ci_low:+.2f}, {found.ci_high:+.2f}]{mark}"
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
+    parser.add_argument("--seeds", type=int, default=10)
+    parser.add_argument("--worlds", type=int, default=10, help="evaluation worlds per run")
+    parser.add_argument("--episodes", type=int, default=20, help="q_learning's training")
+    parser.add_argument("--quick", action="store_true", help="a smoke run: 2 seeds, 2 radii")
+    args = parser.parse_args(argv)
+    seeds = range(2 if args.quick else args.seeds)
+    radii = (1.0, 5.0) if args.quick else RADII
+    worlds = 2 if args.quick else args.worlds
+    episodes = 2 if args.quick else args.episodes
+    jobs = [
+        (radius, policy, seed, worlds, episodes, speed)
+        for radius in radii
+        for policy, speed in [*((p, 10.0) for p in POLICIES), ("uncontrolled", 0.0)]
+        for seed in seeds
+    ]
+    started = time.perf_counter()
+    with ProcessPoolExecutor(os.cpu_count() or 1) as pool:
+        done = dict(zip(jobs, pool.map(run_one, jobs), strict=True))
+    print(
+        f"{PRESET}: 20 robots, one tumour cell, 60 s; {len(seeds)} seeds x {worlds} worlds; "
+        f"q_learning trains {episodes} episodes; * = the 95 % interval excludes 0\n"
+    )
+    for radius in radii:
+
+        def runs(policy: str, speed: float = 10.0, radius: float = radius) -> list[dict[str, Any]]:
+            return [done[(radius, policy, s, worlds, episodes, speed)] for s in seeds]
+
+        physics = runs("uncontrolled")[0]["physics"]
+        print(
+            f"R = {radius} um: D_T {physics['diffusion_um2_s']:.3g} um^2/s, D_R "
+            f"{physics['rotational_diffusion_s']:.3g} 1/s, persistence "
+            f"{physics['persistence_length_um']:.3g} um, Pe_T {physics['peclet_translational']:.3g}"
+            f", Pe_R {physics['peclet_rotational']:.3g}"
+        )
+        passive = [r["summary"]["success_rate"] for r in runs("uncontrolled", 0.0)]
+        floating = [r["summary"]["success_rate"] for r in runs("uncontrolled")]
+        header = ("policy", "reached", "time to reach (s; the limit if not)", "minus uncontrolled",
+                  "minus passive")  # fmt: skip
+        rows = [("passive (speed 0)", shown(passive, (0.0, 1.0)),
+                 shown([r["physics"]["time_to_reach_s"] for r in runs("uncontrolled", 0.0)],
+                       (0.0, float("inf")), 1), "", "")]  # fmt: skip
+        for policy in POLICIES:
+            found = runs(policy)
+            success = [r["summary"]["success_rate"] for r in found]
+            times = [r["physics"]["time_to_reach_s"] for r in found]
+            rows.append((policy, shown(success, (0.0, 1.0)), shown(times, (0.0, float("inf")), 1),
+                         paired(success, floating) if policy != "uncontrolled" else "",
+                         paired(success, passive)))  # fmt: skip
+        widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(header)]
+        print("  " + "  ".join(h.ljust(w) for h, w in zip(header, widths, strict=True)))
+        for row in rows:
+            print("  " + "  ".join(c.ljust(w) for c, w in zip(row, widths, strict=True)))
+        print()
+    print(f"({time.perf_counter() - started:.0f} s on {os.cpu_count()} cores)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
