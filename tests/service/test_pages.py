@@ -165,3 +165,27 @@ def test_every_picture_says_it_is_drawing_and_links_to_itself(
         )
         assert len(images) >= 4 and len(wrapped) == len(images), path
         assert all(href == src for href, src in wrapped), wrapped
+
+
+def test_an_active_brownian_jobs_page_says_its_physics_and_units(
+    api: Api, api_settings: Settings
+) -> None:
+    scenario = Scenario.model_validate(
+        {
+            "physics": {"model": "active_brownian"},
+            "robots": {"count": 2, "policy": "gradient"},
+            "learning": {"episodes": 0, "max_steps": 30},
+            "evaluation": {"worlds": 1},
+        }
+    ).model_dump(mode="json")
+    job = api.store.enqueue(scenario, robot_steps=1, episodes=1)
+    claim = api.store.claim("test", lease_s=30)
+    assert claim is not None
+    record = run_job(api.store, claim, api_settings, threading.Event())
+    assert record is not None and record.status is JobStatus.SUCCEEDED
+    html = api.client.get(f"/ui/jobs/{job.id}").text
+    assert "active Brownian robots of 1.0 um swimming at 10.0 um/s" in html
+    assert "steps of 0.01 s (0.3 s in all)" in html and "gaussian field" not in html
+    for name in ("trajectory", "concentration", "learning"):
+        picture = api.client.get(f"/jobs/{job.id}/plots/{name}.png")
+        assert picture.status_code == 200 and picture.content.startswith(b"\x89PNG"), name
