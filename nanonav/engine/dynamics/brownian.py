@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 from scipy.optimize import brentq
 from scipy.special import dawsn
 
-from nanonav.engine.dynamics.lattice import _segment_hit
+from nanonav.engine.dynamics.lattice import _inside_obstacle, _reflect, _segment_hit
 from nanonav.engine.state import KernelParams, Swarm, World
 
 # Stokes-Einstein(-Debye) lives with the schema, which fills D_T and D_R in from it.
@@ -227,27 +227,6 @@ def read_concentration(rng: np.random.Generator, concentration: float, relative_
     return rng.gamma(shape, concentration / shape)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
-def _reflect_into(v: float, half: float) -> float:
-    if v > half:
-        return 2.0 * half - v
-    if v < -half:
-        return -2.0 * half - v
-    return v
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _clear_of(centres: NDArray[np.float64], margin: float, x: float, y: float, z: float) -> bool:
-    m2 = margin * margin
-    for j in range(centres.shape[0]):
-        dx = centres[j, 0] - x
-        dy = centres[j, 1] - y
-        dz = centres[j, 2] - z
-        if dx * dx + dy * dy + dz * dz < m2:
-            return False
-    return True
-
-
 @njit(cache=True, error_model="numpy")
 def move_cells(p: KernelParams, rng: np.random.Generator, w: World) -> None:
     """Cells diffuse (``physics.cell_diffusion_um2_s``), reflected by the walls; a move that
@@ -258,10 +237,10 @@ def move_cells(p: KernelParams, rng: np.random.Generator, w: World) -> None:
         y = w.cells[j, 1] + p.cell_jiggle * rng.standard_normal()
         z = w.cells[j, 2] + p.cell_jiggle * rng.standard_normal()
         if p.walls:
-            x = _reflect_into(x, p.half)
-            y = _reflect_into(y, p.half)
-            z = _reflect_into(z, p.half)
-        if _clear_of(w.obstacles, margin, x, y, z):
+            x = _reflect(x, p.half)
+            y = _reflect(y, p.half)
+            z = _reflect(z, p.half)
+        if not _inside_obstacle(w.obstacles, margin, x, y, z):
             w.cells[j, 0] = x
             w.cells[j, 1] = y
             w.cells[j, 2] = z
@@ -283,9 +262,9 @@ def move_robot(
     ny = py + p.swim_step * hy + p.jiggle * rng.standard_normal()
     nz = pz + p.swim_step * hz + p.jiggle * rng.standard_normal()
     if p.walls:
-        nx = _reflect_into(nx, p.half)
-        ny = _reflect_into(ny, p.half)
-        nz = _reflect_into(nz, p.half)
+        nx = _reflect(nx, p.half)
+        ny = _reflect(ny, p.half)
+        nz = _reflect(nz, p.half)
     blocked = _segment_hit(w.obstacles, p.obstacle_radius, px, py, pz, nx, ny, nz) >= 0
     if blocked:
         s.collisions[i] += 1
