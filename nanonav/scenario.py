@@ -152,7 +152,8 @@ class Space(_Part):
         50.0,
         gt=0.0,
         le=1000.0,
-        description="Side of the cube, in length units (paper 2.4: 50). The cube spans "
+        description="Side of the cube, in length units (um in physics.model active_brownian; "
+        "paper 2.4: 50). The cube spans "
         "[-size/2, size/2] on every axis.",
     )
     walls: bool = Field(
@@ -280,7 +281,8 @@ class Obstacles(_Part):
         1.5,
         gt=0.0,
         le=100.0,
-        description="Obstacle radius, length units; less than a quarter of space.size.",
+        description="Obstacle radius, length units (um in active_brownian); less than a quarter "
+        "of space.size.",
     )
     motion_std: float = Field(
         0.0,
@@ -309,7 +311,8 @@ class Robots(_Part):
         8.0,
         ge=0.0,
         le=10_000.0,
-        description="Range, length units, within which a robot senses where a cell is (the "
+        description="Range, length units, within which a robot senses where a cell is (in "
+        "active_brownian: um from the robot's surface to the cell's, its receptors' range; the "
         "paper's state holds the distance to cells). 0: a robot learns of a cell only by "
         "touching it, and must find it from the biomarker alone.",
     )
@@ -962,6 +965,7 @@ _FIELD = ("the field is the steady state of physics.secretion_molecules_s, "
           "molecule_diffusion_um2_s and decay_rate_s")  # fmt: skip
 LATTICE_ONLY: tuple[tuple[str, str, str], ...] = (
     ("robots", "speed", "robots swim at physics.swim_speed_um_s"),
+    ("robots", "sensing_radius", "an obstacle is sensed by touching it"),
     ("robots", "sensor_baseline", "the gradient is sensed across the body (robot_radius_um)"),
     ("cells", "motion_std", "cells diffuse with physics.cell_diffusion_um2_s"),
     ("obstacles", "motion_std", "obstacles (tissue) stand still"),

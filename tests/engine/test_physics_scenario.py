@@ -81,6 +81,7 @@ def test_a_small_robot_needs_a_short_step() -> None:
     [
         ({"robots": {"speed": 2.0}}, ("robots", "speed")),
         ({"robots": {"sensor_baseline": 1.0}}, ("robots", "sensor_baseline")),
+        ({"robots": {"sensing_radius": 3.0}}, ("robots", "sensing_radius")),
         ({"cells": {"motion_std": 0.5}}, ("cells", "motion_std")),
         ({"obstacles": {"motion_std": 0.5}}, ("obstacles", "motion_std")),
         ({"biomarker": {"noise_floor": 0.1}}, ("biomarker", "noise_floor")),

@@ -37,6 +37,13 @@ def length_unit(scenario: Scenario) -> str:
     return "um" if scenario.physics.model == "active_brownian" else "length units"
 
 
+def step_label(scenario: Scenario) -> str:
+    """A step axis's label: in the active Brownian physics it says how long a step lasts."""
+    if scenario.physics.model == "active_brownian":
+        return f"step (of {scenario.physics.step_s:g} s)"
+    return "step"
+
+
 def concentration_unit(scenario: Scenario) -> str:
     """nM in the active Brownian physics, else arbitrary units."""
     return "nM" if scenario.physics.model == "active_brownian" else "a.u."

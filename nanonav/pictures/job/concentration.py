@@ -23,6 +23,7 @@ from nanonav.pictures.job.common import (
     length_unit,
     resolve_scale,
     sized_figure,
+    step_label,
 )
 
 
@@ -89,7 +90,10 @@ def concentration_figure(result: SimulationResult) -> Figure:
     trajectory = evaluation_trajectory(result)
     log_scale = resolve_scale(result, "auto") == "log"
     fig = sized_figure("concentration")
-    units = (length_unit(result.scenario), concentration_unit(result.scenario))
+    units = (
+        length_unit(result.scenario), concentration_unit(result.scenario),
+        step_label(result.scenario),
+    )  # fmt: skip
     if trajectory.robots.shape[1] == 1:
         _draw_one_robot(fig, trajectory, log_scale, units)
     else:
@@ -102,7 +106,7 @@ def concentration_figure(result: SimulationResult) -> Figure:
 
 
 def _draw_one_robot(
-    fig: Figure, trajectory: Trajectory, log_scale: bool, units: tuple[str, str]
+    fig: Figure, trajectory: Trajectory, log_scale: bool, units: tuple[str, str, str]
 ) -> None:
     left = fig.add_subplot()
     right = left.twinx()
@@ -112,7 +116,7 @@ def _draw_one_robot(
     right.plot(steps, trajectory.distance[:end, 0], color=ROBOT_BLUE, linewidth=1.8)
     if log_scale:
         left.set_yscale("log")
-    left.set_xlabel("step")
+    left.set_xlabel(units[2])
     left.set_ylabel(_concentration_label(log_scale, units[1]), color=CELL_RED)
     right.set_ylabel(f"distance to the nearest cell ({units[0]})", color=ROBOT_BLUE)
     left.tick_params(axis="y", colors=CELL_RED)
@@ -132,7 +136,7 @@ def _draw_one_robot(
 
 
 def _draw_searching_swarm(
-    fig: Figure, trajectory: Trajectory, log_scale: bool, units: tuple[str, str]
+    fig: Figure, trajectory: Trajectory, log_scale: bool, units: tuple[str, str, str]
 ) -> None:
     stats = searching_stats(trajectory)
     n = trajectory.robots.shape[1]
@@ -162,7 +166,7 @@ def _draw_searching_swarm(
     count_ax.set_title(f"robots still searching (of {n})", fontsize="medium")
     count_ax.yaxis.set_major_locator(MaxNLocator(nbins=3, integer=True))
     count_ax.grid(alpha=0.3)
-    count_ax.set_xlabel("step")
+    count_ax.set_xlabel(units[2])
     count_ax.set_xlim(0, max(int(stats.step[-1]), 1))
     fig.legend(
         handles=[
