@@ -66,10 +66,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seeds", type=int, default=10)
     parser.add_argument("--worlds", type=int, default=10, help="evaluation worlds per run")
     parser.add_argument("--episodes", type=int, default=20, help="q_learning's training")
+    parser.add_argument("--radii", help="comma-separated robot radii, um (default: all five)")
     parser.add_argument("--quick", action="store_true", help="a smoke run: 2 seeds, 2 radii")
     args = parser.parse_args(argv)
     seeds = range(2 if args.quick else args.seeds)
-    radii = (1.0, 5.0) if args.quick else RADII
+    radii: tuple[float, ...] = (1.0, 5.0) if args.quick else RADII
+    if args.radii:
+        radii = tuple(float(r) for r in args.radii.split(","))
     worlds = 2 if args.quick else args.worlds
     episodes = 2 if args.quick else args.episodes
     jobs = [

@@ -195,3 +195,43 @@ def test_cancel_stops_a_studys_unfinished_jobs(
     ended = wait_study(api, study["id"], 10)
     assert ended["status"] == "cancelled"
     assert ended["jobs"]["cancelled"] == 6 and ended["jobs"]["succeeded"] == 0
+
+
+def test_a_physical_study_over_robot_radius_runs_with_a_fitting_step_at_each(
+    api: Api, start_worker: Callable[..., Worker]
+) -> None:
+    # the physical question's study, small: robot radius x policy in tumour-microswimmers
+    start_worker()
+    spec = {
+        "name": "radius x policy",
+        "base": {
+            "preset": "tumour-microswimmers",
+            "physics": {"model": "active_brownian", "time_limit_s": 2.0},
+            "robots": {"count": 4},
+            "learning": {"episodes": 0},
+            "evaluation": {"worlds": 2},
+        },
+        "grid": {
+            "physics.robot_radius_um": [0.5, 5.0],
+            "robots.policy": ["uncontrolled", "exact_gradient"],
+        },
+        "seeds": [1, 2],
+        "compare": "robots.policy",
+    }
+    created = api.client.post("/studies", json=spec)
+    assert created.status_code == 202, created.text
+    study = wait_study(api, created.json()["id"], FIRST_JOB_S + 120)
+    assert study["status"] == "succeeded", study["jobs"]
+    jobs = api.client.get("/jobs", params={"study": study["id"], "limit": 100}).json()["jobs"]
+    assert len(jobs) == 8
+    for job in jobs:
+        physics = job["scenario"]["physics"]
+        # each radius got its own step, filled in, and the same 2 s
+        assert physics["dt_s"] * job["scenario"]["learning"]["max_steps"] == pytest.approx(2.0)
+        assert physics["rotational_diffusion_s"] * physics["dt_s"] <= 0.05
+        metrics = api.client.get(f"/jobs/{job['id']}/metrics").json()
+        assert metrics["physics"]["time_limit_s"] == pytest.approx(2.0)
+    assert len(study["comparisons"]) == 2
+    for name in ("success_rate", "learning"):
+        response = api.client.get(f"/studies/{study['id']}/plots/{name}.png")
+        assert response.status_code == 200 and response.content.startswith(b"\x89PNG"), name
