@@ -40,13 +40,34 @@ METRICS: tuple[tuple[str, str, Callable[[Any], str]], ...] = (
 )
 
 
+def significant(value: Any) -> str:
+    """Three significant figures: physical concentrations span decades below 1 nM."""
+    return "n/a" if value is None else f"{float(value):.3g}"
+
+
+# In the active Brownian physics: the same metrics with their units
+PHYSICAL: dict[str, tuple[str, Callable[[Any], str]]] = {
+    "final_distance": ("Final Distance (um)", number),
+    "average_distance": ("Average Distance (um)", number),
+    "average_concentration": ("Average Biomarker Concentration (nM)", significant),
+}
+
+
 def rows(document: Mapping[str, Any]) -> list[tuple[str, str, str]]:
     """(parameter, result, 95% interval over the evaluation worlds) for each Table 1 metric;
-    the interval is empty when there is none (one world, or a metric without spread)."""
+    the interval is empty when there is none (one world, or a metric without spread). In the
+    active Brownian physics lengths are labelled in um, concentrations in nM, and steps with
+    how long one lasts."""
     summary = document.get("summary") or {}
     uncertainty = document.get("uncertainty") or {}
+    physics = (document.get("scenario") or {}).get("physics") or {}
+    physical = physics.get("model") == "active_brownian"
     found = []
     for label, key, show in METRICS:
+        if physical and key in PHYSICAL:
+            label, show = PHYSICAL[key]
+        if physical and key == "total_steps" and physics.get("dt_s"):
+            label = f"Total Steps (of {physics['dt_s']:g} s)"
         spread = uncertainty.get(key) or {}
         low, high = spread.get("ci_low"), spread.get("ci_high")
         interval = "" if low is None or high is None else f"[{show(low)}, {show(high)}]"

@@ -1,0 +1,41 @@
+"""Table 1's rows, as the command line and the dashboard show them: in the active Brownian
+physics each length says um, the concentration nM (to three significant figures, as pM
+readings would all print 0.00), and a step how long it lasts."""
+
+from __future__ import annotations
+
+from nanonav import table1
+
+SUMMARY = {
+    "total_steps": 1200.0,
+    "final_distance": 40.4,
+    "average_distance": 71.05,
+    "average_concentration": 0.00174,
+    "duration_s": 0.03,
+    "success_rate": 0.5,
+    "collisions": 3.0,
+    "path_efficiency": 0.48,
+}
+
+
+def test_physical_rows_carry_their_units() -> None:
+    document = {
+        "summary": SUMMARY,
+        "scenario": {"physics": {"model": "active_brownian", "dt_s": 0.01}},
+    }
+    shown = {label: value for label, value, _ in table1.rows(document)}
+    assert shown["Total Steps (of 0.01 s)"] == "1200.00"
+    assert shown["Final Distance (um)"] == "40.40"
+    assert shown["Average Biomarker Concentration (nM)"] == "0.00174"
+
+
+def test_lattice_rows_are_the_papers() -> None:
+    document = {"summary": SUMMARY, "scenario": {"physics": {"model": "lattice"}}}
+    labels = [label for label, _, _ in table1.rows(document)]
+    assert labels[:4] == [
+        "Total Steps",
+        "Final Distance",
+        "Average Distance",
+        "Average Biomarker Concentration",
+    ]
+    assert [label for label, _, _ in table1.rows({"summary": SUMMARY})] == labels
