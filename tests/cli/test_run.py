@@ -252,3 +252,38 @@ def test_command_runs_as_a_process(tmp_path: Path) -> None:
     assert set(document) == DOCUMENT_KEYS
     assert document["scenario"]["seed"] == 9
     assert completed.stderr == ""
+
+
+def test_a_physical_preset_runs_and_prints_its_units(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    physics = {"model": "active_brownian", "time_limit_s": 1.0}
+    scenario = {
+        "physics": physics,
+        "robots": {"count": 3},
+        "learning": {"episodes": 1},
+        "evaluation": {"worlds": 1},
+    }
+    path = write_scenario(tmp_path, scenario)
+    out_dir = tmp_path / "out"
+    code = cli.main(
+        [
+            "run",
+            "--scenario",
+            path,
+            "--preset",
+            "tumour-microswimmers",
+            "--seed",
+            "2",
+            "--out",
+            str(out_dir),
+        ]
+    )
+    out = capsys.readouterr().out
+    assert code == 0
+    assert "Total Steps (of 0.01 s)" in out and "Final Distance (um)" in out
+    assert "Average Biomarker Concentration (nM)" in out
+    document = json.loads((out_dir / "metrics.json").read_text(encoding="utf-8"))
+    assert document["physics"]["time_limit_s"] == pytest.approx(1.0)
+    with np.load(out_dir / "result.npz") as arrays:
+        assert arrays["headings"].shape[1:] == (3, 3) and arrays["sensed"].shape[1] == 3
