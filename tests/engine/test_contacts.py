@@ -1,0 +1,77 @@
+"""The cell list finds exactly the neighbours a brute-force search finds, in O(robots): pairs
+against scipy's k-d tree at 10,000 robots, and the first robot a move would run into against a
+full scan, also after robots moved within the step and for points outside the grid."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.spatial import cKDTree
+
+from nanonav.engine import contacts
+
+
+def cloud(n: int, half: float, seed: int) -> np.ndarray:  # type: ignore[type-arg]
+    return np.random.default_rng(seed).uniform(-half, half, size=(n, 3))
+
+
+@pytest.mark.parametrize("cutoff", [0.3, 1.0, 2.5])
+def test_pairs_within_a_distance_match_a_k_d_tree_at_ten_thousand_robots(cutoff: float) -> None:
+    half = 25.0
+    pos = cloud(10_000, half, 1)
+    active = np.random.default_rng(2).random(10_000) > 0.1
+    grid = contacts.grid_for(half, cutoff, 0.0, len(pos))
+    contacts.rebuild(grid, pos, active)
+    expected = len(cKDTree(pos[active]).query_pairs(cutoff))
+    assert expected > 20  # the check has something to find
+    assert contacts.pairs_within(grid, pos, active, cutoff) == expected
+    assert grid.dims > 3  # and the grid really splits the space
+
+
+def brute_first(pos: np.ndarray, active: np.ndarray, point: np.ndarray, distance: float,  # type: ignore[type-arg]
+                skip: int) -> int:  # fmt: skip
+    close = np.flatnonzero(active & (np.sum((pos - point) ** 2, axis=1) < distance**2))
+    close = close[close != skip]
+    return int(close.min()) if len(close) else -1
+
+
+def test_the_first_robot_a_move_runs_into_is_found_after_moves_within_the_step() -> None:
+    half, radius, step = 20.0, 0.5, 0.4
+    rng = np.random.default_rng(3)
+    pos = cloud(3_000, half, 4)
+    active = np.ones(len(pos), dtype=np.bool_)
+    active[::7] = False
+    grid = contacts.grid_for(half, 2 * radius, step, len(pos))
+    contacts.rebuild(grid, pos, active)
+    # every robot moves up to a step, the grid still lists it where it was
+    shift = rng.normal(size=pos.shape)
+    shift *= (step * rng.random(len(pos)) / np.linalg.norm(shift, axis=1))[:, None]
+    moved = pos + shift
+    hits = 0
+    for i in range(0, len(pos), 3):
+        point = moved[i] + rng.uniform(-0.3, 0.3, size=3)
+        got = contacts.first_within(grid, moved, active, *point, 2 * radius, i)
+        assert got == brute_first(moved, active, point, 2 * radius, i), i
+        hits += got >= 0
+    assert hits > 50
+
+
+def test_points_outside_the_grid_are_still_found() -> None:
+    # a space without walls: robots drift out of the cube the grid covers
+    pos = np.array([[30.0, 0.0, 0.0], [30.5, 0.2, 0.0], [-40.0, -40.0, 39.0], [-40.3, -40.0, 39.0]])
+    active = np.ones(4, dtype=np.bool_)
+    grid = contacts.grid_for(10.0, 1.0, 0.0, 4)
+    contacts.rebuild(grid, pos, active)
+    assert contacts.pairs_within(grid, pos, active, 1.0) == 2
+    assert contacts.first_within(grid, pos, active, 30.2, 0.0, 0.0, 1.0, 0) == 1
+    assert contacts.first_within(grid, pos, active, 0.0, 0.0, 0.0, 1.0, -1) == -1
+
+
+def test_the_grid_is_sized_by_the_cutoff_and_the_step_and_capped() -> None:
+    grid = contacts.grid_for(10.0, 1.0, 1.0, 5)
+    assert grid.width >= 2.0 and grid.dims == 10
+    fine = contacts.grid_for(1000.0, 0.001, 0.0, 5)
+    assert fine.dims == contacts.MAX_CELLS_PER_AXIS  # wider cells, never too many
+    for bad in ((0.0, 1.0, 0.0), (1.0, -1.0, 0.0), (1.0, 1.0, -0.5)):
+        with pytest.raises(ValueError):
+            contacts.grid_for(*bad, 5)
