@@ -21,6 +21,8 @@ import time
 from concurrent.futures import ProcessPoolExecutor
 from typing import Any
 
+from science import mean_ci
+
 from nanonav import stats
 from nanonav.engine import simulate
 from nanonav.scenario import preset_scenario
@@ -42,15 +44,6 @@ def run_one(job: tuple[float, str, int, int, int, float]) -> dict[str, Any]:
     )  # fmt: skip
     result = simulate(scenario)
     return {"summary": result.summary, "physics": result.physics}
-
-
-def shown(sample: list[float], bounds: tuple[float, float] | None, digits: int = 2) -> str:
-    d = stats.describe(sample, bounds=bounds)
-    if d.mean is None:
-        return "n/a"
-    if d.ci_low is None or d.ci_high is None:
-        return f"{d.mean:.{digits}f}"
-    return f"{d.mean:.{digits}f} [{d.ci_low:.{digits}f}, {d.ci_high:.{digits}f}]"
 
 
 def paired(a: list[float], b: list[float]) -> str:
@@ -104,14 +97,14 @@ def main(argv: list[str] | None = None) -> int:
         floating = [r["summary"]["success_rate"] for r in runs("uncontrolled")]
         header = ("policy", "reached", "time to reach (s; the limit if not)", "minus uncontrolled",
                   "minus passive")  # fmt: skip
-        rows = [("passive (speed 0)", shown(passive, (0.0, 1.0)),
-                 shown([r["physics"]["time_to_reach_s"] for r in runs("uncontrolled", 0.0)],
-                       (0.0, float("inf")), 1), "", "")]  # fmt: skip
+        rows = [("passive (speed 0)", mean_ci(passive),
+                 mean_ci([r["physics"]["time_to_reach_s"] for r in runs("uncontrolled", 0.0)],
+                         1, (0.0, float("inf"))), "", "")]  # fmt: skip
         for policy in POLICIES:
             found = runs(policy)
             success = [r["summary"]["success_rate"] for r in found]
             times = [r["physics"]["time_to_reach_s"] for r in found]
-            rows.append((policy, shown(success, (0.0, 1.0)), shown(times, (0.0, float("inf")), 1),
+            rows.append((policy, mean_ci(success), mean_ci(times, 1, (0.0, float("inf"))),
                          paired(success, floating) if policy != "uncontrolled" else "",
                          paired(success, passive)))  # fmt: skip
         widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(header)]

@@ -69,6 +69,8 @@ WORK_SOURCE = {"gaussian": 6.5, "diffusion": 6.5, "inverse_square": 0.55, "sampl
 
 
 BOLTZMANN_J_K = 1.380649e-23  # exact since the 2019 SI
+AVOGADRO_PER_MOL = 6.02214076e23  # exact since the 2019 SI
+MOLECULES_PER_UM3_PER_NM = AVOGADRO_PER_MOL * 1e-9 / 1e15  # 1 nM in molecules per um^3: 0.6022
 
 
 def stokes_einstein_um2_s(temperature_k: float, viscosity_mpa_s: float, radius_um: float) -> float:

@@ -14,7 +14,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from nanonav.scenario import Biomarker, Scenario
+from nanonav.scenario import MOLECULES_PER_UM3_PER_NM, Biomarker, Scenario
 
 GAUSSIAN = 0
 INVERSE_SQUARE = 1
@@ -145,7 +145,6 @@ def sample_many(
         grad[p, 2] = gz
 
 
-MOLECULES_PER_UM3_PER_NM = 6.02214076e23 * 1e-9 / 1e15  # 1 nM in molecules per um^3: 0.6022
 # In the active Brownian physics the field is read outside the cells only (a robot stops at a
 # cell's surface), so the diffusion model's softening, um, only keeps r = 0 finite.
 PHYSICAL_SOFTENING_UM = 1e-3

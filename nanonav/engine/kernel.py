@@ -438,8 +438,8 @@ def _swim_steps(
         if n_active == 0:
             break
         counters[ROBOT_STEPS] += n_active
-        if p.cell_jiggle > 0.0:
-            brownian.move_cells(p, rng, w)
+        if p.cell_std > 0.0:
+            _move_cells(p, rng, w)
         place_sources(p.model, w.cells, w.offsets, w.sx, w.sy, w.sz)
         _sense_all(p, w, s, s.active)
         for i in range(n):

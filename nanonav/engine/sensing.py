@@ -14,7 +14,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from nanonav.engine.dynamics.brownian import read_concentration
+from nanonav.engine.dynamics.brownian import read_counted
 from nanonav.engine.fields import sample_many
 from nanonav.engine.qlearning import SIGN_THRESHOLD
 from nanonav.engine.state import BEHAVIORS, KernelParams, Swarm, World
@@ -98,9 +98,7 @@ def _state(
 def _read(p: KernelParams, rng: np.random.Generator, c: float) -> float:
     """One reading over a step of the true concentration c (nM) by a robot at the Berg-Purcell
     limit of its size: relative error 1 / sqrt(pi D_m a c dt) (``dynamics.brownian``)."""
-    if c <= 0.0:
-        return 0.0
-    return read_concentration(rng, c, 1.0 / math.sqrt(p.counting * c))
+    return read_counted(rng, c, p.counting * c)
 
 
 @njit(cache=True, error_model="numpy", inline="always")

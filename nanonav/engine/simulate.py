@@ -27,7 +27,7 @@ from nanonav.engine.world import (
     raise_for_layout,
     stream,
 )
-from nanonav.scenario import Scenario, ScenarioError
+from nanonav.scenario import MOLECULES_PER_UM3_PER_NM, Biomarker, Scenario, ScenarioError
 
 # Robot-steps per compiled call between progress reports (about 0.1 s of work).
 CHUNK_ROBOT_STEPS = 100_000
@@ -68,6 +68,7 @@ def _params(scenario: Scenario, record_bytes: int = DEFAULT_RECORD_BYTES) -> Ker
         noise=b.sensor_noise,
         half=scenario.space.size / 2,
         cell_std=scenario.cells.motion_std,
+        cell_margin=scenario.obstacles.radius,
         obstacle_radius=scenario.obstacles.radius,
         obstacle_std=scenario.obstacles.motion_std,
         speed=scenario.robots.speed,
@@ -102,11 +103,11 @@ def _params(scenario: Scenario, record_bytes: int = DEFAULT_RECORD_BYTES) -> Ker
         robot_corner=scenario.robots.start == "corner",
     )
     if scenario.physics.model == "active_brownian":
-        return _brownian_params(scenario, params)
+        return _brownian_params(scenario, params, b)
     return params
 
 
-def _brownian_params(scenario: Scenario, params: KernelParams) -> KernelParams:
+def _brownian_params(scenario: Scenario, params: KernelParams, b: Biomarker) -> KernelParams:
     """The active Brownian physics' constants per step of dt_s (um, s, nM). A robot reaches a
     cell when their surfaces touch; its centre stays an obstacle's radius plus its own from the
     obstacle's centre; the Q-learning levels are cut at the lone cell's field at multiples of
@@ -116,12 +117,13 @@ def _brownian_params(scenario: Scenario, params: KernelParams) -> KernelParams:
     d_t = ph.diffusion_um2_s or 0.0
     d_r = ph.rotational_diffusion_s or 0.0
     radius = ph.robot_radius_um
-    b = fields.biomarker_of(scenario)
     levels = fields.radial_profile(b, ph.cell_radius_um * np.array(qlearning.STEERING_LEVEL_RADII))
     return params._replace(
         physics=state.ACTIVE_BROWNIAN,
         speed=ph.swim_speed_um_s * dt,
-        cell_std=0.0,
+        # cells diffuse, their surface kept off the obstacles'
+        cell_std=math.sqrt(2.0 * ph.cell_diffusion_um2_s * dt),
+        cell_margin=scenario.obstacles.radius + ph.cell_radius_um,
         obstacle_std=0.0,
         noise=0.0,
         noise_floor=0.0,
@@ -129,20 +131,16 @@ def _brownian_params(scenario: Scenario, params: KernelParams) -> KernelParams:
         detection_threshold=0.0,
         reach_distance=radius + ph.cell_radius_um,
         obstacle_radius=scenario.obstacles.radius + radius,
-        obstacle_core=scenario.obstacles.radius,
         level_1=float(levels[0]),
         level_2=float(levels[1]),
         level_3=float(levels[2]),
-        swim_step=ph.swim_speed_um_s * dt,
         jiggle=math.sqrt(2.0 * d_t * dt),
         heading_sigma=heading_kick_scale(d_r, dt),
         turn=ph.max_turn_rate_rad_s * dt,
         robot_radius=radius,
-        cell_radius=ph.cell_radius_um,
-        cell_jiggle=math.sqrt(2.0 * ph.cell_diffusion_um2_s * dt),
         # Berg-Purcell: a reading over dt by a sensor of radius a counts pi D_m a c dt molecules
         counting=math.pi * ph.molecule_diffusion_um2_s * radius * dt
-        * fields.MOLECULES_PER_UM3_PER_NM,
+        * MOLECULES_PER_UM3_PER_NM,
         tumble=-math.expm1(-ph.tumble_rate_s * dt),
         tumble_rising=-math.expm1(-ph.tumble_rate_rising_s * dt),
         memory_weight=min(1.0, dt / ph.memory_s) if ph.memory_s > 0 else 1.0,

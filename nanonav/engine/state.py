@@ -40,7 +40,8 @@ class KernelParams(NamedTuple):
     softening: float
     noise: float
     half: float
-    cell_std: float
+    cell_std: float  # per-axis sd of a cell's step: cells.motion_std, or sqrt(2 D_cell dt)
+    cell_margin: float  # a cell's centre stays this far from an obstacle's
     obstacle_radius: float
     obstacle_std: float
     speed: float
@@ -73,14 +74,10 @@ class KernelParams(NamedTuple):
     robot_corner: bool  # robots start in the (-,-,-) octant
     # active Brownian physics (um, s, nM); in the lattice physics these keep their defaults
     physics: int = LATTICE
-    swim_step: float = 0.0  # v dt, um swum along the heading per step
     jiggle: float = 0.0  # sqrt(2 D_T dt), um: the sd of each axis's Brownian displacement
     heading_sigma: float = 0.0  # Rayleigh scale of the heading's rotation per step
     turn: float = 0.0  # the largest commanded turn per step, rad
     robot_radius: float = 0.0  # um
-    cell_radius: float = 0.0  # um
-    cell_jiggle: float = 0.0  # sqrt(2 D_cell dt), um
-    obstacle_core: float = 0.0  # the obstacles' own radius (obstacle_radius adds the robot's)
     counting: float = 0.0  # pi D_m a dt N_A: a reading of c nM counts counting * c molecules
     tumble: float = 0.0  # run_and_tumble: chance of a tumble per step, reading not rising
     tumble_rising: float = 0.0  # and while it rises

@@ -23,16 +23,15 @@ from numpy.typing import NDArray
 from scipy.optimize import brentq
 from scipy.special import dawsn
 
-from nanonav.engine.dynamics.lattice import _inside_obstacle, _reflect, _segment_hit
+from nanonav.engine.dynamics.lattice import _reflect, _segment_hit
 from nanonav.engine.state import KernelParams, Swarm, World
 
 # Stokes-Einstein(-Debye) lives with the schema, which fills D_T and D_R in from it.
 from nanonav.scenario import BOLTZMANN_J_K as BOLTZMANN_J_K
+from nanonav.scenario import MOLECULES_PER_UM3_PER_NM as MOLECULES_PER_UM3_PER_NM
 from nanonav.scenario import stokes_einstein_debye_s as stokes_einstein_debye_s
 from nanonav.scenario import stokes_einstein_um2_s as stokes_einstein_um2_s
 
-AVOGADRO_PER_MOL = 6.02214076e23  # exact since the 2019 SI
-MOLECULES_PER_UM3_PER_NM = AVOGADRO_PER_MOL * 1e-9 / 1e15  # 1 nM in molecules per um^3: 0.6022
 # Rayleigh(sigma) rotation angles: E[cos theta] = 1 - 2 x F(x), x = sigma / sqrt(2), F Dawson's
 # integral. It falls from 1 to 0 as x grows to about 0.9241, the largest step this allows.
 _LARGEST_X = float(brentq(lambda x: 1.0 - 2.0 * x * dawsn(x), 0.5, 1.5))
@@ -219,31 +218,19 @@ def swim(
 def read_concentration(rng: np.random.Generator, concentration: float, relative_sd: float) -> float:
     """One reading of a true concentration with the given relative error: a gamma draw, whose
     mean is the concentration and whose sd is ``relative_sd`` times it, never negative."""
-    if concentration <= 0.0:
-        return 0.0
     if relative_sd <= 0.0:
-        return concentration
-    shape = 1.0 / (relative_sd * relative_sd)
-    return rng.gamma(shape, concentration / shape)
+        return max(concentration, 0.0)
+    return read_counted(rng, concentration, 1.0 / (relative_sd * relative_sd))
 
 
-@njit(cache=True, error_model="numpy")
-def move_cells(p: KernelParams, rng: np.random.Generator, w: World) -> None:
-    """Cells diffuse (``physics.cell_diffusion_um2_s``), reflected by the walls; a move that
-    would overlap an obstacle (their surfaces) is refused."""
-    margin = p.cell_radius + p.obstacle_core
-    for j in range(w.cells.shape[0]):
-        x = w.cells[j, 0] + p.cell_jiggle * rng.standard_normal()
-        y = w.cells[j, 1] + p.cell_jiggle * rng.standard_normal()
-        z = w.cells[j, 2] + p.cell_jiggle * rng.standard_normal()
-        if p.walls:
-            x = _reflect(x, p.half)
-            y = _reflect(y, p.half)
-            z = _reflect(z, p.half)
-        if not _inside_obstacle(w.obstacles, margin, x, y, z):
-            w.cells[j, 0] = x
-            w.cells[j, 1] = y
-            w.cells[j, 2] = z
+@njit(cache=True, error_model="numpy", inline="always")
+def read_counted(rng: np.random.Generator, concentration: float, molecules: float) -> float:
+    """A reading of a concentration from ``molecules`` counted: a gamma draw of that shape, mean
+    the concentration and relative sd 1 / sqrt(molecules) (Berg-Purcell's, when ``molecules``
+    is pi D a c tau), never negative."""
+    if concentration <= 0.0 or molecules <= 0.0:
+        return 0.0
+    return rng.gamma(molecules, concentration / molecules)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -258,9 +245,9 @@ def move_robot(
     hx = s.heading[i, 0]
     hy = s.heading[i, 1]
     hz = s.heading[i, 2]
-    nx = px + p.swim_step * hx + p.jiggle * rng.standard_normal()
-    ny = py + p.swim_step * hy + p.jiggle * rng.standard_normal()
-    nz = pz + p.swim_step * hz + p.jiggle * rng.standard_normal()
+    nx = px + p.speed * hx + p.jiggle * rng.standard_normal()
+    ny = py + p.speed * hy + p.jiggle * rng.standard_normal()
+    nz = pz + p.speed * hz + p.jiggle * rng.standard_normal()
     if p.walls:
         nx = _reflect(nx, p.half)
         ny = _reflect(ny, p.half)

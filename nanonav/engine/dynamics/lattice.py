@@ -152,8 +152,9 @@ def _slide(
 
 @njit(cache=True, error_model="numpy")
 def _move_cells(p: KernelParams, rng: np.random.Generator, w: World) -> None:
-    """Random walk of the cells (paper 3.1); a move into an obstacle is refused. Without walls
-    a cell may drift out of the cube."""
+    """Random walk of the cells (paper 3.1; in the active Brownian physics, their diffusion); a
+    move that brings a cell's centre within ``cell_margin`` of an obstacle's is refused. Without
+    walls a cell may drift out of the cube."""
     for j in range(w.cells.shape[0]):
         x = w.cells[j, 0] + p.cell_std * rng.standard_normal()
         y = w.cells[j, 1] + p.cell_std * rng.standard_normal()
@@ -162,7 +163,7 @@ def _move_cells(p: KernelParams, rng: np.random.Generator, w: World) -> None:
             x = _reflect(x, p.half)
             y = _reflect(y, p.half)
             z = _reflect(z, p.half)
-        if not _inside_obstacle(w.obstacles, p.obstacle_radius, x, y, z):
+        if not _inside_obstacle(w.obstacles, p.cell_margin, x, y, z):
             w.cells[j, 0] = x
             w.cells[j, 1] = y
             w.cells[j, 2] = z
