@@ -42,6 +42,7 @@ Policy = Literal[
 AlphaSchedule = Literal["constant", "visits"]
 ActionSet = Literal["behaviors", "directions", "steering"]
 PhysicsModel = Literal["lattice", "active_brownian"]
+CommunicationModel = Literal["none", "attractant", "attractant_repellent", "broadcast"]
 # What each physics runs: the paper's lattice moves choose a direction; an active Brownian robot
 # can only steer its own diffusing heading.
 LATTICE_POLICIES = frozenset({"q_learning", "gradient", "run_and_tumble", "rule", "simple_rule",
@@ -50,6 +51,10 @@ BROWNIAN_POLICIES = frozenset({"q_learning", "uncontrolled", "run_and_tumble", "
                                "exact_gradient"})  # fmt: skip
 
 MAX_OBSTACLE_VOLUME_FRACTION = 0.3
+MAX_ROBOT_VOLUME_FRACTION = 0.1  # robots that take up space start apart at random: room to spare
+# The signal's rates in each physics' units (communication): each physics refuses the other's.
+LATTICE_SIGNAL = ("diffusion", "decay_rate", "release_rate")
+BROWNIAN_SIGNAL = ("diffusion_um2_s", "decay_rate_s", "release_molecules_s")
 # The largest seed or id: every integer up to it is exact in a JSON number whatever the client
 # (a double, as I-JSON, RFC 7493, advises), so what a client sends is what is stored.
 MAX_EXACT_INT = 2**53 - 1
@@ -184,6 +189,22 @@ class Cells(_Part):
         description="Cells start uniformly within this share of the half-width of the space on "
         "every axis (1: anywhere in the cube).",
     )
+    capacity: int | None = Field(
+        None,
+        ge=1,
+        le=100_000,
+        description="Payloads a cell takes (the drug it needs): each robot that reaches an "
+        "untreated cell delivers one and stays bound to it; the capacity-th delivery treats the "
+        "cell, and robots that arrive later are turned away and keep searching (a treated cell "
+        "is no longer a target: not sensed, not reached). An episode ends when every cell is "
+        "treated. null: no cell is ever treated (the paper's).",
+    )
+    treated_secretion: float = Field(
+        0.0,
+        ge=0.0,
+        le=1.0,
+        description="Share of its biomarker a treated cell still sheds (0: it stops).",
+    )
 
 
 class Biomarker(_Part):
@@ -299,7 +320,7 @@ class Robots(_Part):
     """The nanorobot swarm. Each robot senses only locally: the concentration and its gradient
     where it is, and obstacles and cells within ``sensing_radius``."""
 
-    count: int = Field(1, ge=1, le=10_000, description="Number of robots.")
+    count: int = Field(1, ge=1, le=100_000, description="Number of robots.")
     speed: float = Field(
         0.5, gt=0.0, le=100.0, description="Distance a robot moves in one step, length units."
     )
@@ -341,7 +362,24 @@ class Robots(_Part):
         "learner must clear: advance on a sensed cell; else, on a reading above the 'mid' "
         "level, run and tumble (straight on while the reading rises, a random heading when it "
         "does not); else climb the gradient as 'gradient' does; 'simple_rule' advances on a "
-        "sensed cell, else climbs the gradient; 'random' walks at random.",
+        "sensed cell, else climbs the gradient; 'random' walks at random. With a "
+        "communication model, 'rule' also follows what it receives where it senses no cell and "
+        "no biomarker above the 'mid' level (up the attractant, down the repellent, toward a "
+        "message's position).",
+    )
+    exclusion: bool = Field(
+        False,
+        description="Robots take up space: no two overlap (their centres stay two radii "
+        "apart), a move into another robot is refused as one into an obstacle would be, and "
+        "counts as a bump (neighbours are found in a cell list, O(robots) a step). Bound robots "
+        "(delivered) keep their place. false: robots pass through each other (the paper's).",
+    )
+    radius: float = Field(
+        0.25,
+        gt=0.0,
+        le=100.0,
+        description="Radius of a robot, length units, for exclusion (in active_brownian: "
+        "physics.robot_radius_um).",
     )
 
 
@@ -684,6 +722,79 @@ class Physics(_Part):
         return self
 
 
+class Communication(_Part):
+    """How robots signal to each other. 'none' (the paper's): they share nothing but, in
+    training, the Q-table. 'attractant': a robot bound to a cell (it delivered its payload)
+    releases an attractant that diffuses and decays with rates of its own, solved on a grid
+    (explicit finite differences: the cost grows with the grid, not with senders x readers);
+    others read it as they read the biomarker, with the same noise rules (chemical stigmergy,
+    Harasha & Lynch, arXiv 2509.06893; signalling nanoparticles, von Maltzahn et al., Nat.
+    Mater. 10, 545 (2011)). 'attractant_repellent': as 'attractant' while the cell still needs
+    drug, and a repellent (same rates) once it is treated, so later robots go elsewhere.
+    'broadcast': an engineered radio, not a molecule: a robot that reaches a cell sends its
+    position to every robot within range, who holds the nearest message until it gets there.
+    The lattice physics takes diffusion, decay_rate and release_rate (length units and steps);
+    active_brownian takes diffusion_um2_s, decay_rate_s and release_molecules_s."""
+
+    model: CommunicationModel = Field(
+        "none", description="'none', 'attractant', 'attractant_repellent' or 'broadcast'."
+    )
+    diffusion: float = Field(
+        0.5,
+        gt=0.0,
+        le=100.0,
+        description="Lattice: the signal's diffusion coefficient, length units^2 per step.",
+    )
+    decay_rate: float = Field(
+        0.01,
+        ge=0.0,
+        le=1.0,
+        description="Lattice: the share of the signal that decays per step.",
+    )
+    release_rate: float = Field(
+        1.0,
+        gt=0.0,
+        le=1e6,
+        description="Lattice: what one bound robot releases per step, concentration x length^3.",
+    )
+    diffusion_um2_s: float = Field(
+        100.0,
+        gt=0.0,
+        le=1e4,
+        description="Active Brownian: the signal's diffusion coefficient, um^2/s (a small "
+        "protein in tissue: about 100).",
+    )
+    decay_rate_s: float = Field(
+        0.1, ge=0.0, le=1e3, description="Active Brownian: the signal's decay rate, 1/s."
+    )
+    release_molecules_s: float = Field(
+        1e4,
+        gt=0.0,
+        le=1e9,
+        description="Active Brownian: molecules one bound robot releases per second.",
+    )
+    threshold: float = Field(
+        1e-3,
+        ge=0.0,
+        le=1e6,
+        description="A signal reading above this is received (the state's 'signal'), in the "
+        "biomarker's concentration units (nM in active_brownian).",
+    )
+    range: float = Field(
+        15.0,
+        gt=0.0,
+        le=10_000.0,
+        description="Broadcast: how far a message carries, length units (um in active_brownian).",
+    )
+    nodes_per_axis: int = Field(
+        33,
+        ge=5,
+        le=129,
+        description="Grid nodes per axis on which the signal is solved (spanning the cube); "
+        "the solver's step is the largest stable one, a whole number of the engine's steps.",
+    )
+
+
 class Scenario(_Part):
     """A complete simulation run: the world, the swarm, the learning and the seed.
 
@@ -726,6 +837,7 @@ class Scenario(_Part):
     rewards: Rewards = Rewards()
     evaluation: Evaluation = Evaluation()
     physics: Physics = Physics()
+    communication: Communication = Communication()
     reach_distance: float = Field(
         0.5,
         gt=0.0,
@@ -795,6 +907,57 @@ class Scenario(_Part):
                     "when their surfaces touch (physics.robot_radius_um, cell_radius_um)",
                 )  # fmt: skip
         return self
+
+    @model_validator(mode="after")
+    def _communication_fits(self) -> Scenario:
+        """Each physics takes the signal's rates in its own units; a learner that uses signals
+        needs an action set that can follow them."""
+        comm = self.communication
+        fields = type(comm).model_fields
+        brownian = self.physics.model == "active_brownian"
+        other = LATTICE_SIGNAL if brownian else BROWNIAN_SIGNAL
+        for name in other:
+            if getattr(comm, name) != fields[name].default:
+                instead = BROWNIAN_SIGNAL if brownian else LATTICE_SIGNAL
+                raise _field_error(
+                    "Scenario", ("communication", name), getattr(comm, name),
+                    f"has no use in physics.model '{self.physics.model}', which takes "
+                    + ", ".join(instead),
+                )  # fmt: skip
+        if (
+            comm.model != "none"
+            and self.robots.policy == "q_learning"
+            and self.learning.actions == "directions"
+        ):
+            raise _field_error(
+                "Scenario", ("learning", "actions"), self.learning.actions,
+                f"cannot follow communication.model '{comm.model}': use behaviors, whose "
+                "follow_signal action does",
+            )  # fmt: skip
+        return self
+
+    @model_validator(mode="after")
+    def _robots_fit(self) -> Scenario:
+        """Robots that take up space must have room to start apart."""
+        if not self.robots.exclusion:
+            return self
+        radius = self.robot_radius
+        volume = self.robots.count * 4.0 / 3.0 * math.pi * radius**3
+        if volume > MAX_ROBOT_VOLUME_FRACTION * self.space.size**3:
+            raise _field_error(
+                "Scenario", ("robots", "count"), self.robots.count,
+                f"robots of radius {radius:g} that take up space would fill more than "
+                f"{MAX_ROBOT_VOLUME_FRACTION:.0%} of the space",
+            )  # fmt: skip
+        return self
+
+    @property
+    def robot_radius(self) -> float:
+        """A robot's radius in the scenario's length unit: robots.radius, or in the active
+        Brownian physics physics.robot_radius_um."""
+        if self.physics.model == "active_brownian":
+            return self.physics.robot_radius_um
+        return self.robots.radius
 
     @model_validator(mode="after")
     def _learned_policy(self) -> Scenario:
@@ -967,6 +1130,7 @@ _FIELD = ("the field is the steady state of physics.secretion_molecules_s, "
           "molecule_diffusion_um2_s and decay_rate_s")  # fmt: skip
 LATTICE_ONLY: tuple[tuple[str, str, str], ...] = (
     ("robots", "speed", "robots swim at physics.swim_speed_um_s"),
+    ("robots", "radius", "a robot's radius is physics.robot_radius_um"),
     ("robots", "sensing_radius", "an obstacle is sensed by touching it"),
     ("robots", "sensor_baseline", "the gradient is sensed across the body (robot_radius_um)"),
     ("cells", "motion_std", "cells diffuse with physics.cell_diffusion_um2_s"),

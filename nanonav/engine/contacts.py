@@ -21,6 +21,7 @@ from numpy.typing import NDArray
 
 # At most this many cells per axis: beyond, cells are made wider (the search stays exact).
 MAX_CELLS_PER_AXIS = 256
+CELLS_PER_ROBOT = 8
 
 
 class CellList(NamedTuple):
@@ -41,7 +42,9 @@ def grid_for(half: float, cutoff: float, step: float, robots: int) -> CellList:
     if half <= 0 or cutoff < 0 or step < 0:
         raise ValueError("half must be positive, cutoff and step not negative")
     least = max(cutoff + step, 1e-9)
-    dims = max(1, min(MAX_CELLS_PER_AXIS, math.floor(2 * half / least)))
+    # no more than about CELLS_PER_ROBOT cells a robot: more would only cost memory
+    roomy = math.ceil((CELLS_PER_ROBOT * max(robots, 1)) ** (1 / 3))
+    dims = max(1, min(MAX_CELLS_PER_AXIS, roomy, math.floor(2 * half / least)))
     width = 2 * half / dims
     return CellList(
         heads=np.full(dims**3, -1, dtype=np.int64),
@@ -136,3 +139,65 @@ def pairs_within(
                                 found += 1
                         j = grid.next[j]
     return found
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def cell_of(grid: CellList, x: float, y: float, z: float) -> int:
+    """The index of the grid cell that holds (x, y, z) (border cells hold what lies beyond)."""
+    d = grid.dims
+    cx = _axis_index(x, grid.origin, grid.width, d)
+    cy = _axis_index(y, grid.origin, grid.width, d)
+    cz = _axis_index(z, grid.origin, grid.width, d)
+    return (cx * d + cy) * d + cz
+
+
+@njit(cache=True, error_model="numpy")
+def relist(grid: CellList, i: int, x: float, y: float, z: float) -> None:
+    """Robot ``i`` moved to (x, y, z): list it in the cell it is in now, so that the grid stays
+    exact however far a step goes (a Brownian jiggle has no bound). O(robots in its old cell)."""
+    old = grid.cell[i]
+    new = cell_of(grid, x, y, z)
+    if new == old:
+        return
+    if old >= 0:
+        j = grid.heads[old]
+        if j == i:
+            grid.heads[old] = grid.next[i]
+        else:
+            while j >= 0:
+                if grid.next[j] == i:
+                    grid.next[j] = grid.next[i]
+                    break
+                j = grid.next[j]
+    grid.cell[i] = new
+    grid.next[i] = grid.heads[new]
+    grid.heads[new] = i
+
+
+@njit(cache=True, error_model="numpy")
+def each_within(
+    grid: CellList, pos: NDArray[np.float64], x: float, y: float, z: float, distance: float,
+    out: NDArray[np.int64],
+) -> int:  # fmt: skip
+    """Every listed robot closer than ``distance`` to (x, y, z), written to ``out[:k]`` in
+    increasing index order; returns k. The grid's cells must be at least ``distance`` wide."""
+    d = grid.dims
+    cx = _axis_index(x, grid.origin, grid.width, d)
+    cy = _axis_index(y, grid.origin, grid.width, d)
+    cz = _axis_index(z, grid.origin, grid.width, d)
+    d2 = distance * distance
+    k = 0
+    for ax in range(max(cx - 1, 0), min(cx + 2, d)):
+        for ay in range(max(cy - 1, 0), min(cy + 2, d)):
+            for az in range(max(cz - 1, 0), min(cz + 2, d)):
+                j = grid.heads[(ax * d + ay) * d + az]
+                while j >= 0:
+                    dx = pos[j, 0] - x
+                    dy = pos[j, 1] - y
+                    dz = pos[j, 2] - z
+                    if dx * dx + dy * dy + dz * dz < d2:
+                        out[k] = j
+                        k += 1
+                    j = grid.next[j]
+    out[:k].sort()
+    return k

@@ -131,19 +131,36 @@ def sample_many(
     wanted: NDArray[np.bool_],
     conc: NDArray[np.float64],
     grad: NDArray[np.float64],
+    tx: NDArray[np.float64],
+    ty: NDArray[np.float64],
+    tz: NDArray[np.float64],
+    treated_weight: float,
 ) -> None:
-    """``sample`` at every point whose ``wanted`` flag is set, into ``conc`` and ``grad``."""
+    """``sample`` at every point whose ``wanted`` flag is set, into ``conc`` and ``grad``. The
+    sources of treated cells, at (tx, ty, tz), shed less: ``treated_weight`` (their lost share
+    of ``weight``) of their field is taken off again. Taken off rather than weighted in the
+    sum, so the sum over all sources stays the one loop it was (and its vectorised order)."""
     for p in range(points.shape[0]):
         if not wanted[p]:
             continue
-        c, gx, gy, gz = sample(
-            model, sx, sy, sz, weight, length, softening, points[p, 0], points[p, 1], points[p, 2]
-        )
+        x = points[p, 0]
+        y = points[p, 1]
+        z = points[p, 2]
+        c, gx, gy, gz = sample(model, sx, sy, sz, weight, length, softening, x, y, z)
+        if tx.shape[0]:
+            oc, ox, oy, oz = sample(model, tx, ty, tz, treated_weight, length, softening, x, y, z)
+            c = max(c - oc, 0.0)
+            gx -= ox
+            gy -= oy
+            gz -= oz
         conc[p] = c
         grad[p, 0] = gx
         grad[p, 1] = gy
         grad[p, 2] = gz
 
+
+# No treated cell's sources (for ``sample_many``'s callers outside the kernel).
+_NONE_TREATED = (np.zeros(0), np.zeros(0), np.zeros(0))
 
 # In the active Brownian physics the field is read outside the cells only (a robot stops at a
 # cell's surface), so the diffusion model's softening, um, only keeps r = 0 finite.
@@ -190,6 +207,31 @@ def source_count(biomarker: Biomarker, cells: int) -> int:
     return cells * biomarker.emitters_per_cell if biomarker.model in EMITTER_MODELS else cells
 
 
+@njit(cache=True)
+def place_treated(
+    model: int, cells: NDArray[np.float64], offsets: NDArray[np.float64],
+    treated_at: NDArray[np.int64], tx: NDArray[np.float64], ty: NDArray[np.float64],
+    tz: NDArray[np.float64],
+) -> int:  # fmt: skip
+    """Write the sources of the treated cells into (tx, ty, tz) as ``place_sources`` places
+    every cell's; returns how many there are."""
+    emitters = model in (INVERSE_SQUARE, SAMPLED_GAUSSIAN)
+    per_cell = offsets.shape[0] // cells.shape[0] if emitters else 1
+    k = 0
+    for j in range(cells.shape[0]):
+        if treated_at[j] < 0:
+            continue
+        for e in range(per_cell):
+            ox = offsets[j * per_cell + e, 0] if emitters else 0.0
+            oy = offsets[j * per_cell + e, 1] if emitters else 0.0
+            oz = offsets[j * per_cell + e, 2] if emitters else 0.0
+            tx[k] = cells[j, 0] + ox
+            ty[k] = cells[j, 1] + oy
+            tz[k] = cells[j, 2] + oz
+            k += 1
+    return k
+
+
 def field_and_gradient(
     biomarker: Biomarker,
     cells: NDArray[np.float64],
@@ -224,6 +266,8 @@ def field_and_gradient(
         np.ones(points.shape[0], dtype=np.bool_),
         conc,
         grad,
+        *_NONE_TREATED,
+        0.0,
     )
     return conc, grad
 
@@ -249,5 +293,7 @@ def radial_profile(biomarker: Biomarker, distances: NDArray[np.float64]) -> NDAr
         np.ones(len(distances), dtype=np.bool_),
         conc,
         grad,
+        *_NONE_TREATED,
+        0.0,
     )
     return conc

@@ -17,6 +17,9 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from nanonav.engine import communication as radio_room
+from nanonav.engine import treatment
+from nanonav.engine.contacts import CellList, rebuild, relist
 from nanonav.engine.dynamics import brownian
 from nanonav.engine.dynamics.lattice import (
     _move_cells,
@@ -26,7 +29,7 @@ from nanonav.engine.dynamics.lattice import (
     _nearest_obstacle,
     _redraw_emitters,
 )
-from nanonav.engine.fields import SAMPLED_GAUSSIAN, place_sources
+from nanonav.engine.fields import SAMPLED_GAUSSIAN, place_sources, place_treated
 from nanonav.engine.learning import _learn, _learn_bootstrapped
 from nanonav.engine.policies import (
     NO_BEHAVIOR,
@@ -36,7 +39,13 @@ from nanonav.engine.policies import (
     _steer,
     _steering_baseline,
 )
-from nanonav.engine.qlearning import STEER_TO_CELL, STEER_UP_GRADIENT
+from nanonav.engine.qlearning import (
+    AVOID_OBSTACLE,
+    FOLLOW_SIGNAL,
+    STEER_TO_CELL,
+    STEER_TO_SIGNAL,
+    STEER_UP_GRADIENT,
+)
 from nanonav.engine.sensing import (
     _read,
     _sense,
@@ -48,13 +57,19 @@ from nanonav.engine.sensing import (
 from nanonav.engine.state import (
     ACTIVE_BROWNIAN,
     BEHAVIORS,
+    BROADCAST,
+    CELL_LOAD,
+    CELL_TREATED_AT,
     CURVE_COLLISIONS,
     CURVE_REACHED,
     CURVE_RETURN,
     CURVE_ROBOT_STEPS,
     CURVE_STEPS,
+    CURVE_TREATED,
     EPISODE,
     EPISODE_START,
+    EV_BUMPS,
+    EV_CELL,
     EV_COLLISIONS,
     EV_FINAL_DISTANCE,
     EV_PATH_LENGTH,
@@ -67,6 +82,7 @@ from nanonav.engine.state import (
     EV_SWEPT,
     EXACT_GRADIENT,
     LAYOUT_STATUS,
+    NO_SIGNAL,
     Q_LEARNING,
     ROBOT_STEPS,
     STEP,
@@ -103,6 +119,8 @@ def observe(
         if keep:
             rec.conc[row, i] = c
             rec.dist[row, i] = d
+            if rec.signal.shape[0]:
+                rec.signal[row, i] = s.signal[i]
             if rec.sensed.shape[0]:
                 rec.sensed[row, i] = s.sensed[i]
                 rec.heading[row, i, 0] = s.heading[i, 0]
@@ -111,6 +129,7 @@ def observe(
     if keep:
         rec.pos[row] = s.pos
         rec.cells[row] = w.cells
+        rec.load[row] = w.load
         if p.obstacle_std > 0.0:
             rec.obstacles[row] = w.obstacles
         elif t == 0:
@@ -121,9 +140,11 @@ def observe(
 @njit(cache=True, error_model="numpy")
 def _begin_episode(
     p: KernelParams, world_rng: np.random.Generator, rng: np.random.Generator, w: World,
-    s: Swarm, rec: Recording, evaluating: bool, record: bool,
+    s: Swarm, rec: Recording, evaluating: bool, record: bool, near: CellList, radio: CellList,
+    everyone: NDArray[np.bool_], sig: NDArray[np.float64],
 ) -> int:  # fmt: skip
-    """Reset the swarm and draw a fresh world; returns ``draw_world``'s status."""
+    """Reset the swarm, the cells' loads and the signals, and draw a fresh world; returns
+    ``draw_world``'s status."""
     s.active[:] = True
     s.swept[:] = False
     s.blocked[:] = False
@@ -137,7 +158,18 @@ def _begin_episode(
     s.sum_conc[:] = 0.0
     s.sum_dist[:] = 0.0
     s.last_dist[:] = 0.0
-    status = draw_world(p, world_rng, w, s)
+    s.bound_to[:] = -1
+    s.bumps[:] = 0
+    s.signal[:] = 0.0
+    s.prev_signal[:] = 0.0
+    s.has_message[:] = False
+    w.treated_sources[0] = 0
+    w.load[:] = 0
+    w.treated_at[:] = -1
+    sig[:] = 0.0
+    status = draw_world(p, world_rng, w, s, near, everyone)
+    if status == 0 and p.signal == BROADCAST:
+        rebuild(radio, s.pos, everyone)
     if status == 0:
         if p.model == SAMPLED_GAUSSIAN:
             _redraw_emitters(p, rng, w)
@@ -150,14 +182,24 @@ def _begin_episode(
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _over(p: KernelParams, s: Swarm, t: int) -> bool:
-    return t >= p.max_steps or not s.active.any()
+def _over(p: KernelParams, w: World, s: Swarm, t: int) -> bool:
+    """The episode is over at the step limit, when every robot has delivered, or when every
+    cell is treated."""
+    if t >= p.max_steps or not s.active.any():
+        return True
+    return p.capacity > 0 and treatment.untreated(w) == 0
 
 
 @njit(cache=True, error_model="numpy")
-def _evaluated(s: Swarm, out: NDArray[np.float64]) -> None:
-    """Every robot's tallies of an evaluation episode that has ended, into ``out[robot]``."""
+def _evaluated(s: Swarm, w: World, out: NDArray[np.float64], cells: NDArray[np.int64]) -> None:
+    """Every robot's tallies of an evaluation episode that has ended, into ``out[robot]``, and
+    every cell's into ``cells[cell]``."""
+    for j in range(w.load.shape[0]):
+        cells[j, CELL_LOAD] = w.load[j]
+        cells[j, CELL_TREATED_AT] = w.treated_at[j]
     for i in range(s.pos.shape[0]):
+        out[i, EV_CELL] = s.bound_to[i]
+        out[i, EV_BUMPS] = s.bumps[i]
         out[i, EV_STEPS] = s.steps[i]
         out[i, EV_REACHED] = 0.0 if s.active[i] else 1.0
         out[i, EV_FINAL_DISTANCE] = s.last_dist[i]
@@ -188,6 +230,13 @@ def run(
     curve: NDArray[np.float64],
     evaluation: NDArray[np.float64],
     budget: int,
+    near: CellList,
+    radio: CellList,
+    everyone: NDArray[np.bool_],
+    found: NDArray[np.int64],
+    sig: NDArray[np.float64],
+    sig_scratch: NDArray[np.float64],
+    cell_tallies: NDArray[np.int64],
 ) -> None:
     """Run episodes from where ``counters`` says (episode, step) until about ``budget``
     robot-steps are spent, the training episodes are over, or the evaluation is.
@@ -209,23 +258,29 @@ def run(
         learn = p.learn and not evaluating
         if t == 0:
             if evaluating:
-                status = _begin_episode(p, evaluation_rng, rng, w, s, rec, True, record)
+                status = _begin_episode(
+                    p, evaluation_rng, rng, w, s, rec, True, record, near, radio, everyone, sig
+                )  # fmt: skip
             else:
-                status = _begin_episode(p, world_rng, rng, w, s, rec, False, False)
+                status = _begin_episode(
+                    p, world_rng, rng, w, s, rec, False, False, near, radio, everyone, sig
+                )  # fmt: skip
             if status != 0:
                 counters[LAYOUT_STATUS] = status
                 break
         spent = counters[ROBOT_STEPS]
         if p.physics == ACTIVE_BROWNIAN:
             t = _swim_steps(
-                p, eps, learn, evaluating, record, rng, w, s, lrn, rec, t, budget, counters
+                p, eps, learn, evaluating, record, rng, w, s, lrn, rec, t, budget, counters,
+                near, radio, everyone, found, sig, sig_scratch,
             )  # fmt: skip
         else:
             t = _run_steps(
-                p, eps, learn, evaluating, record, rng, w, s, lrn, rec, t, budget, counters
+                p, eps, learn, evaluating, record, rng, w, s, lrn, rec, t, budget, counters,
+                near, radio, everyone, found, sig, sig_scratch,
             )  # fmt: skip
         budget -= counters[ROBOT_STEPS] - spent
-        if not _over(p, s, t):
+        if not _over(p, w, s, t):
             continue
         reached = 0
         for i in range(s.pos.shape[0]):
@@ -236,9 +291,10 @@ def run(
         curve[episode, CURVE_RETURN] = s.returns.sum()
         curve[episode, CURVE_COLLISIONS] = s.collisions.sum()
         curve[episode, CURVE_ROBOT_STEPS] = counters[ROBOT_STEPS] - counters[EPISODE_START]
+        curve[episode, CURVE_TREATED] = w.treated_at.shape[0] - treatment.untreated(w)
         counters[EPISODE_START] = counters[ROBOT_STEPS]
         if evaluating:
-            _evaluated(s, evaluation[episode - training])
+            _evaluated(s, w, evaluation[episode - training], cell_tallies[episode - training])
         episode += 1
         t = 0
         if episode == training:
@@ -262,6 +318,12 @@ def _run_steps(
     t: int,
     budget: int,
     counters: NDArray[np.int64],
+    near: CellList,
+    radio: CellList,
+    everyone: NDArray[np.bool_],
+    found: NDArray[np.int64],
+    sig: NDArray[np.float64],
+    sig_scratch: NDArray[np.float64],
 ) -> int:
     """Advance the episode from step ``t`` until it ends or about ``budget`` robot-steps are
     spent; return the new step. When the episode ends (every robot reached a cell, or
@@ -287,15 +349,23 @@ def _run_steps(
         if p.model == SAMPLED_GAUSSIAN:
             _redraw_emitters(p, rng, w)
         place_sources(p.model, w.cells, w.offsets, w.sx, w.sy, w.sz)
+        if p.capacity > 0:
+            w.treated_sources[0] = place_treated(
+                p.model, w.cells, w.offsets, w.treated_at, w.tx, w.ty, w.tz
+            )  # fmt: skip
+        if p.signal != NO_SIGNAL and p.signal != BROADCAST and t % p.signal_every == 0:
+            radio_room.update_field(p, w, s, sig, sig_scratch)
         _sense_all(p, w, s, s.active)
         for i in range(n):
             if not s.active[i]:
                 continue
+            if p.capacity > 0 and treatment.untreated(w) == 0:
+                break  # every cell is treated: the episode ends with this step
             table = 0 if p.shared else i
             px = s.pos[i, 0]
             py = s.pos[i, 1]
             pz = s.pos[i, 2]
-            cell, cell_d = _nearest(w.cells, px, py, pz)
+            cell, cell_d = treatment.nearest_target(w.cells, w.treated_at, px, py, pz)
             if cell_d <= p.reach_distance:
                 # a drifting cell came within reach: the robot spends this step receiving it.
                 # Unless its last heading pointed at the cell, the cell found the robot (a
@@ -315,14 +385,35 @@ def _run_steps(
                     )  # fmt: skip
                 s.pending[i] = False
                 s.active[i] = False
+                treatment.deliver(p, w, s, i, cell, t + 1)
+                if p.signal == BROADCAST:
+                    radio_room.broadcast(p, s, radio, found, i)
                 continue
             c, gx, gy, gz = _sense(p, rng, s, i)
+            # what the robot receives: the net signal and its gradient, or a message's way
+            heard = 0
+            ux = 0.0
+            uy = 0.0
+            uz = 0.0
+            if p.signal == BROADCAST:
+                ux, uy, uz = radio_room.toward_message(
+                    p, s, i, max(p.cell_sensing_radius, p.speed)
+                )  # fmt: skip
+                heard = 1 if s.has_message[i] else 0
+                s.signal[i] = heard
+            elif p.signal != NO_SIGNAL:
+                net, ux, uy, uz = radio_room.receive(p, rng, sig, px, py, pz)
+                heard = radio_room.received(p, net, s.prev_signal[i])
+                s.prev_signal[i] = net
+                s.signal[i] = net
 
             # one call site for the behaviours, whoever chooses them: the compiled loop stays small
             behavior = NO_BEHAVIOR
             if p.policy == Q_LEARNING:
                 gap = _nearest_obstacle(w.obstacles, p.obstacle_radius, px, py, pz)[1]
                 state = _state(p, c, s.prev_conc[i], gx, gy, gz, gap, cell_d)
+                if p.signal != NO_SIGNAL:
+                    state = state * p.signal_states + heard
                 if learn and s.pending[i]:
                     _learn_bootstrapped(
                         p, lrn.q, lrn.visits, table, s.last_state[i], s.last_action[i],
@@ -342,26 +433,39 @@ def _run_steps(
                 action = 0
                 step = p.speed
                 behavior, dx, dy, dz, gx, gy, gz = _baseline(
-                    p, rng, s.heading, i, c, s.prev_conc[i], gx, gy, gz, cell_d
+                    p, rng, s.heading, i, c, s.prev_conc[i], gx, gy, gz, cell_d, heard > 0
                 )
+            if behavior == FOLLOW_SIGNAL:
+                # up what it receives, round obstacles (straight on where it receives nothing)
+                behavior = AVOID_OBSTACLE
+                gx = ux
+                gy = uy
+                gz = uz
             if behavior >= 0:
                 dx, dy, dz, step = _behavior_direction(
                     p, rng, w, s, i, behavior, px, py, pz, gx, gy, gz, cell, cell_d
                 )
             s.prev_conc[i] = c
 
-            nx, ny, nz, blocked = _move_robot(p, w, s, i, px, py, pz, dx, dy, dz, step)
+            nx, ny, nz, blocked = _move_robot(
+                p, w, s, i, px, py, pz, dx, dy, dz, step, near, everyone
+            )  # fmt: skip
+            if p.signal == BROADCAST and not blocked:
+                relist(radio, i, nx, ny, nz)
             reward = p.reward_step
             if blocked:
                 reward += p.reward_collision
             s.steps[i] += 1
-            new_d = _nearest(w.cells, nx, ny, nz)[1]
+            target, new_d = treatment.nearest_target(w.cells, w.treated_at, nx, ny, nz)
             # paper 2.7: +approach per unit moved toward the source, +reach on arrival
             reward += p.reward_approach * (cell_d - new_d)
             reached = new_d <= p.reach_distance
             if reached:
                 reward += p.reward_reach
                 s.active[i] = False
+                treatment.deliver(p, w, s, i, target, t + 1)
+                if p.signal == BROADCAST:
+                    radio_room.broadcast(p, s, radio, found, i)
             s.returns[i] += reward
             if learn:
                 if reached:
@@ -376,18 +480,30 @@ def _run_steps(
         t += 1
         if evaluating:
             observe(p, w, s, rec, t, False, record)
-    if _over(p, s, t):
+    if _over(p, w, s, t):
         if learn:
-            _finish_episode(p, rng, w, s, lrn)
+            _finish_episode(p, rng, w, s, lrn, sig)
         if record and t % p.record_stride:
             observe(p, w, s, rec, t, True, record)
     return t
 
 
 @njit(cache=True, error_model="numpy")
+def _heard(
+    p: KernelParams, rng: np.random.Generator, s: Swarm, sig: NDArray[np.float64], i: int
+) -> int:
+    """What robot ``i`` receives where it ended (the state's 'signal'), for the last bootstrap."""
+    if p.signal == BROADCAST:
+        return 1 if s.has_message[i] else 0
+    net = radio_room.receive(p, rng, sig, s.pos[i, 0], s.pos[i, 1], s.pos[i, 2])[0]
+    return radio_room.received(p, net, s.prev_signal[i])
+
+
+@njit(cache=True, error_model="numpy")
 def _finish_episode(
-    p: KernelParams, rng: np.random.Generator, w: World, s: Swarm, lrn: Learner
-) -> None:
+    p: KernelParams, rng: np.random.Generator, w: World, s: Swarm, lrn: Learner,
+    sig: NDArray[np.float64],
+) -> None:  # fmt: skip
     """Bootstrap the last transition of every robot the step limit stopped (not terminal)."""
     place_sources(p.model, w.cells, w.offsets, w.sx, w.sy, w.sz)
     _sense_all(p, w, s, s.pending)
@@ -400,8 +516,10 @@ def _finish_episode(
         pz = s.pos[i, 2]
         c, gx, gy, gz = _sense(p, rng, s, i)
         gap = _nearest_obstacle(w.obstacles, p.obstacle_radius, px, py, pz)[1]
-        cell_d = _nearest(w.cells, px, py, pz)[1]
+        cell_d = treatment.nearest_target(w.cells, w.treated_at, px, py, pz)[1]
         state = _state(p, c, s.prev_conc[i], gx, gy, gz, gap, cell_d)
+        if p.signal != NO_SIGNAL:
+            state = state * p.signal_states + _heard(p, rng, s, sig, i)
         _learn_bootstrapped(
             p, lrn.q, lrn.visits, table, s.last_state[i], s.last_action[i], s.last_reward[i],
             state,
@@ -424,6 +542,12 @@ def _swim_steps(
     t: int,
     budget: int,
     counters: NDArray[np.int64],
+    near: CellList,
+    radio: CellList,
+    everyone: NDArray[np.bool_],
+    found: NDArray[np.int64],
+    sig: NDArray[np.float64],
+    sig_scratch: NDArray[np.float64],
 ) -> int:
     """``_run_steps`` in the active Brownian physics (um, s, nM; a step is dt_s): cells diffuse,
     every robot reads the field at the Berg-Purcell limit, its policy steers its heading (all a
@@ -441,15 +565,23 @@ def _swim_steps(
         if p.cell_std > 0.0:
             _move_cells(p, rng, w)
         place_sources(p.model, w.cells, w.offsets, w.sx, w.sy, w.sz)
+        if p.capacity > 0:
+            w.treated_sources[0] = place_treated(
+                p.model, w.cells, w.offsets, w.treated_at, w.tx, w.ty, w.tz
+            )  # fmt: skip
+        if p.signal != NO_SIGNAL and p.signal != BROADCAST and t % p.signal_every == 0:
+            radio_room.update_field(p, w, s, sig, sig_scratch)
         _sense_all(p, w, s, s.active)
         for i in range(n):
             if not s.active[i]:
                 continue
+            if p.capacity > 0 and treatment.untreated(w) == 0:
+                break  # every cell is treated: the episode ends with this step
             table = 0 if p.shared else i
             px = s.pos[i, 0]
             py = s.pos[i, 1]
             pz = s.pos[i, 2]
-            cell, cell_d = _nearest(w.cells, px, py, pz)
+            cell, cell_d = treatment.nearest_target(w.cells, w.treated_at, px, py, pz)
             if cell_d <= p.reach_distance:
                 # a diffusing cell touched the robot: as in _run_steps (written out there too:
                 # a shared function taking the swarm would cost every step its reference counts)
@@ -468,6 +600,9 @@ def _swim_steps(
                     )  # fmt: skip
                 s.pending[i] = False
                 s.active[i] = False
+                treatment.deliver(p, w, s, i, cell, t + 1)
+                if p.signal == BROADCAST:
+                    radio_room.broadcast(p, s, radio, found, i)
                 continue
             c = _read(p, rng, s.reading[i])
             s.sensed[i] = c
@@ -477,8 +612,25 @@ def _swim_steps(
             rising = c > s.prev_conc[i]
             # a cell within the receptor range of the robot's surface
             sensed = cell_d - p.reach_distance <= p.cell_sensing_radius
+            heard = 0
+            ux = 0.0
+            uy = 0.0
+            uz = 0.0
+            if p.signal == BROADCAST:
+                ux, uy, uz = radio_room.toward_message(
+                    p, s, i, max(p.cell_sensing_radius + p.reach_distance, p.speed)
+                )  # fmt: skip
+                heard = 1 if s.has_message[i] else 0
+                s.signal[i] = heard
+            elif p.signal != NO_SIGNAL:
+                net, ux, uy, uz = radio_room.receive(p, rng, sig, px, py, pz)
+                heard = radio_room.received(p, net, s.prev_signal[i])
+                s.prev_signal[i] = net
+                s.signal[i] = net
             if p.policy == Q_LEARNING:
                 state = _steering_state(p, c, rising, s.blocked[i], sensed)
+                if p.signal != NO_SIGNAL:
+                    state = state * p.signal_states + heard
                 if learn and s.pending[i]:
                     _learn_bootstrapped(
                         p, lrn.q, lrn.visits, table, s.last_state[i], s.last_action[i],
@@ -489,6 +641,9 @@ def _swim_steps(
             else:
                 state = 0
                 action = _steering_baseline(p, rng, rising)
+                if action == STEER_UP_GRADIENT and heard > 0 and c <= p.level_1:
+                    # the written rule: where the biomarker is at trace level, follow the signal
+                    action = STEER_TO_SIGNAL
             gx = 0.0
             gy = 0.0
             gz = 0.0
@@ -506,21 +661,32 @@ def _swim_steps(
                 tx = w.cells[cell, 0] - px
                 ty = w.cells[cell, 1] - py
                 tz = w.cells[cell, 2] - pz
+            elif action == STEER_TO_SIGNAL:
+                # toward what it receives: as steering toward a cell, along the signal's way
+                action = STEER_TO_CELL
+                tx = ux
+                ty = uy
+                tz = uz
             _steer(p, rng, s, i, action, gx, gy, gz, tx, ty, tz)
             s.prev_conc[i] += p.memory_weight * (c - s.prev_conc[i])
 
-            nx, ny, nz, blocked = brownian.move_robot(p, rng, w, s, i, px, py, pz)
+            nx, ny, nz, blocked = brownian.move_robot(p, rng, w, s, i, px, py, pz, near, everyone)
+            if p.signal == BROADCAST and not blocked:
+                relist(radio, i, nx, ny, nz)
             s.blocked[i] = blocked
             reward = p.reward_step
             if blocked:
                 reward += p.reward_collision
             s.steps[i] += 1
-            new_d = _nearest(w.cells, nx, ny, nz)[1]
+            target, new_d = treatment.nearest_target(w.cells, w.treated_at, nx, ny, nz)
             reward += p.reward_approach * (cell_d - new_d)  # per um closed
             reached = new_d <= p.reach_distance
             if reached:
                 reward += p.reward_reach
                 s.active[i] = False
+                treatment.deliver(p, w, s, i, target, t + 1)
+                if p.signal == BROADCAST:
+                    radio_room.broadcast(p, s, radio, found, i)
             s.returns[i] += reward
             if learn:
                 if reached:
@@ -534,9 +700,9 @@ def _swim_steps(
         t += 1
         if evaluating:
             observe(p, w, s, rec, t, False, record)
-    if _over(p, s, t):
+    if _over(p, w, s, t):
         if learn:
-            _finish_swim_episode(p, rng, w, s, lrn)
+            _finish_swim_episode(p, rng, w, s, lrn, sig)
         if record and t % p.record_stride:
             observe(p, w, s, rec, t, True, record)
     return t
@@ -544,8 +710,9 @@ def _swim_steps(
 
 @njit(cache=True, error_model="numpy")
 def _finish_swim_episode(
-    p: KernelParams, rng: np.random.Generator, w: World, s: Swarm, lrn: Learner
-) -> None:
+    p: KernelParams, rng: np.random.Generator, w: World, s: Swarm, lrn: Learner,
+    sig: NDArray[np.float64],
+) -> None:  # fmt: skip
     """``_finish_episode`` in the active Brownian physics: bootstrap the last transition of
     every robot the step limit stopped from the steering state it ended in."""
     place_sources(p.model, w.cells, w.offsets, w.sx, w.sy, w.sz)
@@ -555,9 +722,13 @@ def _finish_swim_episode(
             continue
         table = 0 if p.shared else i
         c = _read(p, rng, s.reading[i])
-        cell_d = _nearest(w.cells, s.pos[i, 0], s.pos[i, 1], s.pos[i, 2])[1]
+        cell_d = treatment.nearest_target(
+            w.cells, w.treated_at, s.pos[i, 0], s.pos[i, 1], s.pos[i, 2]
+        )[1]  # fmt: skip
         sensed = cell_d - p.reach_distance <= p.cell_sensing_radius
         state = _steering_state(p, c, c > s.prev_conc[i], s.blocked[i], sensed)
+        if p.signal != NO_SIGNAL:
+            state = state * p.signal_states + _heard(p, rng, s, sig, i)
         _learn_bootstrapped(
             p, lrn.q, lrn.visits, table, s.last_state[i], s.last_action[i], s.last_reward[i],
             state,

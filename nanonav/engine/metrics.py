@@ -18,6 +18,15 @@ Each metric means one thing, for one robot or for the swarm alike:
 - ``collisions``: moves blocked by an obstacle, summed over robots.
 - ``path_efficiency``: straight distance from start to end over the path length, mean over
   robots; ``mean_return``: summed reward, mean over robots; ``duration_s``: wall time.
+
+The swarm's numbers, given when robots take up space, cells can be treated or robots signal:
+
+- ``robots_per_cell``: payloads delivered per cell, mean over cells; ``most_robots_on_a_cell``:
+  the most any one cell received; ``bumps``: moves refused because another robot was in the
+  way, summed over robots.
+- with ``cells.capacity``: ``cells_treated`` (how many), ``treated_fraction`` (their share),
+  ``time_to_treat_all`` (the step the last cell was treated, the step limit if one was left),
+  ``never_delivered`` (the share of robots that delivered no payload).
 """
 
 from __future__ import annotations
@@ -31,6 +40,9 @@ from numpy.typing import NDArray
 
 from nanonav import stats
 from nanonav.engine.state import (
+    CELL_LOAD,
+    CELL_TREATED_AT,
+    EV_BUMPS,
     EV_COLLISIONS,
     EV_FINAL_DISTANCE,
     EV_PATH_LENGTH,
@@ -61,6 +73,17 @@ AVERAGED = (
 )
 
 
+# The swarm's numbers (see the module docstring), averaged over worlds where a run gives them.
+SWARM = (
+    "robots_per_cell",
+    "most_robots_on_a_cell",
+    "bumps",
+    "cells_treated",
+    "treated_fraction",
+    "time_to_treat_all",
+    "never_delivered",
+)
+
 # Each averaged metric's range, which its interval keeps to (``nanonav.stats.describe``).
 UNBOUNDED = None
 PROPORTION = (0.0, 1.0)
@@ -69,12 +92,16 @@ RANGES: dict[str, tuple[float, float] | None] = {
     "success_rate": PROPORTION,
     "path_efficiency": PROPORTION,
     "mean_return": UNBOUNDED,
+    "treated_fraction": PROPORTION,
+    "never_delivered": PROPORTION,
     **{
         key: NON_NEGATIVE
-        for key in AVERAGED
-        if key not in {"success_rate", "path_efficiency", "mean_return"}
+        for key in AVERAGED + SWARM
+        if key
+        not in {"success_rate", "path_efficiency", "mean_return", "treated_fraction",
+                "never_delivered"}
     },
-}
+}  # fmt: skip
 
 
 def _efficiency(tallies: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -118,6 +145,27 @@ def _mean(values: NDArray[np.float64]) -> float | None:
     return float(values.mean()) if values.size else None
 
 
+def swarm_summary(
+    tallies: NDArray[np.float64], cells: NDArray[np.int64], capacity: int | None, max_steps: int
+) -> dict[str, Any]:
+    """The swarm's numbers in one evaluation world (``cells``: cells x CELL columns)."""
+    load = cells[:, CELL_LOAD]
+    out: dict[str, Any] = {
+        "robots_per_cell": float(load.mean()),
+        "most_robots_on_a_cell": int(load.max()),
+        "bumps": int(tallies[:, EV_BUMPS].sum()),
+    }
+    if capacity is not None:
+        treated = cells[:, CELL_TREATED_AT] >= 0
+        out["cells_treated"] = int(treated.sum())
+        out["treated_fraction"] = float(treated.mean())
+        out["time_to_treat_all"] = (
+            int(cells[:, CELL_TREATED_AT].max()) if treated.all() else int(max_steps)
+        )
+        out["never_delivered"] = float((tallies[:, EV_REACHED] == 0).mean())
+    return out
+
+
 def world_summary(
     tallies: NDArray[np.float64], max_steps: int, episode_steps: int, duration_s: float
 ) -> dict[str, Any]:
@@ -154,7 +202,8 @@ def over_worlds(
     per averaged metric, its n, sd and 95% interval over the worlds, kept to its range."""
     summary: dict[str, Any] = {}
     uncertainty: dict[str, dict[str, Any]] = {}
-    for key in AVERAGED:
+    given = tuple(key for key in SWARM if worlds and key in worlds[0])
+    for key in AVERAGED + given:
         values = [float(w[key]) for w in worlds if w.get(key) is not None]
         values = [v for v in values if math.isfinite(v)]
         described = stats.describe(values, bounds=RANGES[key])

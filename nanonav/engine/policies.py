@@ -19,6 +19,7 @@ from nanonav.engine.qlearning import (
     APPROACH_CELL,
     AVOID_OBSTACLE,
     EXPLORE,
+    FOLLOW_SIGNAL,
     KEEP_HEADING,
     STEER_TO_CELL,
     STEER_UP_GRADIENT,
@@ -68,13 +69,15 @@ def _choose(
 @njit(cache=True, error_model="numpy", inline="always")
 def _baseline(
     p: KernelParams, rng: np.random.Generator, heading: NDArray[np.float64], i: int,
-    c: float, prev_c: float, gx: float, gy: float, gz: float, cell_d: float,
+    c: float, prev_c: float, gx: float, gy: float, gz: float, cell_d: float, heard: bool,
 ) -> tuple[int, float, float, float, float, float, float]:  # fmt: skip
     """A fixed policy's choice for robot ``i`` from its reading ``c`` (and the last one,
     ``prev_c``), sensed gradient ``g``, distance to the nearest cell and ``heading``:
     ``(behavior, dx, dy, dz, gx, gy, gz)``. Either one of the paper's behaviours, for
     ``_behavior_direction`` to turn into a move up the gradient ``g`` returned (``rule`` blanks
-    it to go straight on), or ``NO_BEHAVIOR`` and the unit direction ``d`` to move along."""
+    it to go straight on), or ``NO_BEHAVIOR`` and the unit direction ``d`` to move along.
+    ``heard``: the robot receives a signal, which ``rule`` follows (``FOLLOW_SIGNAL``) where it
+    senses no cell and no reading above the 'mid' level."""
     behavior = NO_BEHAVIOR
     dx = 0.0
     dy = 0.0
@@ -98,6 +101,8 @@ def _baseline(
                 gz = 0.0
             else:
                 behavior = EXPLORE
+        elif heard:
+            behavior = FOLLOW_SIGNAL
     elif p.policy == RUN_AND_TUMBLE and c > prev_c:
         dx = heading[i, 0]
         dy = heading[i, 1]

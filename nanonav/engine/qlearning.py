@@ -19,6 +19,13 @@ APPROACH_CELL = 1
 AVOID_OBSTACLE = 2
 EXPLORE = 3
 BEHAVIOR_ACTIONS = ["follow_gradient", "approach_cell", "avoid_obstacle", "explore"]
+# With a communication model, one more action in either set: follow what the robot receives
+# (up the attractant, down the repellent, toward a message), and one more state dimension, last.
+FOLLOW_SIGNAL = 4
+STEER_TO_SIGNAL = 4
+SIGNAL_ACTION = {"behaviors": "follow_signal", "steering": "steer_to_signal"}
+CHEMICAL_SIGNALS = ["none", "attractant_rising", "attractant_falling", "repellent"]
+RADIO_SIGNALS = ["none", "message"]
 
 # State dimensions of the 'behaviors' set, in index order (most significant first).
 CONCENTRATION_LEVELS = ["trace", "low", "mid", "high"]
@@ -88,13 +95,29 @@ def steering_states() -> list[str]:
     ]
 
 
-def labels(actions: str) -> tuple[list[str], list[str]]:
-    """(state labels, action labels) of an action set."""
+def signal_states(communication: str) -> list[str]:
+    """What a robot can receive under a communication model (none: no such dimension)."""
+    if communication == "none":
+        return []
+    return RADIO_SIGNALS if communication == "broadcast" else CHEMICAL_SIGNALS
+
+
+def labels(actions: str, communication: str = "none") -> tuple[list[str], list[str]]:
+    """(state labels, action labels) of an action set, and with a communication model its
+    'signal' dimension (the least significant) and its follow-the-signal action."""
     if actions == "behaviors":
-        return behavior_states(), BEHAVIOR_ACTIONS
-    if actions == "steering":
-        return steering_states(), STEERING_ACTIONS
-    return direction_states(), DIRECTION_ACTIONS
+        states, names = behavior_states(), BEHAVIOR_ACTIONS
+    elif actions == "steering":
+        states, names = steering_states(), STEERING_ACTIONS
+    else:
+        return direction_states(), DIRECTION_ACTIONS
+    received = signal_states(communication)
+    if not received:
+        return states, names
+    return (
+        [f"{state}|signal={r}" for state in states for r in received],
+        [*names, SIGNAL_ACTION[actions]],
+    )
 
 
 # Without a decay factor given, epsilon reaches its floor after this share of training episodes.

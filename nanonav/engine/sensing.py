@@ -31,7 +31,8 @@ def _sense_all(p: KernelParams, w: World, s: Swarm, wanted: NDArray[np.bool_]) -
     sources' loop vectorises there, unlike inside the robot loop)."""
     sample_many(
         p.model, w.sx, w.sy, w.sz, p.weight, p.length, p.softening, s.pos, wanted,
-        s.reading, s.reading_grad,
+        s.reading, s.reading_grad, w.tx[: w.treated_sources[0]], w.ty[: w.treated_sources[0]],
+        w.tz[: w.treated_sources[0]], p.weight * (1.0 - p.treated_secretion),
     )  # fmt: skip
 
 

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from nanonav.engine import fields, kernel, metrics, qlearning, state
+from nanonav.engine import contacts, fields, kernel, metrics, qlearning, signals, state
 from nanonav.engine.dynamics import brownian
 from nanonav.engine.dynamics.brownian import heading_kick_scale
 from nanonav.engine.result import QTable, SimulationResult, Trajectory
@@ -103,8 +103,80 @@ def _params(scenario: Scenario, record_bytes: int = DEFAULT_RECORD_BYTES) -> Ker
         robot_corner=scenario.robots.start == "corner",
     )
     if scenario.physics.model == "active_brownian":
-        return _brownian_params(scenario, params, b)
-    return params
+        params = _brownian_params(scenario, params, b)
+    return _swarm_params(scenario, params)
+
+
+def _swarm_params(scenario: Scenario, params: KernelParams) -> KernelParams:
+    """Treatable cells, exclusion and signalling, in the units of the scenario's physics: the
+    signal's rates per engine step, its grid solver's step the largest stable one (a whole
+    number of engine steps, or a whole number of solver steps per engine step)."""
+    comm = scenario.communication
+    brownian = scenario.physics.model == "active_brownian"
+    dt = scenario.physics.step_s
+    if brownian:
+        diffusion = comm.diffusion_um2_s * dt
+        decay = comm.decay_rate_s * dt
+        release = comm.release_molecules_s * dt / MOLECULES_PER_UM3_PER_NM
+    else:
+        diffusion = comm.diffusion
+        decay = -math.log1p(-comm.decay_rate) if comm.decay_rate < 1.0 else 50.0
+        release = comm.release_rate
+    # Berg-Purcell for the signal: a reading of c nM counts pi D a c dt molecules
+    signal_counting = 0.0
+    if brownian:
+        radius = scenario.physics.robot_radius_um
+        signal_counting = math.pi * comm.diffusion_um2_s * radius * dt * MOLECULES_PER_UM3_PER_NM
+    grid = signal_grid(scenario)
+    every, substeps = signal_steps(diffusion, decay, grid.spacing)
+    return params._replace(
+        capacity=scenario.cells.capacity or 0,
+        treated_secretion=scenario.cells.treated_secretion,
+        exclusion=scenario.robots.exclusion,
+        contact=2.0 * scenario.robot_radius,
+        signal=state.COMMUNICATION_CODES[comm.model],
+        signal_states=max(1, len(qlearning.signal_states(comm.model))),
+        signal_every=every,
+        signal_substeps=substeps,
+        signal_diffusion=diffusion,
+        signal_decay=decay,
+        signal_release=release,
+        signal_threshold=comm.threshold,
+        signal_counting=signal_counting,
+        signal_origin=grid.origin,
+        signal_spacing=grid.spacing,
+        signal_dims=grid.dims,
+        broadcast_range=comm.range,
+    )
+
+
+# Solver steps may span at most this many engine steps, so the signal keeps up with the robots.
+MAX_SIGNAL_EVERY = 10
+
+
+def signal_steps(diffusion: float, decay: float, spacing: float) -> tuple[int, int]:
+    """(engine steps per update of the signal's grid, solver steps per update): the update
+    spans the largest whole number of engine steps the explicit solver takes stably (at most
+    ``MAX_SIGNAL_EVERY``), or, when even one engine step is too long, one engine step split into
+    the fewest stable solver steps."""
+    # half the explicit bound: at the bound itself a node's own weight is 0 and a release
+    # hops between the lattice's two halves (a checkerboard); at half it keeps a weight of 1/2
+    stable = signals.stable_step(diffusion, decay, spacing) / 2.0
+    if stable >= 1.0:
+        return min(MAX_SIGNAL_EVERY, math.floor(stable)), 1
+    return 1, math.ceil(1.0 / stable)
+
+
+def signal_grid(scenario: Scenario) -> signals.SignalGrid:
+    """The grid the scenario's chemical signal is solved on (a token one without it)."""
+    model = scenario.communication.model
+    half = scenario.space.size / 2
+    if model in ("attractant", "attractant_repellent"):
+        species = 2 if model == "attractant_repellent" else 1
+        nodes = scenario.communication.nodes_per_axis
+        # the solver's reflecting faces lie half a spacing beyond its outer nodes: on the walls
+        return signals.grid_for(half * (nodes - 1) / nodes, nodes, species)
+    return signals.grid_for(half, 2, 1)
 
 
 def _brownian_params(scenario: Scenario, params: KernelParams, b: Biomarker) -> KernelParams:
@@ -151,7 +223,7 @@ def _learner(scenario: Scenario, policy: NDArray[np.float64] | None = None) -> L
     if scenario.robots.policy != "q_learning":
         shape: tuple[int, int, int] = (1, 1, 1)
     else:
-        states, actions = qlearning.labels(scenario.learning.actions)
+        states, actions = qlearning.labels(scenario.learning.actions, scenario.communication.model)
         tables = 1 if scenario.learning.shared_table else scenario.robots.count
         shape = (tables, len(states), len(actions))
     q = np.zeros(shape)
@@ -238,6 +310,16 @@ def record_stride(scenario: Scenario, record_bytes: int) -> int:
     return -(-scenario.learning.max_steps // (rows - 1))
 
 
+def swarm_metrics(scenario: Scenario) -> bool:
+    """Whether a run reports the swarm's numbers (``metrics.SWARM``): when robots take up
+    space, cells can be treated, or robots signal."""
+    return (
+        scenario.robots.exclusion
+        or scenario.cells.capacity is not None
+        or scenario.communication.model != "none"
+    )
+
+
 class _Run:
     """The arrays of one run, allocated once and reused by every episode, and the two
     generators: one draws the worlds (so every policy faces the same ones), one the dynamics."""
@@ -272,6 +354,12 @@ class _Run:
             sx=np.empty(k),
             sy=np.empty(k),
             sz=np.empty(k),
+            tx=np.empty(k),
+            ty=np.empty(k),
+            tz=np.empty(k),
+            treated_sources=np.zeros(1, dtype=np.int64),
+            load=np.zeros(cells, dtype=np.int64),
+            treated_at=np.full(cells, -1, dtype=np.int64),
         )
         self.swarm = Swarm(
             pos=np.empty((n, 3)),
@@ -295,7 +383,26 @@ class _Run:
             swept=np.zeros(n, dtype=np.bool_),
             blocked=np.zeros(n, dtype=np.bool_),
             sensed=np.zeros(n),
+            bound_to=np.full(n, -1, dtype=np.int64),
+            bumps=np.zeros(n, dtype=np.int64),
+            signal=np.zeros(n),
+            prev_signal=np.zeros(n),
+            message=np.zeros((n, 3)),
+            has_message=np.zeros(n, dtype=np.bool_),
         )
+        half = scenario.space.size / 2
+        comm = scenario.communication.model
+        self.near = contacts.grid_for(
+            half, 2.0 * scenario.robot_radius if scenario.robots.exclusion else 2 * half, 0.0,
+            n if scenario.robots.exclusion else 1,
+        )  # fmt: skip
+        self.radio = contacts.grid_for(
+            half, scenario.communication.range if comm == "broadcast" else 2 * half, 0.0,
+            n if comm == "broadcast" else 1,
+        )  # fmt: skip
+        self.everyone = np.ones(n, dtype=np.bool_)
+        self.found = np.empty(n, dtype=np.int64)
+        self.signals = signal_grid(scenario)
         rows = history_rows(params.max_steps, params.record_stride)
         brownian = scenario.physics.model == "active_brownian"
         self.recording = Recording(
@@ -308,10 +415,15 @@ class _Run:
             offsets=np.zeros_like(self.world.offsets),
             heading=np.zeros((rows if brownian else 0, n, 3)),
             sensed=np.zeros((rows if brownian else 0, n)),
+            load=np.zeros((rows, cells), dtype=np.int64),
+            signal=np.zeros((rows if comm != "none" else 0, n)),
         )
         self.counters = np.zeros(state.COUNTERS, dtype=np.int64)
         self.curve = np.zeros((scenario.episodes, state.CURVE_COLUMNS))
         self.evaluation = np.zeros((scenario.evaluation.worlds, n, state.EV_COLUMNS))
+        self.cell_tallies = np.zeros(
+            (scenario.evaluation.worlds, cells, state.CELL_COLUMNS), dtype=np.int64
+        )
 
     @property
     def episode(self) -> int:
@@ -331,7 +443,8 @@ class _Run:
         kernel.run(
             self.params, self.epsilons, self.world_rng, self.evaluation_rng, self.rng,
             self.world, self.swarm, self.learner, self.recording, self.counters, self.curve,
-            self.evaluation, budget,
+            self.evaluation, budget, self.near, self.radio, self.everyone, self.found,
+            self.signals.conc, self.signals.scratch, self.cell_tallies,
         )  # fmt: skip
         raise_for_layout(int(self.counters[state.LAYOUT_STATUS]), self.scenario)
 
@@ -363,6 +476,13 @@ class _Run:
             )
             for tallies, row, share in zip(self.evaluation, curve, shares, strict=True)
         ]
+        if swarm_metrics(self.scenario):
+            for world, tallies, cells in zip(
+                worlds, self.evaluation, self.cell_tallies, strict=True
+            ):
+                world.update(
+                    metrics.swarm_summary(tallies, cells, self.scenario.cells.capacity, max_steps)
+                )
         rows = metrics.robot_rows(
             self.evaluation[0], max_steps, duration_s * float(shares[0]),
             int(curve[0, state.CURVE_STEPS]),
@@ -459,7 +579,7 @@ def simulate(
     work = {"robot_steps": run.robot_steps, "engine_s": engine_s}
     qtable = None
     if run.params.learn:
-        states, actions = qlearning.labels(learning.actions)
+        states, actions = qlearning.labels(learning.actions, scenario.communication.model)
         learner = run.learner
         values = learner.q[0] if learning.shared_table else learner.q
         visits = learner.visits[0] if learning.shared_table else learner.visits

@@ -26,6 +26,16 @@ ACTION_SET_CODES = {"behaviors": BEHAVIORS, "directions": DIRECTIONS, "steering"
 LATTICE = 0
 ACTIVE_BROWNIAN = 1
 PHYSICS_CODES = {"lattice": LATTICE, "active_brownian": ACTIVE_BROWNIAN}
+NO_SIGNAL = 0
+ATTRACTANT = 1
+ATTRACTANT_REPELLENT = 2
+BROADCAST = 3
+COMMUNICATION_CODES = {
+    "none": NO_SIGNAL,
+    "attractant": ATTRACTANT,
+    "attractant_repellent": ATTRACTANT_REPELLENT,
+    "broadcast": BROADCAST,
+}
 ALPHA_CONSTANT = 0
 ALPHA_VISITS = 1
 ALPHA_SCHEDULE_CODES = {"constant": ALPHA_CONSTANT, "visits": ALPHA_VISITS}
@@ -82,6 +92,24 @@ class KernelParams(NamedTuple):
     tumble: float = 0.0  # run_and_tumble: chance of a tumble per step, reading not rising
     tumble_rising: float = 0.0  # and while it rises
     memory_weight: float = 1.0  # dt / memory_s: how fast the reading's memory follows it
+    # cells that can be treated, robots that take up space, and signals (issue: the swarm)
+    capacity: int = 0  # payloads that treat a cell; 0: never treated
+    treated_secretion: float = 0.0  # share of its field a treated cell keeps
+    exclusion: bool = False  # robots keep ``contact`` apart (centre to centre)
+    contact: float = 0.0
+    signal: int = NO_SIGNAL
+    signal_states: int = 1  # values of the Q-learning state's 'signal' dimension
+    signal_every: int = 1  # engine steps per update of the signal's grid
+    signal_substeps: int = 1  # solver steps per update
+    signal_diffusion: float = 0.0  # per engine step (length^2)
+    signal_decay: float = 0.0  # rate per engine step
+    signal_release: float = 0.0  # amount one bound robot releases per engine step
+    signal_threshold: float = 0.0  # a net signal above it is received
+    signal_counting: float = 0.0  # active Brownian: molecules counted per nM of signal read
+    signal_origin: float = 0.0
+    signal_spacing: float = 1.0
+    signal_dims: int = 1
+    broadcast_range: float = 0.0
 
 
 class Swarm(NamedTuple):
@@ -108,6 +136,12 @@ class Swarm(NamedTuple):
     swept: NDArray[np.bool_]  # reached by a drifting cell while heading away from it
     blocked: NDArray[np.bool_]  # its last move was stopped by an obstacle
     sensed: NDArray[np.float64]  # the reading it took this step (with noise)
+    bound_to: NDArray[np.int64]  # the cell it delivered its payload to, -1 while it carries it
+    bumps: NDArray[np.int64]  # moves refused because another robot was in the way
+    signal: NDArray[np.float64]  # the net signal it read this step (attractant - repellent)
+    prev_signal: NDArray[np.float64]  # and the step before
+    message: NDArray[np.float64]  # (N, 3) broadcast: the position it was sent
+    has_message: NDArray[np.bool_]
 
 
 class World(NamedTuple):
@@ -119,6 +153,12 @@ class World(NamedTuple):
     sx: NDArray[np.float64]  # (K,) source positions
     sy: NDArray[np.float64]
     sz: NDArray[np.float64]
+    tx: NDArray[np.float64]  # (K,) the treated cells' sources, the first treated_sources[0]
+    ty: NDArray[np.float64]
+    tz: NDArray[np.float64]
+    treated_sources: NDArray[np.int64]  # (1,)
+    load: NDArray[np.int64]  # (C,) payloads each cell received
+    treated_at: NDArray[np.int64]  # (C,) the step it was treated, -1 while untreated
 
 
 class Learner(NamedTuple):
@@ -142,6 +182,10 @@ class Recording(NamedTuple):
     offsets: NDArray[np.float64]  # (K, 3) the recorded world's emitter offsets
     heading: NDArray[np.float64]  # (R, N, 3) in the active Brownian physics, else (0, N, 3)
     sensed: NDArray[np.float64]  # (R, N) the reading each robot took, likewise (0, N)
+    load: NDArray[np.int64]  # (R, C) payloads each cell had received
+    signal: NDArray[
+        np.float64
+    ]  # (R, N) the net signal each robot read, with communication, else (0, N)
 
 
 # counters[] slots: where the run is, and what it has spent
@@ -163,7 +207,14 @@ EV_PATH_LENGTH = 6
 EV_STRAIGHT = 7  # straight-line distance from its start to where it ended
 EV_RETURN = 8
 EV_SWEPT = 9  # 1 if its cell drifted onto it while it headed elsewhere (it did not search it out)
-EV_COLUMNS = 10
+EV_CELL = 10  # the cell it delivered to, -1 if none
+EV_BUMPS = 11  # moves refused by another robot
+EV_COLUMNS = 12
+
+# cell_tallies[world, cell, ...] columns written when an evaluation episode ends
+CELL_LOAD = 0  # payloads received
+CELL_TREATED_AT = 1  # the step it was treated, -1 if never
+CELL_COLUMNS = 2
 
 # curve[episode, ...] columns written by the kernel when an episode ends
 CURVE_STEPS = 0
@@ -171,4 +222,5 @@ CURVE_REACHED = 1
 CURVE_RETURN = 2
 CURVE_COLLISIONS = 3
 CURVE_ROBOT_STEPS = 4
-CURVE_COLUMNS = 5
+CURVE_TREATED = 5  # cells treated by the episode's end
+CURVE_COLUMNS = 6

@@ -13,6 +13,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from nanonav.engine.contacts import CellList, first_within, relist
 from nanonav.engine.state import KernelParams, Swarm, World
 from nanonav.scenario import Scenario, ScenarioError
 
@@ -52,12 +53,20 @@ def _clear(point: NDArray[np.float64], others: NDArray[np.float64], distance: fl
 
 
 @njit(cache=True, error_model="numpy")
-def draw_world(p: KernelParams, rng: np.random.Generator, w: World, s: Swarm) -> int:
+def draw_world(
+    p: KernelParams, rng: np.random.Generator, w: World, s: Swarm, near: CellList,
+    everyone: NDArray[np.bool_],
+) -> int:  # fmt: skip
     """Draw cells, robot starts and headings, obstacles clear of both, and emitter offsets, in
-    place. Returns 0; ``NO_ROOM_FOR_ROBOTS``; or 1 + the index of an obstacle with no room."""
+    place; with exclusion, robots start apart, listed in ``near`` as they are placed. Returns
+    0; ``NO_ROOM_FOR_ROBOTS``; or 1 + the index of an obstacle with no room."""
     half = p.half
     for j in range(w.cells.shape[0]):
         _uniform(rng, w.cells[j], -p.cell_extent * half, p.cell_extent * half)
+    if p.exclusion:
+        near.heads[:] = -1
+        near.cell[:] = -1
+        near.next[:] = -1
     for i in range(s.pos.shape[0]):
         for attempt in range(PLACEMENT_ATTEMPTS + 1):
             if attempt == PLACEMENT_ATTEMPTS:
@@ -66,8 +75,16 @@ def draw_world(p: KernelParams, rng: np.random.Generator, w: World, s: Swarm) ->
                 _uniform(rng, s.pos[i], -half, -0.5 * half)
             else:
                 _uniform(rng, s.pos[i], -ROBOT_EXTENT * half, ROBOT_EXTENT * half)
-            if _clear(s.pos[i], w.cells, 2.0 * p.reach_distance):
+            if _clear(s.pos[i], w.cells, 2.0 * p.reach_distance) and (
+                not p.exclusion
+                or first_within(
+                    near, s.pos, everyone, s.pos[i, 0], s.pos[i, 1], s.pos[i, 2], p.contact, i
+                )
+                < 0
+            ):
                 break
+        if p.exclusion:
+            relist(near, i, s.pos[i, 0], s.pos[i, 1], s.pos[i, 2])
         n = 0.0
         while n < 1e-12:
             for a in range(3):

@@ -122,12 +122,12 @@ def test_out_writes_the_qtable_picture_only_for_a_policy_that_learns_a_table(
 def test_invalid_scenario_exits_2_naming_each_field(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    path = write_scenario(tmp_path, {"robots": {"count": 20_000}, "learning": {"alpha": 0}})
+    path = write_scenario(tmp_path, {"robots": {"count": 200_000}, "learning": {"alpha": 0}})
     assert cli.main(["run", "--scenario", path]) == 2
     out, err = capsys.readouterr()
     assert out == ""
     assert err.splitlines() == [
-        "nanonav run: robots.count: Input should be less than or equal to 10000",
+        "nanonav run: robots.count: Input should be less than or equal to 100000",
         "nanonav run: learning.alpha: Input should be greater than 0",
     ]
 

@@ -68,10 +68,12 @@ def test_points_outside_the_grid_are_still_found() -> None:
 
 
 def test_the_grid_is_sized_by_the_cutoff_and_the_step_and_capped() -> None:
-    grid = contacts.grid_for(10.0, 1.0, 1.0, 5)
+    grid = contacts.grid_for(10.0, 1.0, 1.0, 5000)
     assert grid.width >= 2.0 and grid.dims == 10
-    fine = contacts.grid_for(1000.0, 0.001, 0.0, 5)
+    fine = contacts.grid_for(1000.0, 0.001, 0.0, 10**7)
     assert fine.dims == contacts.MAX_CELLS_PER_AXIS  # wider cells, never too many
+    few = contacts.grid_for(1000.0, 0.001, 0.0, 5)
+    assert few.dims**3 <= 8 * contacts.CELLS_PER_ROBOT * 5  # a few robots, a few cells
     for bad in ((0.0, 1.0, 0.0), (1.0, -1.0, 0.0), (1.0, 1.0, -0.5)):
         with pytest.raises(ValueError):
             contacts.grid_for(*bad, 5)

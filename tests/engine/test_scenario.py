@@ -54,7 +54,7 @@ def test_a_resolved_scenario_round_trips() -> None:
     ("data", "field"),
     [
         ({"robots": {"count": 0}}, "robots.count"),
-        ({"robots": {"count": 10_001}}, "robots.count"),
+        ({"robots": {"count": 100_001}}, "robots.count"),
         ({"robots": {"policy": "teleport"}}, "robots.policy"),
         ({"biomarker": {"model": "laplace"}}, "biomarker.model"),
         ({"biomarker": {"spread": -1}}, "biomarker.spread"),
