@@ -2,8 +2,12 @@
 robots under each field model, beside a naive per-robot Python loop of the same physics, measured
 in the same run so that every ratio compares like with like.
 
-    python benchmarks/engine.py            # the full table (about two minutes)
+    python benchmarks/engine.py            # the full tables (about four minutes)
     python benchmarks/engine.py --quick    # a smoke run with small workloads
+
+The third table is the swarm's: robots that take up space (exclusion), and exclusion with
+signalling (an attractant and a repellent on the grid, or broadcast), from 100 to 100,000
+robots at the same density (the cube grows with the swarm), 20 cells that can be treated.
 
 Scenario: 2 cells x 50 emitters, 10 obstacles, q_learning with the paper's behaviours, 1,000-step
 episodes. Figures are medians over repeats; ``engine_s`` excludes numba's start-up.
@@ -29,6 +33,16 @@ SWARMS = (1, 15, 100, 1000)
 # Targets on one core: absolute at 1,000 robots, ratios to the naive loop at 15 and 1.
 TARGET_RATE_1000 = 1_000_000
 TARGET_RATIO = {15: 300, 1: 50}
+# The swarm's targets: 1 M robot-steps/s at 10,000 robots with exclusion; within a factor of 2
+# from 1,000 to 100,000 robots (the cost per robot-step does not grow with the swarm).
+SWARM_SIZES = (100, 1_000, 10_000, 100_000)
+TARGET_SWARM_RATE = 1_000_000
+TARGET_SWARM_SPREAD = 2.0
+SWARM_CONFIGS = {
+    "exclusion": {},
+    "exclusion + attractant_repellent": {"communication": {"model": "attractant_repellent"}},
+    "exclusion + broadcast": {"communication": {"model": "broadcast"}},
+}
 
 
 def bench_scenario(model: str, robots: int, robot_steps: int) -> Scenario:
@@ -59,6 +73,25 @@ def brownian_scenario(policy: str, robots: int, robot_steps: int) -> Scenario:
             "robots": {"count": robots, "policy": policy},
             "learning": {"episodes": episodes, "max_steps": 1000},
             "evaluation": {"worlds": 1},
+        }
+    )
+
+
+def swarm_scenario(config: str, robots: int, robot_steps: int) -> Scenario:
+    """Q-learning robots (the paper's behaviours, a shared table) that take up space, in a
+    cube whose volume grows with the swarm (50 units a side at 1,000 robots), 20 cells each
+    treated by a fortieth of the swarm, 100-step episodes."""
+    size = min(1000.0, 50.0 * (robots / 1000) ** (1 / 3))
+    episodes = max(1, robot_steps // (robots * 100))
+    return Scenario.model_validate(
+        {
+            "space": {"size": size},
+            "cells": {"count": 20, "capacity": max(1, robots // 40)},
+            "obstacles": {"count": 10},
+            "robots": {"count": robots, "policy": "q_learning", "exclusion": True},
+            "learning": {"episodes": episodes, "max_steps": 100},
+            "evaluation": {"worlds": 1},
+            **SWARM_CONFIGS[config],
         }
     )
 
@@ -118,9 +151,33 @@ def main(argv: list[str] | None = None) -> int:
             if robots == 1000:
                 verdicts.append((label, robots, "rate", rate, TARGET_RATE_1000))
     print()
+    print(f"{'the swarm':<34}{'robots':>7}{'engine rs/s':>14}")
+    print("-" * 55)
+    sizes = [n for n in swarms if n in SWARM_SIZES] or list(SWARM_SIZES)
+    spreads: list[tuple[str, float]] = []
+    if args.quick:
+        sizes = [n for n in sizes if n <= 10_000]
+    for config in SWARM_CONFIGS:
+        rates = {}
+        for robots in sizes:
+            load = max(workload, 20 * robots * 100)
+            rate, _ = engine_rate(swarm_scenario(config, robots, load), repeats)
+            rates[robots] = rate
+            print(f"{config:<34}{robots:>7}{rate:>14,.0f}")
+            if robots == 10_000 and config == "exclusion":
+                verdicts.append((config, robots, "rate", rate, TARGET_SWARM_RATE))
+        if 1_000 in rates and 100_000 in rates:
+            spread = max(rates[1_000], rates[100_000]) / min(rates[1_000], rates[100_000])
+            print(f"{'':<34}{'1,000 vs 100,000: x':>21}{spread:.2f}")
+            spreads.append((config, spread))
+    print()
     for model, robots, kind, value, target in verdicts:
         status = "meets" if value >= target else "BELOW"
         print(f"{status} target: {model}, {robots} robots, {kind} {value:,.0f} vs {target:,}")
+    for config, spread in spreads:
+        status = "meets" if spread <= TARGET_SWARM_SPREAD else "BELOW"
+        print(f"{status} target: {config}, 1,000 to 100,000 robots within x{spread:.2f} "
+              f"(at most x{TARGET_SWARM_SPREAD:g})")  # fmt: skip
     return 0
 
 

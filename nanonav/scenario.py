@@ -26,6 +26,7 @@ PresetName = Literal[
     "tumour-microswimmers",
     "tumour-nanorobots",
     "tumour-passive",
+    "diffuse-tumour",
 ]
 FieldModel = Literal["gaussian", "inverse_square", "diffusion", "sampled_gaussian"]
 RobotStart = Literal["anywhere", "corner"]
@@ -818,7 +819,12 @@ class Scenario(_Part):
         "and s): 'tumour-microswimmers', one tumour cell (7.5 um) among 40 tissue obstacles "
         "(5 um) in a 150 um cube, 20 robots of 1 um swimming at 10 um/s that sense a cell by "
         "touching it, 60 s; 'tumour-nanorobots', the same with robots of 0.2 um; "
-        "'tumour-passive', robots of 1 um that do not swim (uncontrolled, speed 0).",
+        "'tumour-passive', robots of 1 um that do not swim (uncontrolled, speed 0). The "
+        "swarm's: 'diffuse-tumour', 20 small cells that each need 3 payloads, scattered through "
+        "a 100-unit cube, each shedding a faint, short-range marker (spread 3, a noise floor "
+        "and a detection threshold), among 20 drifting obstacles; 100 robots that take up space "
+        "and follow 'rule'; cells sensed within 2 units; 1,000 steps. Set "
+        "communication.model to let them signal.",
     )
     seed: int = Field(
         0,
@@ -943,11 +949,15 @@ class Scenario(_Part):
             return self
         radius = self.robot_radius
         volume = self.robots.count * 4.0 / 3.0 * math.pi * radius**3
-        if volume > MAX_ROBOT_VOLUME_FRACTION * self.space.size**3:
+        corner = self.robots.start == "corner"
+        # robots start in the corner octant (a quarter of the side each way), or anywhere
+        room = (self.space.size / 4 if corner else self.space.size) ** 3
+        if volume > MAX_ROBOT_VOLUME_FRACTION * room:
+            where = "the corner they start in" if corner else "the space"
             raise _field_error(
                 "Scenario", ("robots", "count"), self.robots.count,
                 f"robots of radius {radius:g} that take up space would fill more than "
-                f"{MAX_ROBOT_VOLUME_FRACTION:.0%} of the space",
+                f"{MAX_ROBOT_VOLUME_FRACTION:.0%} of {where}",
             )  # fmt: skip
         return self
 
@@ -1181,6 +1191,16 @@ TUMOUR: dict[str, Any] = {
     "obstacles": {"count": 40, "radius": 5.0},
     "robots": {"count": 20, "cell_sensing_radius": 0.0},
 }
+# The swarm's world (lattice units and steps): see the README's "A swarm that is a swarm".
+DIFFUSE_TUMOUR: dict[str, Any] = {
+    "space": {"size": 100.0},
+    "cells": {"count": 20, "motion_std": 0.05, "start_extent": 0.9, "capacity": 3},
+    "biomarker": {"spread": 3.0, "noise_floor": 0.005, "detection_threshold": 0.01},
+    "obstacles": {"count": 20, "motion_std": 0.05},
+    "robots": {"count": 100, "policy": "rule", "exclusion": True, "cell_sensing_radius": 2.0},
+    "learning": {"max_steps": 1000},
+}
+PRESETS["diffuse-tumour"] = DIFFUSE_TUMOUR
 PRESETS.update(
     {
         "tumour-microswimmers": TUMOUR,

@@ -38,6 +38,9 @@ TRAJECTORY_KEYS = (
     "distance",
     "headings",  # the active Brownian physics only
     "sensed",
+    "cell_loads",  # the swarm
+    "delivered_to",
+    "signals",  # with a communication model only
     "robot_steps",
     "reached",
     "emitter_offsets",

@@ -27,8 +27,7 @@ from nanonav.engine.state import (
     ACTIVE_BROWNIAN,
     ATTRACTANT_REPELLENT,
     KernelParams,
-    Swarm,
-    World,
+    Social,
 )
 
 ATTRACTANT_SPECIES = 0
@@ -43,23 +42,25 @@ MESSAGE = 1  # broadcast: a message is waiting
 
 
 @njit(cache=True, error_model="numpy")
-def update_field(p: KernelParams, w: World, s: Swarm, grid: NDArray[np.float64],
-                 scratch: NDArray[np.float64]) -> None:  # fmt: skip
+def update_field(
+    p: KernelParams, pos: NDArray[np.float64], bound_to: NDArray[np.int64],
+    treated_at: NDArray[np.int64], grid: NDArray[np.float64], scratch: NDArray[np.float64],
+) -> None:  # fmt: skip
     """One update of the grid (``signal_every`` engine steps, in ``signal_substeps`` solver
     steps): every bound robot releases what it releases in that time, then each species
     diffuses and decays."""
     amount = p.signal_release * p.signal_every
     released = False
-    for i in range(s.pos.shape[0]):
-        cell = s.bound_to[i]
+    for i in range(pos.shape[0]):
+        cell = bound_to[i]
         if cell < 0:
             continue
         species = ATTRACTANT_SPECIES
-        if p.signal == ATTRACTANT_REPELLENT and w.treated_at[cell] >= 0:
+        if p.signal == ATTRACTANT_REPELLENT and treated_at[cell] >= 0:
             species = REPELLENT_SPECIES
         signals.release(
             grid, p.signal_origin, p.signal_spacing, p.signal_dims, species,
-            s.pos[i, 0], s.pos[i, 1], s.pos[i, 2], amount,
+            pos[i, 0], pos[i, 1], pos[i, 2], amount,
         )  # fmt: skip
         released = True
     dt = p.signal_every / p.signal_substeps
@@ -145,44 +146,47 @@ def received(p: KernelParams, net: float, prev: float) -> int:
 
 @njit(cache=True, error_model="numpy")
 def broadcast(
-    p: KernelParams, s: Swarm, radio: CellList, found: NDArray[np.int64], sender: int
-) -> None:
+    p: KernelParams, pos: NDArray[np.float64], active: NDArray[np.bool_], so: Social,
+    radio: CellList, found: NDArray[np.int64], sender: int,
+) -> None:  # fmt: skip
     """``sender`` reached a cell: every active robot within ``broadcast_range`` of it keeps its
     position unless it holds a nearer message."""
-    x = s.pos[sender, 0]
-    y = s.pos[sender, 1]
-    z = s.pos[sender, 2]
-    k = each_within(radio, s.pos, x, y, z, p.broadcast_range, found)
+    x = pos[sender, 0]
+    y = pos[sender, 1]
+    z = pos[sender, 2]
+    k = each_within(radio, pos, x, y, z, p.broadcast_range, found)
     for n in range(k):
         j = found[n]
-        if j == sender or not s.active[j]:
+        if j == sender or not active[j]:
             continue
-        dx = x - s.pos[j, 0]
-        dy = y - s.pos[j, 1]
-        dz = z - s.pos[j, 2]
+        dx = x - pos[j, 0]
+        dy = y - pos[j, 1]
+        dz = z - pos[j, 2]
         d2 = dx * dx + dy * dy + dz * dz
-        if s.has_message[j]:
-            ox = s.message[j, 0] - s.pos[j, 0]
-            oy = s.message[j, 1] - s.pos[j, 1]
-            oz = s.message[j, 2] - s.pos[j, 2]
+        if so.has_message[j]:
+            ox = so.message[j, 0] - pos[j, 0]
+            oy = so.message[j, 1] - pos[j, 1]
+            oz = so.message[j, 2] - pos[j, 2]
             if ox * ox + oy * oy + oz * oz <= d2:
                 continue
-        s.has_message[j] = True
-        s.message[j, 0] = x
-        s.message[j, 1] = y
-        s.message[j, 2] = z
+        so.has_message[j] = True
+        so.message[j, 0] = x
+        so.message[j, 1] = y
+        so.message[j, 2] = z
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def toward_message(p: KernelParams, s: Swarm, i: int, arrived: float) -> tuple[float, float, float]:
+def toward_message(
+    p: KernelParams, pos: NDArray[np.float64], so: Social, i: int, arrived: float
+) -> tuple[float, float, float]:
     """Robot ``i``'s way to the message it holds (zero if none), which it drops once within
     ``arrived`` of the position it was sent."""
-    if not s.has_message[i]:
+    if not so.has_message[i]:
         return 0.0, 0.0, 0.0
-    dx = s.message[i, 0] - s.pos[i, 0]
-    dy = s.message[i, 1] - s.pos[i, 1]
-    dz = s.message[i, 2] - s.pos[i, 2]
+    dx = so.message[i, 0] - pos[i, 0]
+    dy = so.message[i, 1] - pos[i, 1]
+    dz = so.message[i, 2] - pos[i, 2]
     if math.sqrt(dx * dx + dy * dy + dz * dz) <= arrived:
-        s.has_message[i] = False
+        so.has_message[i] = False
         return 0.0, 0.0, 0.0
     return dx, dy, dz

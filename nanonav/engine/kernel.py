@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 
 from nanonav.engine import communication as radio_room
 from nanonav.engine import treatment
-from nanonav.engine.contacts import CellList, rebuild, relist
+from nanonav.engine.contacts import CellList, first_within, rebuild, relist
 from nanonav.engine.dynamics import brownian
 from nanonav.engine.dynamics.lattice import (
     _move_cells,
@@ -89,7 +89,9 @@ from nanonav.engine.state import (
     KernelParams,
     Learner,
     Recording,
+    Social,
     Swarm,
+    Treatment,
     World,
 )
 from nanonav.engine.world import draw_world
@@ -97,8 +99,9 @@ from nanonav.engine.world import draw_world
 
 @njit(cache=True, error_model="numpy")
 def observe(
-    p: KernelParams, w: World, s: Swarm, rec: Recording, t: int, final: bool, record: bool
-) -> None:
+    p: KernelParams, w: World, s: Swarm, so: Social, tr: Treatment, rec: Recording, t: int,
+    final: bool, record: bool,
+) -> None:  # fmt: skip
     """Measure the true field and distance at every robot after step ``t`` and add them to the
     per-robot sums of robots still moving at ``t``; if ``record``, store a history row every
     ``record_stride`` steps (and for the ``final`` step). Obstacles that do not move have one
@@ -108,7 +111,7 @@ def observe(
     if final and not on_row:
         row += 1
     keep = record and (on_row or final)
-    _sense_all(p, w, s, np.ones(s.pos.shape[0], dtype=np.bool_))
+    _sense_all(p, w, s, tr, np.ones(s.pos.shape[0], dtype=np.bool_))
     for i in range(s.pos.shape[0]):
         c = s.reading[i]
         d = _nearest(w.cells, s.pos[i, 0], s.pos[i, 1], s.pos[i, 2])[1]
@@ -120,7 +123,7 @@ def observe(
             rec.conc[row, i] = c
             rec.dist[row, i] = d
             if rec.signal.shape[0]:
-                rec.signal[row, i] = s.signal[i]
+                rec.signal[row, i] = so.signal[i]
             if rec.sensed.shape[0]:
                 rec.sensed[row, i] = s.sensed[i]
                 rec.heading[row, i, 0] = s.heading[i, 0]
@@ -129,7 +132,7 @@ def observe(
     if keep:
         rec.pos[row] = s.pos
         rec.cells[row] = w.cells
-        rec.load[row] = w.load
+        rec.load[row] = tr.load
         if p.obstacle_std > 0.0:
             rec.obstacles[row] = w.obstacles
         elif t == 0:
@@ -140,7 +143,8 @@ def observe(
 @njit(cache=True, error_model="numpy")
 def _begin_episode(
     p: KernelParams, world_rng: np.random.Generator, rng: np.random.Generator, w: World,
-    s: Swarm, rec: Recording, evaluating: bool, record: bool, near: CellList, radio: CellList,
+    s: Swarm, so: Social, tr: Treatment, rec: Recording, evaluating: bool, record: bool,
+    near: CellList, radio: CellList,
     everyone: NDArray[np.bool_], sig: NDArray[np.float64],
 ) -> int:  # fmt: skip
     """Reset the swarm, the cells' loads and the signals, and draw a fresh world; returns
@@ -158,14 +162,14 @@ def _begin_episode(
     s.sum_conc[:] = 0.0
     s.sum_dist[:] = 0.0
     s.last_dist[:] = 0.0
-    s.bound_to[:] = -1
-    s.bumps[:] = 0
-    s.signal[:] = 0.0
-    s.prev_signal[:] = 0.0
-    s.has_message[:] = False
-    w.treated_sources[0] = 0
-    w.load[:] = 0
-    w.treated_at[:] = -1
+    so.bound_to[:] = -1
+    so.bumps[:] = 0
+    so.signal[:] = 0.0
+    so.prev_signal[:] = 0.0
+    so.has_message[:] = False
+    tr.treated_sources[0] = 0
+    tr.load[:] = 0
+    tr.treated_at[:] = -1
     sig[:] = 0.0
     status = draw_world(p, world_rng, w, s, near, everyone)
     if status == 0 and p.signal == BROADCAST:
@@ -177,29 +181,31 @@ def _begin_episode(
         if record:
             rec.offsets[:] = w.offsets
         if evaluating:
-            observe(p, w, s, rec, 0, False, record)
+            observe(p, w, s, so, tr, rec, 0, False, record)
     return status
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _over(p: KernelParams, w: World, s: Swarm, t: int) -> bool:
+def _over(p: KernelParams, tr: Treatment, s: Swarm, t: int) -> bool:
     """The episode is over at the step limit, when every robot has delivered, or when every
     cell is treated."""
     if t >= p.max_steps or not s.active.any():
         return True
-    return p.capacity > 0 and treatment.untreated(w) == 0
+    return p.capacity > 0 and treatment.untreated(tr.treated_at) == 0
 
 
 @njit(cache=True, error_model="numpy")
-def _evaluated(s: Swarm, w: World, out: NDArray[np.float64], cells: NDArray[np.int64]) -> None:
+def _evaluated(
+    s: Swarm, so: Social, tr: Treatment, out: NDArray[np.float64], cells: NDArray[np.int64]
+) -> None:
     """Every robot's tallies of an evaluation episode that has ended, into ``out[robot]``, and
     every cell's into ``cells[cell]``."""
-    for j in range(w.load.shape[0]):
-        cells[j, CELL_LOAD] = w.load[j]
-        cells[j, CELL_TREATED_AT] = w.treated_at[j]
+    for j in range(tr.load.shape[0]):
+        cells[j, CELL_LOAD] = tr.load[j]
+        cells[j, CELL_TREATED_AT] = tr.treated_at[j]
     for i in range(s.pos.shape[0]):
-        out[i, EV_CELL] = s.bound_to[i]
-        out[i, EV_BUMPS] = s.bumps[i]
+        out[i, EV_CELL] = so.bound_to[i]
+        out[i, EV_BUMPS] = so.bumps[i]
         out[i, EV_STEPS] = s.steps[i]
         out[i, EV_REACHED] = 0.0 if s.active[i] else 1.0
         out[i, EV_FINAL_DISTANCE] = s.last_dist[i]
@@ -224,6 +230,8 @@ def run(
     rng: np.random.Generator,
     w: World,
     s: Swarm,
+    so: Social,
+    tr: Treatment,
     lrn: Learner,
     rec: Recording,
     counters: NDArray[np.int64],
@@ -259,11 +267,12 @@ def run(
         if t == 0:
             if evaluating:
                 status = _begin_episode(
-                    p, evaluation_rng, rng, w, s, rec, True, record, near, radio, everyone, sig
+                    p, evaluation_rng, rng, w, s, so, tr, rec, True, record, near, radio, everyone,
+                    sig,
                 )  # fmt: skip
             else:
                 status = _begin_episode(
-                    p, world_rng, rng, w, s, rec, False, False, near, radio, everyone, sig
+                    p, world_rng, rng, w, s, so, tr, rec, False, False, near, radio, everyone, sig
                 )  # fmt: skip
             if status != 0:
                 counters[LAYOUT_STATUS] = status
@@ -271,16 +280,16 @@ def run(
         spent = counters[ROBOT_STEPS]
         if p.physics == ACTIVE_BROWNIAN:
             t = _swim_steps(
-                p, eps, learn, evaluating, record, rng, w, s, lrn, rec, t, budget, counters,
+                p, eps, learn, evaluating, record, rng, w, s, so, tr, lrn, rec, t, budget, counters,
                 near, radio, everyone, found, sig, sig_scratch,
             )  # fmt: skip
         else:
             t = _run_steps(
-                p, eps, learn, evaluating, record, rng, w, s, lrn, rec, t, budget, counters,
+                p, eps, learn, evaluating, record, rng, w, s, so, tr, lrn, rec, t, budget, counters,
                 near, radio, everyone, found, sig, sig_scratch,
             )  # fmt: skip
         budget -= counters[ROBOT_STEPS] - spent
-        if not _over(p, w, s, t):
+        if not _over(p, tr, s, t):
             continue
         reached = 0
         for i in range(s.pos.shape[0]):
@@ -291,10 +300,10 @@ def run(
         curve[episode, CURVE_RETURN] = s.returns.sum()
         curve[episode, CURVE_COLLISIONS] = s.collisions.sum()
         curve[episode, CURVE_ROBOT_STEPS] = counters[ROBOT_STEPS] - counters[EPISODE_START]
-        curve[episode, CURVE_TREATED] = w.treated_at.shape[0] - treatment.untreated(w)
+        curve[episode, CURVE_TREATED] = tr.treated_at.shape[0] - treatment.untreated(tr.treated_at)
         counters[EPISODE_START] = counters[ROBOT_STEPS]
         if evaluating:
-            _evaluated(s, w, evaluation[episode - training], cell_tallies[episode - training])
+            _evaluated(s, so, tr, evaluation[episode - training], cell_tallies[episode - training])
         episode += 1
         t = 0
         if episode == training:
@@ -313,6 +322,8 @@ def _run_steps(
     rng: np.random.Generator,
     w: World,
     s: Swarm,
+    so: Social,
+    tr: Treatment,
     lrn: Learner,
     rec: Recording,
     t: int,
@@ -350,22 +361,20 @@ def _run_steps(
             _redraw_emitters(p, rng, w)
         place_sources(p.model, w.cells, w.offsets, w.sx, w.sy, w.sz)
         if p.capacity > 0:
-            w.treated_sources[0] = place_treated(
-                p.model, w.cells, w.offsets, w.treated_at, w.tx, w.ty, w.tz
+            tr.treated_sources[0] = place_treated(
+                p.model, w.cells, w.offsets, tr.treated_at, tr.tx, tr.ty, tr.tz
             )  # fmt: skip
         if p.signal != NO_SIGNAL and p.signal != BROADCAST and t % p.signal_every == 0:
-            radio_room.update_field(p, w, s, sig, sig_scratch)
-        _sense_all(p, w, s, s.active)
+            radio_room.update_field(p, s.pos, so.bound_to, tr.treated_at, sig, sig_scratch)
+        _sense_all(p, w, s, tr, s.active)
         for i in range(n):
             if not s.active[i]:
                 continue
-            if p.capacity > 0 and treatment.untreated(w) == 0:
-                break  # every cell is treated: the episode ends with this step
             table = 0 if p.shared else i
             px = s.pos[i, 0]
             py = s.pos[i, 1]
             pz = s.pos[i, 2]
-            cell, cell_d = treatment.nearest_target(w.cells, w.treated_at, px, py, pz)
+            cell, cell_d = treatment.nearest_target(w.cells, tr.treated_at, px, py, pz)
             if cell_d <= p.reach_distance:
                 # a drifting cell came within reach: the robot spends this step receiving it.
                 # Unless its last heading pointed at the cell, the cell found the robot (a
@@ -385,9 +394,9 @@ def _run_steps(
                     )  # fmt: skip
                 s.pending[i] = False
                 s.active[i] = False
-                treatment.deliver(p, w, s, i, cell, t + 1)
+                treatment.deliver(p, tr, so, i, cell, t + 1)
                 if p.signal == BROADCAST:
-                    radio_room.broadcast(p, s, radio, found, i)
+                    radio_room.broadcast(p, s.pos, s.active, so, radio, found, i)
                 continue
             c, gx, gy, gz = _sense(p, rng, s, i)
             # what the robot receives: the net signal and its gradient, or a message's way
@@ -397,15 +406,15 @@ def _run_steps(
             uz = 0.0
             if p.signal == BROADCAST:
                 ux, uy, uz = radio_room.toward_message(
-                    p, s, i, max(p.cell_sensing_radius, p.speed)
+                    p, s.pos, so, i, max(p.cell_sensing_radius, p.speed)
                 )  # fmt: skip
-                heard = 1 if s.has_message[i] else 0
-                s.signal[i] = heard
+                heard = 1 if so.has_message[i] else 0
+                so.signal[i] = heard
             elif p.signal != NO_SIGNAL:
                 net, ux, uy, uz = radio_room.receive(p, rng, sig, px, py, pz)
-                heard = radio_room.received(p, net, s.prev_signal[i])
-                s.prev_signal[i] = net
-                s.signal[i] = net
+                heard = radio_room.received(p, net, so.prev_signal[i])
+                so.prev_signal[i] = net
+                so.signal[i] = net
 
             # one call site for the behaviours, whoever chooses them: the compiled loop stays small
             behavior = NO_BEHAVIOR
@@ -447,25 +456,46 @@ def _run_steps(
                 )
             s.prev_conc[i] = c
 
-            nx, ny, nz, blocked = _move_robot(
-                p, w, s, i, px, py, pz, dx, dy, dz, step, near, everyone
-            )  # fmt: skip
+            hx = s.heading[i, 0]
+            hy = s.heading[i, 1]
+            hz = s.heading[i, 2]
+            path = s.path_length[i]
+            nx, ny, nz, blocked = _move_robot(p, w, s, i, px, py, pz, dx, dy, dz, step)
+            if p.exclusion and not blocked:
+                if first_within(near, s.pos, everyone, nx, ny, nz, p.contact, i) >= 0:
+                    # another robot is in the way: the move is refused, a bump
+                    so.bumps[i] += 1
+                    blocked = True
+                    s.path_length[i] = path
+                    s.heading[i, 0] = hx
+                    s.heading[i, 1] = hy
+                    s.heading[i, 2] = hz
+                    nx = px
+                    ny = py
+                    nz = pz
+                    s.pos[i, 0] = px
+                    s.pos[i, 1] = py
+                    s.pos[i, 2] = pz
+                else:
+                    relist(near, i, nx, ny, nz)
             if p.signal == BROADCAST and not blocked:
                 relist(radio, i, nx, ny, nz)
             reward = p.reward_step
             if blocked:
                 reward += p.reward_collision
             s.steps[i] += 1
-            target, new_d = treatment.nearest_target(w.cells, w.treated_at, nx, ny, nz)
-            # paper 2.7: +approach per unit moved toward the source, +reach on arrival
-            reward += p.reward_approach * (cell_d - new_d)
+            target, new_d = treatment.nearest_target(w.cells, tr.treated_at, nx, ny, nz)
+            # paper 2.7: +approach per unit moved toward the source, +reach on arrival (no
+            # approach once every cell is treated: the episode ends with this step)
+            if cell >= 0 and target >= 0:
+                reward += p.reward_approach * (cell_d - new_d)
             reached = new_d <= p.reach_distance
             if reached:
                 reward += p.reward_reach
                 s.active[i] = False
-                treatment.deliver(p, w, s, i, target, t + 1)
+                treatment.deliver(p, tr, so, i, target, t + 1)
                 if p.signal == BROADCAST:
-                    radio_room.broadcast(p, s, radio, found, i)
+                    radio_room.broadcast(p, s.pos, s.active, so, radio, found, i)
             s.returns[i] += reward
             if learn:
                 if reached:
@@ -479,34 +509,37 @@ def _run_steps(
                     s.last_reward[i] = reward
         t += 1
         if evaluating:
-            observe(p, w, s, rec, t, False, record)
-    if _over(p, w, s, t):
+            observe(p, w, s, so, tr, rec, t, False, record)
+        if p.capacity > 0 and treatment.untreated(tr.treated_at) == 0:
+            break  # every cell is treated: the episode is over
+    if _over(p, tr, s, t):
         if learn:
-            _finish_episode(p, rng, w, s, lrn, sig)
+            _finish_episode(p, rng, w, s, so, tr, lrn, sig)
         if record and t % p.record_stride:
-            observe(p, w, s, rec, t, True, record)
+            observe(p, w, s, so, tr, rec, t, True, record)
     return t
 
 
 @njit(cache=True, error_model="numpy")
 def _heard(
-    p: KernelParams, rng: np.random.Generator, s: Swarm, sig: NDArray[np.float64], i: int
-) -> int:
+    p: KernelParams, rng: np.random.Generator, s: Swarm, so: Social, sig: NDArray[np.float64],
+    i: int,
+) -> int:  # fmt: skip
     """What robot ``i`` receives where it ended (the state's 'signal'), for the last bootstrap."""
     if p.signal == BROADCAST:
-        return 1 if s.has_message[i] else 0
+        return 1 if so.has_message[i] else 0
     net = radio_room.receive(p, rng, sig, s.pos[i, 0], s.pos[i, 1], s.pos[i, 2])[0]
-    return radio_room.received(p, net, s.prev_signal[i])
+    return radio_room.received(p, net, so.prev_signal[i])
 
 
 @njit(cache=True, error_model="numpy")
 def _finish_episode(
-    p: KernelParams, rng: np.random.Generator, w: World, s: Swarm, lrn: Learner,
-    sig: NDArray[np.float64],
+    p: KernelParams, rng: np.random.Generator, w: World, s: Swarm, so: Social, tr: Treatment,
+    lrn: Learner, sig: NDArray[np.float64],
 ) -> None:  # fmt: skip
     """Bootstrap the last transition of every robot the step limit stopped (not terminal)."""
     place_sources(p.model, w.cells, w.offsets, w.sx, w.sy, w.sz)
-    _sense_all(p, w, s, s.pending)
+    _sense_all(p, w, s, tr, s.pending)
     for i in range(s.pos.shape[0]):
         if not s.pending[i]:
             continue
@@ -516,10 +549,10 @@ def _finish_episode(
         pz = s.pos[i, 2]
         c, gx, gy, gz = _sense(p, rng, s, i)
         gap = _nearest_obstacle(w.obstacles, p.obstacle_radius, px, py, pz)[1]
-        cell_d = treatment.nearest_target(w.cells, w.treated_at, px, py, pz)[1]
+        cell_d = treatment.nearest_target(w.cells, tr.treated_at, px, py, pz)[1]
         state = _state(p, c, s.prev_conc[i], gx, gy, gz, gap, cell_d)
         if p.signal != NO_SIGNAL:
-            state = state * p.signal_states + _heard(p, rng, s, sig, i)
+            state = state * p.signal_states + _heard(p, rng, s, so, sig, i)
         _learn_bootstrapped(
             p, lrn.q, lrn.visits, table, s.last_state[i], s.last_action[i], s.last_reward[i],
             state,
@@ -537,6 +570,8 @@ def _swim_steps(
     rng: np.random.Generator,
     w: World,
     s: Swarm,
+    so: Social,
+    tr: Treatment,
     lrn: Learner,
     rec: Recording,
     t: int,
@@ -566,22 +601,20 @@ def _swim_steps(
             _move_cells(p, rng, w)
         place_sources(p.model, w.cells, w.offsets, w.sx, w.sy, w.sz)
         if p.capacity > 0:
-            w.treated_sources[0] = place_treated(
-                p.model, w.cells, w.offsets, w.treated_at, w.tx, w.ty, w.tz
+            tr.treated_sources[0] = place_treated(
+                p.model, w.cells, w.offsets, tr.treated_at, tr.tx, tr.ty, tr.tz
             )  # fmt: skip
         if p.signal != NO_SIGNAL and p.signal != BROADCAST and t % p.signal_every == 0:
-            radio_room.update_field(p, w, s, sig, sig_scratch)
-        _sense_all(p, w, s, s.active)
+            radio_room.update_field(p, s.pos, so.bound_to, tr.treated_at, sig, sig_scratch)
+        _sense_all(p, w, s, tr, s.active)
         for i in range(n):
             if not s.active[i]:
                 continue
-            if p.capacity > 0 and treatment.untreated(w) == 0:
-                break  # every cell is treated: the episode ends with this step
             table = 0 if p.shared else i
             px = s.pos[i, 0]
             py = s.pos[i, 1]
             pz = s.pos[i, 2]
-            cell, cell_d = treatment.nearest_target(w.cells, w.treated_at, px, py, pz)
+            cell, cell_d = treatment.nearest_target(w.cells, tr.treated_at, px, py, pz)
             if cell_d <= p.reach_distance:
                 # a diffusing cell touched the robot: as in _run_steps (written out there too:
                 # a shared function taking the swarm would cost every step its reference counts)
@@ -600,9 +633,9 @@ def _swim_steps(
                     )  # fmt: skip
                 s.pending[i] = False
                 s.active[i] = False
-                treatment.deliver(p, w, s, i, cell, t + 1)
+                treatment.deliver(p, tr, so, i, cell, t + 1)
                 if p.signal == BROADCAST:
-                    radio_room.broadcast(p, s, radio, found, i)
+                    radio_room.broadcast(p, s.pos, s.active, so, radio, found, i)
                 continue
             c = _read(p, rng, s.reading[i])
             s.sensed[i] = c
@@ -618,15 +651,15 @@ def _swim_steps(
             uz = 0.0
             if p.signal == BROADCAST:
                 ux, uy, uz = radio_room.toward_message(
-                    p, s, i, max(p.cell_sensing_radius + p.reach_distance, p.speed)
+                    p, s.pos, so, i, max(p.cell_sensing_radius + p.reach_distance, p.speed)
                 )  # fmt: skip
-                heard = 1 if s.has_message[i] else 0
-                s.signal[i] = heard
+                heard = 1 if so.has_message[i] else 0
+                so.signal[i] = heard
             elif p.signal != NO_SIGNAL:
                 net, ux, uy, uz = radio_room.receive(p, rng, sig, px, py, pz)
-                heard = radio_room.received(p, net, s.prev_signal[i])
-                s.prev_signal[i] = net
-                s.signal[i] = net
+                heard = radio_room.received(p, net, so.prev_signal[i])
+                so.prev_signal[i] = net
+                so.signal[i] = net
             if p.policy == Q_LEARNING:
                 state = _steering_state(p, c, rising, s.blocked[i], sensed)
                 if p.signal != NO_SIGNAL:
@@ -670,7 +703,23 @@ def _swim_steps(
             _steer(p, rng, s, i, action, gx, gy, gz, tx, ty, tz)
             s.prev_conc[i] += p.memory_weight * (c - s.prev_conc[i])
 
-            nx, ny, nz, blocked = brownian.move_robot(p, rng, w, s, i, px, py, pz, near, everyone)
+            path = s.path_length[i]
+            nx, ny, nz, blocked = brownian.move_robot(p, rng, w, s, i, px, py, pz)
+            if p.exclusion and not blocked:
+                if first_within(near, s.pos, everyone, nx, ny, nz, p.contact, i) >= 0:
+                    # hard spheres: a step into another robot is refused, a bump (the heading
+                    # has diffused all the same, as when an obstacle refuses it)
+                    so.bumps[i] += 1
+                    blocked = True
+                    s.path_length[i] = path
+                    nx = px
+                    ny = py
+                    nz = pz
+                    s.pos[i, 0] = px
+                    s.pos[i, 1] = py
+                    s.pos[i, 2] = pz
+                else:
+                    relist(near, i, nx, ny, nz)
             if p.signal == BROADCAST and not blocked:
                 relist(radio, i, nx, ny, nz)
             s.blocked[i] = blocked
@@ -678,15 +727,16 @@ def _swim_steps(
             if blocked:
                 reward += p.reward_collision
             s.steps[i] += 1
-            target, new_d = treatment.nearest_target(w.cells, w.treated_at, nx, ny, nz)
-            reward += p.reward_approach * (cell_d - new_d)  # per um closed
+            target, new_d = treatment.nearest_target(w.cells, tr.treated_at, nx, ny, nz)
+            if cell >= 0 and target >= 0:
+                reward += p.reward_approach * (cell_d - new_d)  # per um closed
             reached = new_d <= p.reach_distance
             if reached:
                 reward += p.reward_reach
                 s.active[i] = False
-                treatment.deliver(p, w, s, i, target, t + 1)
+                treatment.deliver(p, tr, so, i, target, t + 1)
                 if p.signal == BROADCAST:
-                    radio_room.broadcast(p, s, radio, found, i)
+                    radio_room.broadcast(p, s.pos, s.active, so, radio, found, i)
             s.returns[i] += reward
             if learn:
                 if reached:
@@ -699,36 +749,38 @@ def _swim_steps(
                     s.last_reward[i] = reward
         t += 1
         if evaluating:
-            observe(p, w, s, rec, t, False, record)
-    if _over(p, w, s, t):
+            observe(p, w, s, so, tr, rec, t, False, record)
+        if p.capacity > 0 and treatment.untreated(tr.treated_at) == 0:
+            break  # every cell is treated: the episode is over
+    if _over(p, tr, s, t):
         if learn:
-            _finish_swim_episode(p, rng, w, s, lrn, sig)
+            _finish_swim_episode(p, rng, w, s, so, tr, lrn, sig)
         if record and t % p.record_stride:
-            observe(p, w, s, rec, t, True, record)
+            observe(p, w, s, so, tr, rec, t, True, record)
     return t
 
 
 @njit(cache=True, error_model="numpy")
 def _finish_swim_episode(
-    p: KernelParams, rng: np.random.Generator, w: World, s: Swarm, lrn: Learner,
-    sig: NDArray[np.float64],
+    p: KernelParams, rng: np.random.Generator, w: World, s: Swarm, so: Social, tr: Treatment,
+    lrn: Learner, sig: NDArray[np.float64],
 ) -> None:  # fmt: skip
     """``_finish_episode`` in the active Brownian physics: bootstrap the last transition of
     every robot the step limit stopped from the steering state it ended in."""
     place_sources(p.model, w.cells, w.offsets, w.sx, w.sy, w.sz)
-    _sense_all(p, w, s, s.pending)
+    _sense_all(p, w, s, tr, s.pending)
     for i in range(s.pos.shape[0]):
         if not s.pending[i]:
             continue
         table = 0 if p.shared else i
         c = _read(p, rng, s.reading[i])
         cell_d = treatment.nearest_target(
-            w.cells, w.treated_at, s.pos[i, 0], s.pos[i, 1], s.pos[i, 2]
+            w.cells, tr.treated_at, s.pos[i, 0], s.pos[i, 1], s.pos[i, 2]
         )[1]  # fmt: skip
         sensed = cell_d - p.reach_distance <= p.cell_sensing_radius
         state = _steering_state(p, c, c > s.prev_conc[i], s.blocked[i], sensed)
         if p.signal != NO_SIGNAL:
-            state = state * p.signal_states + _heard(p, rng, s, sig, i)
+            state = state * p.signal_states + _heard(p, rng, s, so, sig, i)
         _learn_bootstrapped(
             p, lrn.q, lrn.visits, table, s.last_state[i], s.last_action[i], s.last_reward[i],
             state,

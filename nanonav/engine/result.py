@@ -50,6 +50,12 @@ class Trajectory:
     # it took, with its Berg-Purcell noise (rows, robots), beside the true concentration
     headings: NDArray[np.float64] | None = None
     sensed: NDArray[np.float64] | None = None
+    # the swarm: payloads each cell had received (rows, cells), the cell each robot delivered
+    # to, -1 if none (robots,), and with a communication model the net signal each robot read
+    # (rows, robots); None in results stored before they were recorded
+    cell_loads: NDArray[np.int64] | None = None
+    delivered_to: NDArray[np.int64] | None = None
+    signals: NDArray[np.float64] | None = None
 
     @property
     def length(self) -> int:
@@ -154,6 +160,9 @@ class SimulationResult:
                 stride=int(step[1] - step[0]) if step.shape[0] > 1 else 1,
                 headings=arrays.get("headings"),
                 sensed=arrays.get("sensed"),
+                cell_loads=arrays.get("cell_loads"),
+                delivered_to=arrays.get("delivered_to"),
+                signals=arrays.get("signals"),
             )
         return cls(
             scenario=Scenario.model_validate(document["scenario"]),
@@ -189,6 +198,10 @@ class SimulationResult:
             )
             if t.headings is not None and t.sensed is not None:
                 out.update(headings=t.headings, sensed=t.sensed)
+            for name in ("cell_loads", "delivered_to", "signals"):
+                value = getattr(t, name)
+                if value is not None:
+                    out[name] = value
         if self.qtable is not None:
             out.update(q_values=self.qtable.values, q_visits=self.qtable.visits)
         return out

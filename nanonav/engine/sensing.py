@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 from nanonav.engine.dynamics.brownian import read_counted
 from nanonav.engine.fields import sample_many
 from nanonav.engine.qlearning import SIGN_THRESHOLD
-from nanonav.engine.state import BEHAVIORS, KernelParams, Swarm, World
+from nanonav.engine.state import BEHAVIORS, KernelParams, Swarm, Treatment, World
 
 # Proximity cut-offs, in robot steps: an obstacle surface within 2 steps is 'near', a cell within
 # 3 steps is 'near'.
@@ -26,13 +26,15 @@ CELL_NEAR_STEPS = 3.0
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _sense_all(p: KernelParams, w: World, s: Swarm, wanted: NDArray[np.bool_]) -> None:
+def _sense_all(
+    p: KernelParams, w: World, s: Swarm, tr: Treatment, wanted: NDArray[np.bool_]
+) -> None:
     """The true field and gradient at every ``wanted`` robot, in one pass over the swarm (the
     sources' loop vectorises there, unlike inside the robot loop)."""
     sample_many(
         p.model, w.sx, w.sy, w.sz, p.weight, p.length, p.softening, s.pos, wanted,
-        s.reading, s.reading_grad, w.tx[: w.treated_sources[0]], w.ty[: w.treated_sources[0]],
-        w.tz[: w.treated_sources[0]], p.weight * (1.0 - p.treated_secretion),
+        s.reading, s.reading_grad, tr.tx[: tr.treated_sources[0]], tr.ty[: tr.treated_sources[0]],
+        tr.tz[: tr.treated_sources[0]], p.weight * (1.0 - p.treated_secretion),
     )  # fmt: skip
 
 

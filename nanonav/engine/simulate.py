@@ -19,7 +19,15 @@ from nanonav.engine import contacts, fields, kernel, metrics, qlearning, signals
 from nanonav.engine.dynamics import brownian
 from nanonav.engine.dynamics.brownian import heading_kick_scale
 from nanonav.engine.result import QTable, SimulationResult, Trajectory
-from nanonav.engine.state import KernelParams, Learner, Recording, Swarm, World
+from nanonav.engine.state import (
+    KernelParams,
+    Learner,
+    Recording,
+    Social,
+    Swarm,
+    Treatment,
+    World,
+)
 from nanonav.engine.world import (
     DYNAMICS_STREAM,
     EVALUATION_STREAM,
@@ -264,10 +272,13 @@ def obstacles_move(scenario: Scenario) -> bool:
 def history_row_bytes(scenario: Scenario) -> int:
     """Bytes of one history row: per robot a position (3 floats), the concentration and the
     distance (1 each), and in the active Brownian physics its heading (3) and sensed reading
-    (1); per cell a position; per obstacle a centre if obstacles move; the step."""
-    floats = 5 * scenario.robots.count + 3 * scenario.cells.count + 1
+    (1), with a communication model the signal it read (1); per cell a position and its load;
+    per obstacle a centre if obstacles move; the step."""
+    floats = 5 * scenario.robots.count + 4 * scenario.cells.count + 1
     if scenario.physics.model == "active_brownian":
         floats += 4 * scenario.robots.count  # the heading and the sensed reading
+    if scenario.communication.model != "none":
+        floats += scenario.robots.count
     if obstacles_move(scenario):
         floats += 3 * scenario.obstacles.count
     return FLOAT_BYTES * floats
@@ -298,7 +309,7 @@ def record_stride(scenario: Scenario, record_bytes: int) -> int:
         n, c, o = scenario.robots.count, scenario.cells.count, scenario.obstacles.count
         share = {
             "robots.count": 5 * n,
-            "cells.count": 3 * c,
+            "cells.count": 4 * c,
             "obstacles.count": 3 * o * (2 if obstacles_move(scenario) else 1),
         }
         raise ScenarioError(
@@ -354,12 +365,14 @@ class _Run:
             sx=np.empty(k),
             sy=np.empty(k),
             sz=np.empty(k),
+        )
+        self.treatment = Treatment(
+            load=np.zeros(cells, dtype=np.int64),
+            treated_at=np.full(cells, -1, dtype=np.int64),
             tx=np.empty(k),
             ty=np.empty(k),
             tz=np.empty(k),
             treated_sources=np.zeros(1, dtype=np.int64),
-            load=np.zeros(cells, dtype=np.int64),
-            treated_at=np.full(cells, -1, dtype=np.int64),
         )
         self.swarm = Swarm(
             pos=np.empty((n, 3)),
@@ -383,6 +396,8 @@ class _Run:
             swept=np.zeros(n, dtype=np.bool_),
             blocked=np.zeros(n, dtype=np.bool_),
             sensed=np.zeros(n),
+        )
+        self.social = Social(
             bound_to=np.full(n, -1, dtype=np.int64),
             bumps=np.zeros(n, dtype=np.int64),
             signal=np.zeros(n),
@@ -442,9 +457,9 @@ class _Run:
         evaluation."""
         kernel.run(
             self.params, self.epsilons, self.world_rng, self.evaluation_rng, self.rng,
-            self.world, self.swarm, self.learner, self.recording, self.counters, self.curve,
-            self.evaluation, budget, self.near, self.radio, self.everyone, self.found,
-            self.signals.conc, self.signals.scratch, self.cell_tallies,
+            self.world, self.swarm, self.social, self.treatment, self.learner, self.recording,
+            self.counters, self.curve, self.evaluation, budget, self.near, self.radio,
+            self.everyone, self.found, self.signals.conc, self.signals.scratch, self.cell_tallies,
         )  # fmt: skip
         raise_for_layout(int(self.counters[state.LAYOUT_STATUS]), self.scenario)
 
@@ -509,6 +524,9 @@ class _Run:
             stride=stride,
             headings=r.heading[:rows].copy() if r.heading.shape[0] else None,
             sensed=r.sensed[:rows].copy() if r.sensed.shape[0] else None,
+            cell_loads=r.load[:rows].copy(),
+            delivered_to=self.evaluation[0, :, state.EV_CELL].astype(np.int64),
+            signals=r.signal[:rows].copy() if r.signal.shape[0] else None,
         )
 
 

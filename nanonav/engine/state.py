@@ -136,12 +136,6 @@ class Swarm(NamedTuple):
     swept: NDArray[np.bool_]  # reached by a drifting cell while heading away from it
     blocked: NDArray[np.bool_]  # its last move was stopped by an obstacle
     sensed: NDArray[np.float64]  # the reading it took this step (with noise)
-    bound_to: NDArray[np.int64]  # the cell it delivered its payload to, -1 while it carries it
-    bumps: NDArray[np.int64]  # moves refused because another robot was in the way
-    signal: NDArray[np.float64]  # the net signal it read this step (attractant - repellent)
-    prev_signal: NDArray[np.float64]  # and the step before
-    message: NDArray[np.float64]  # (N, 3) broadcast: the position it was sent
-    has_message: NDArray[np.bool_]
 
 
 class World(NamedTuple):
@@ -153,12 +147,30 @@ class World(NamedTuple):
     sx: NDArray[np.float64]  # (K,) source positions
     sy: NDArray[np.float64]
     sz: NDArray[np.float64]
+
+
+class Social(NamedTuple):
+    """What robots do to and with each other, per robot: kept apart from ``Swarm`` because every
+    compiled function handed a tuple pays for each array in it, and most need none of these."""
+
+    bound_to: NDArray[np.int64]  # the cell it delivered its payload to, -1 while it carries it
+    bumps: NDArray[np.int64]  # moves refused because another robot was in the way
+    signal: NDArray[np.float64]  # the net signal it read this step (attractant - repellent)
+    prev_signal: NDArray[np.float64]  # and the step before
+    message: NDArray[np.float64]  # (N, 3) broadcast: the position it was sent
+    has_message: NDArray[np.bool_]
+
+
+class Treatment(NamedTuple):
+    """The cells' treatment: payloads received, when each was treated, and the treated cells'
+    sources (whose field is taken off again in part: ``fields.sample_many``)."""
+
+    load: NDArray[np.int64]  # (C,) payloads each cell received
+    treated_at: NDArray[np.int64]  # (C,) the step it was treated, -1 while untreated
     tx: NDArray[np.float64]  # (K,) the treated cells' sources, the first treated_sources[0]
     ty: NDArray[np.float64]
     tz: NDArray[np.float64]
     treated_sources: NDArray[np.int64]  # (1,)
-    load: NDArray[np.int64]  # (C,) payloads each cell received
-    treated_at: NDArray[np.int64]  # (C,) the step it was treated, -1 while untreated
 
 
 class Learner(NamedTuple):

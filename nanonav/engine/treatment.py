@@ -15,7 +15,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from nanonav.engine.state import KernelParams, Swarm, World
+from nanonav.engine.state import KernelParams, Social, Treatment
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -39,23 +39,23 @@ def nearest_target(
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def untreated(w: World) -> int:
+def untreated(treated_at: NDArray[np.int64]) -> int:
     """How many cells still need drug."""
     left = 0
-    for j in range(w.treated_at.shape[0]):
-        if w.treated_at[j] < 0:
+    for j in range(treated_at.shape[0]):
+        if treated_at[j] < 0:
             left += 1
     return left
 
 
 @njit(cache=True, error_model="numpy")
-def deliver(p: KernelParams, w: World, s: Swarm, i: int, cell: int, t: int) -> bool:
+def deliver(p: KernelParams, tr: Treatment, so: Social, i: int, cell: int, t: int) -> bool:
     """Robot ``i`` delivers its payload to ``cell`` at step ``t`` and is bound there; returns
     whether this treated the cell (from the next step its sources keep ``treated_secretion`` of
     their strength: ``fields.place_treated``)."""
-    s.bound_to[i] = cell
-    w.load[cell] += 1
-    if p.capacity <= 0 or w.load[cell] < p.capacity:
+    so.bound_to[i] = cell
+    tr.load[cell] += 1
+    if p.capacity <= 0 or tr.load[cell] < p.capacity:
         return False
-    w.treated_at[cell] = t
+    tr.treated_at[cell] = t
     return True

@@ -21,6 +21,7 @@ from nanonav.scenario import Scenario, ScenarioError
 ROBOT_EXTENT = 0.95
 PLACEMENT_ATTEMPTS = 10_000
 NO_ROOM_FOR_ROBOTS = -1
+NO_ROOM_TO_START_APART = -2  # robots that take up space found no free start
 
 
 WORLD_STREAM = 0
@@ -70,7 +71,7 @@ def draw_world(
     for i in range(s.pos.shape[0]):
         for attempt in range(PLACEMENT_ATTEMPTS + 1):
             if attempt == PLACEMENT_ATTEMPTS:
-                return NO_ROOM_FOR_ROBOTS
+                return NO_ROOM_TO_START_APART if p.exclusion else NO_ROOM_FOR_ROBOTS
             if p.robot_corner:
                 _uniform(rng, s.pos[i], -half, -0.5 * half)
             else:
@@ -113,6 +114,12 @@ def draw_world(
 
 def raise_for_layout(status: int, scenario: Scenario) -> None:
     """Turn ``draw_world``'s status into the error a user can act on."""
+    if status == NO_ROOM_TO_START_APART:
+        raise ScenarioError(
+            "robots.count",
+            f"no room for {scenario.robots.count} robots that take up space to start apart and "
+            "out of reach of the cells; use fewer or smaller robots, or a larger space",
+        )
     if status == NO_ROOM_FOR_ROBOTS:
         raise ScenarioError("reach_distance", "no room for the robots to start out of reach")
     if status > 0:

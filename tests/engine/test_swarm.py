@@ -326,7 +326,7 @@ def test_a_treated_cell_sheds_only_its_treated_secretion(share: float) -> None:
         # the engine takes the lost share off the full sum: equal up to rounding
         np.testing.assert_allclose(t.concentration[row], expected, rtol=1e-12, atol=1e-14)
         checked += 1
-    assert checked > 10
+    assert checked >= 3  # rows recorded after a treatment, before the other cell is treated
     # and before any treatment the field is every cell's, in full
     before = int(np.argmax(loads.sum(axis=1) > 0))
     full = fields.field_and_gradient(s.biomarker, t.cells[before], t.emitter_offsets,

@@ -23,7 +23,6 @@ from numpy.typing import NDArray
 from scipy.optimize import brentq
 from scipy.special import dawsn
 
-from nanonav.engine.contacts import CellList, first_within, relist
 from nanonav.engine.dynamics.lattice import _reflect, _segment_hit
 from nanonav.engine.state import KernelParams, Swarm, World
 
@@ -237,13 +236,12 @@ def read_counted(rng: np.random.Generator, concentration: float, molecules: floa
 @njit(cache=True, error_model="numpy", inline="always")
 def move_robot(
     p: KernelParams, rng: np.random.Generator, w: World, s: Swarm, i: int,
-    px: float, py: float, pz: float, near: CellList, everyone: NDArray[np.bool_],
+    px: float, py: float, pz: float,
 ) -> tuple[float, float, float, bool]:  # fmt: skip
     """One overdamped step of robot ``i`` at p: swim along its heading and jiggle, reflected by
     the walls; a step whose segment would bring its surface into an obstacle's is refused (the
-    robot stays and a collision is counted), whatever the noise, and with exclusion so is one
-    that would bring it within two radii of another robot (hard spheres; a bump). Then its
-    heading diffuses. Returns where it ends and whether it was blocked."""
+    robot stays and a collision is counted), whatever the noise. Then its heading diffuses.
+    Returns where it ends and whether it was blocked."""
     hx = s.heading[i, 0]
     hy = s.heading[i, 1]
     hz = s.heading[i, 2]
@@ -257,10 +255,6 @@ def move_robot(
     blocked = _segment_hit(w.obstacles, p.obstacle_radius, px, py, pz, nx, ny, nz) >= 0
     if blocked:
         s.collisions[i] += 1
-    elif p.exclusion and first_within(near, s.pos, everyone, nx, ny, nz, p.contact, i) >= 0:
-        s.bumps[i] += 1
-        blocked = True
-    if blocked:
         nx = px
         ny = py
         nz = pz
@@ -269,8 +263,6 @@ def move_robot(
         dy = ny - py
         dz = nz - pz
         s.path_length[i] += math.sqrt(dx * dx + dy * dy + dz * dz)
-        if near.dims > 1:
-            relist(near, i, nx, ny, nz)
     s.pos[i, 0] = nx
     s.pos[i, 1] = ny
     s.pos[i, 2] = nz

@@ -15,7 +15,6 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from nanonav.engine.contacts import CellList, first_within, relist
 from nanonav.engine.state import KernelParams, Swarm, World
 
 
@@ -218,13 +217,11 @@ def _move_obstacles(p: KernelParams, rng: np.random.Generator, w: World, s: Swar
 def _move_robot(
     p: KernelParams, w: World, s: Swarm, i: int,
     px: float, py: float, pz: float, dx: float, dy: float, dz: float, step: float,
-    near: CellList, everyone: NDArray[np.bool_],
 ) -> tuple[float, float, float, bool]:  # fmt: skip
     """Robot ``i`` at p moves ``step`` along the unit direction d, reflected by the walls (its
     heading with it). A move whose segment passes through an obstacle is blocked: the robot
-    stays and a collision is counted; with exclusion, so is a move that would end within
-    ``contact`` of another robot (a bump, found in the cell list ``near``). Otherwise its path
-    length and heading are updated. Returns where it ends and whether it was blocked."""
+    stays and a collision is counted; otherwise its path length and heading are updated.
+    Returns where it ends and whether it was blocked."""
     nx = px + step * dx
     ny = py + step * dy
     nz = pz + step * dz
@@ -240,10 +237,6 @@ def _move_robot(
     blocked = _segment_hit(w.obstacles, p.obstacle_radius, px, py, pz, nx, ny, nz) >= 0
     if blocked:
         s.collisions[i] += 1
-    elif p.exclusion and first_within(near, s.pos, everyone, nx, ny, nz, p.contact, i) >= 0:
-        s.bumps[i] += 1
-        blocked = True
-    if blocked:
         nx = px
         ny = py
         nz = pz
@@ -252,8 +245,6 @@ def _move_robot(
         s.heading[i, 0] = dx
         s.heading[i, 1] = dy
         s.heading[i, 2] = dz
-        if near.dims > 1:
-            relist(near, i, nx, ny, nz)
     s.pos[i, 0] = nx
     s.pos[i, 1] = ny
     s.pos[i, 2] = nz
