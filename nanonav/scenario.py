@@ -365,8 +365,8 @@ class Robots(_Part):
         "does not); else climb the gradient as 'gradient' does; 'simple_rule' advances on a "
         "sensed cell, else climbs the gradient; 'random' walks at random. With a "
         "communication model, 'rule' also follows what it receives where it senses no cell and "
-        "no biomarker above the 'mid' level (up the attractant, down the repellent, toward a "
-        "message's position).",
+        "no biomarker above the 'mid' level: up an attractant while it rises, down a "
+        "repellent, toward a message's position.",
     )
     exclusion: bool = Field(
         False,
@@ -779,7 +779,8 @@ class Communication(_Part):
         ge=0.0,
         le=1e6,
         description="A signal reading above this is received (the state's 'signal'), in the "
-        "biomarker's concentration units (nM in active_brownian).",
+        "biomarker's concentration units (nM in active_brownian); never below "
+        "biomarker.detection_threshold, which holds for the signal as for the biomarker.",
     )
     range: float = Field(
         15.0,
@@ -1199,6 +1200,8 @@ DIFFUSE_TUMOUR: dict[str, Any] = {
     "obstacles": {"count": 20, "motion_std": 0.05},
     "robots": {"count": 100, "policy": "rule", "exclusion": True, "cell_sensing_radius": 2.0},
     "learning": {"max_steps": 1000},
+    # what a bound robot releases when robots signal (chosen on seeds 1000+, never reported)
+    "communication": {"release_rate": 10.0},
 }
 PRESETS["diffuse-tumour"] = DIFFUSE_TUMOUR
 PRESETS.update(

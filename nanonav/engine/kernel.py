@@ -442,7 +442,7 @@ def _run_steps(
                 action = 0
                 step = p.speed
                 behavior, dx, dy, dz, gx, gy, gz = _baseline(
-                    p, rng, s.heading, i, c, s.prev_conc[i], gx, gy, gz, cell_d, heard > 0
+                    p, rng, s.heading, i, c, s.prev_conc[i], gx, gy, gz, cell_d, heard
                 )
             if behavior == FOLLOW_SIGNAL:
                 # up what it receives, round obstacles (straight on where it receives nothing)

@@ -13,6 +13,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from nanonav.engine.communication import ATTRACTANT_RISING, REPELLENT
 from nanonav.engine.dynamics.brownian import turn_toward
 from nanonav.engine.dynamics.lattice import _random_unit, _slide, _unit_or_random
 from nanonav.engine.qlearning import (
@@ -69,15 +70,18 @@ def _choose(
 @njit(cache=True, error_model="numpy", inline="always")
 def _baseline(
     p: KernelParams, rng: np.random.Generator, heading: NDArray[np.float64], i: int,
-    c: float, prev_c: float, gx: float, gy: float, gz: float, cell_d: float, heard: bool,
+    c: float, prev_c: float, gx: float, gy: float, gz: float, cell_d: float, heard: int,
 ) -> tuple[int, float, float, float, float, float, float]:  # fmt: skip
     """A fixed policy's choice for robot ``i`` from its reading ``c`` (and the last one,
     ``prev_c``), sensed gradient ``g``, distance to the nearest cell and ``heading``:
     ``(behavior, dx, dy, dz, gx, gy, gz)``. Either one of the paper's behaviours, for
     ``_behavior_direction`` to turn into a move up the gradient ``g`` returned (``rule`` blanks
     it to go straight on), or ``NO_BEHAVIOR`` and the unit direction ``d`` to move along.
-    ``heard``: the robot receives a signal, which ``rule`` follows (``FOLLOW_SIGNAL``) where it
-    senses no cell and no reading above the 'mid' level."""
+    ``heard``: what the robot receives (``communication``'s codes). ``rule`` follows it
+    (``FOLLOW_SIGNAL``) where it senses no cell and no reading above the 'mid' level, while an
+    attractant rises, from a repellent, or to a message; an attractant that no longer rises is
+    a peak with no cell the robot can sense (a treated cell's, or one drifted off), and the
+    rule goes on as without signals."""
     behavior = NO_BEHAVIOR
     dx = 0.0
     dy = 0.0
@@ -101,7 +105,7 @@ def _baseline(
                 gz = 0.0
             else:
                 behavior = EXPLORE
-        elif heard:
+        elif heard in (ATTRACTANT_RISING, REPELLENT):  # MESSAGE is ATTRACTANT_RISING
             behavior = FOLLOW_SIGNAL
     elif p.policy == RUN_AND_TUMBLE and c > prev_c:
         dx = heading[i, 0]

@@ -149,7 +149,8 @@ def _swarm_params(scenario: Scenario, params: KernelParams) -> KernelParams:
         signal_diffusion=diffusion,
         signal_decay=decay,
         signal_release=release,
-        signal_threshold=comm.threshold,
+        # the biomarker's noise rules hold for the signal too, its detection threshold with them
+        signal_threshold=max(comm.threshold, params.detection_threshold),
         signal_counting=signal_counting,
         signal_origin=grid.origin,
         signal_spacing=grid.spacing,

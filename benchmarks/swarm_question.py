@@ -1,0 +1,120 @@
+"""The swarm's question: does signalling help a swarm treat a diffuse tumour, where, and does
+learning to use signals beat a rule that uses them? The 'diffuse-tumour' world (cells that each
+need 3 payloads, a faint short-range marker, robots that take up space), communication model x
+number of cells x swarm size, every combination on the same seeds; each model paired by seed
+with 'none'.
+
+    python benchmarks/swarm_question.py [--seeds N] [--worlds N] [--quick]
+
+Per combination: the share of cells treated and the step the last was treated (the 1,000-step
+limit if one was left), the mean over seeds of each run's mean over its evaluation worlds with
+the 95 % interval, and the model minus 'none', paired by seed. Then, at 20 cells and 100 robots,
+Q-learning (which sees what it receives and may follow it) trained on each model, against the
+rule that uses the same signals, paired by seed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor
+from typing import Any
+
+from physical_question import paired
+from science import mean_ci
+
+from nanonav.engine import simulate
+from nanonav.scenario import preset_scenario
+
+MODELS = ("none", "attractant", "attractant_repellent", "broadcast")
+CELLS = (1, 5, 20)
+SWARMS = (10, 100, 1000)
+PRESET = "diffuse-tumour"
+METRICS = ("treated_fraction", "time_to_treat_all")
+
+
+def run_one(job: tuple[str, int, int, str, int, int, int]) -> dict[str, Any]:
+    model, cells, robots, policy, episodes, seed, worlds = job
+    scenario = preset_scenario(
+        PRESET, seed=seed, cells={"count": cells}, communication={"model": model},
+        robots={"count": robots, "policy": policy}, learning={"episodes": episodes},
+        evaluation={"worlds": worlds},
+    )  # fmt: skip
+    summary = simulate(scenario).summary
+    return {key: summary[key] for key in METRICS}
+
+
+def table(header: tuple[str, ...], rows: list[tuple[str, ...]]) -> None:
+    widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(header)]
+    print("  " + "  ".join(h.ljust(w) for h, w in zip(header, widths, strict=True)))
+    for row in rows:
+        print("  " + "  ".join(c.ljust(w) for c, w in zip(row, widths, strict=True)))
+    print()
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
+    parser.add_argument("--seeds", type=int, default=10)
+    parser.add_argument("--worlds", type=int, default=3, help="evaluation worlds per run")
+    parser.add_argument("--episodes", type=int, default=40, help="q_learning's training")
+    parser.add_argument("--quick", action="store_true", help="a smoke run: 2 seeds, small")
+    args = parser.parse_args(argv)
+    seeds = range(2 if args.quick else args.seeds)
+    worlds = 1 if args.quick else args.worlds
+    swarms = (10, 100) if args.quick else SWARMS
+    episodes = 2 if args.quick else args.episodes
+    jobs = [
+        (model, cells, robots, "rule", 0, seed, worlds)
+        for model in MODELS for cells in CELLS for robots in swarms for seed in seeds
+    ] + [
+        (model, 20, 100, "q_learning", episodes, seed, worlds) for model in MODELS for seed in seeds
+    ]  # fmt: skip
+    started = time.perf_counter()
+    with ProcessPoolExecutor(os.cpu_count() or 1) as pool:
+        done = dict(zip(jobs, pool.map(run_one, jobs), strict=True))
+    print(
+        f"{PRESET}: cells need 3 payloads each; 'rule' robots; {len(seeds)} seeds x {worlds} "
+        "worlds; * = the 95 % interval excludes 0\n"
+    )
+
+    def runs(model: str, cells: int, robots: int, policy: str = "rule") -> list[dict[str, Any]]:
+        e = 0 if policy == "rule" else episodes
+        return [done[(model, cells, robots, policy, e, s, worlds)] for s in seeds]
+
+    limit = (0.0, float("inf"))
+    for cells in CELLS:
+        for robots in swarms:
+            print(f"{cells} cells, {robots} robots")
+            rows = []
+            base = runs("none", cells, robots)
+            for model in MODELS:
+                found = runs(model, cells, robots)
+                share = [r["treated_fraction"] for r in found]
+                steps = [float(r["time_to_treat_all"]) for r in found]
+                rows.append((
+                    model, mean_ci(share), mean_ci(steps, 0, limit),
+                    paired(share, [r["treated_fraction"] for r in base]) if model != "none" else "",
+                    paired(steps, [float(r["time_to_treat_all"]) for r in base])
+                    if model != "none" else "",
+                ))  # fmt: skip
+            table(("model", "treated", "steps to treat all", "treated minus none",
+                   "steps minus none"), rows)  # fmt: skip
+    print(f"learning to use signals: 20 cells, 100 robots, q_learning trained {episodes} episodes")
+    rows = []
+    for model in MODELS:
+        learned = runs(model, 20, 100, "q_learning")
+        rule = runs(model, 20, 100)
+        share = [r["treated_fraction"] for r in learned]
+        rows.append((
+            model, mean_ci(share), mean_ci([r["treated_fraction"] for r in rule]),
+            paired(share, [r["treated_fraction"] for r in rule]),
+        ))  # fmt: skip
+    table(("model", "q_learning treated", "rule treated", "q_learning minus rule"), rows)
+    print(f"({time.perf_counter() - started:.0f} s on {os.cpu_count()} cores)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
