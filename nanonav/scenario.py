@@ -72,6 +72,17 @@ WORK_PLACE = 2.5  # one source moved with its cell
 # one source's term of the field at one point: an exp for these two, a division for the
 # inverse-square emitters, whose sum the compiler vectorises
 WORK_SOURCE = {"gaussian": 6.5, "diffusion": 6.5, "inverse_square": 0.55, "sampled_gaussian": 6.5}
+# The swarm's: per active robot-step, the neighbour search of robots that take up space, a
+# reading of the signal grid, or keeping the radio's cell list current; per grid node and
+# solver step, the signal's diffusion; per robot and grid update, its release (if bound).
+WORK_EXCLUSION = 120
+WORK_SIGNAL_READ = 60
+WORK_RELIST = 15
+WORK_NODE = 1.5
+WORK_RELEASE = 4
+# The signal's grid is updated at most every this many engine steps, so it keeps up with robots.
+MAX_SIGNAL_EVERY = 10
+LARGEST_DECAY_RATE = 50.0  # per step: a decay_rate of 1 (all of it) taken as this rate
 
 
 BOLTZMANN_J_K = 1.380649e-23  # exact since the 2019 SI
@@ -1009,6 +1020,57 @@ class Scenario(_Part):
             )  # fmt: skip
         return self
 
+    def _swarm_robot_step(self) -> float:
+        """What exclusion and signalling add to one active robot's step, in work units."""
+        units = WORK_EXCLUSION if self.robots.exclusion else 0.0
+        model = self.communication.model
+        if model == "broadcast":
+            units += WORK_RELIST
+        elif model != "none":
+            species = 2 if model == "attractant_repellent" else 1
+            units += WORK_SIGNAL_READ * species
+        return units
+
+    def _swarm_step(self) -> float:
+        """What the signal's grid adds to one step, in work units: its nodes at every solver
+        step, and a release by every robot (bound or not, each is looked at) at every update."""
+        model = self.communication.model
+        if model in ("none", "broadcast"):
+            return 0.0
+        every, substeps = self.signal_solver_steps
+        species = 2 if model == "attractant_repellent" else 1
+        grid = WORK_NODE * self.communication.nodes_per_axis**3 * species * substeps
+        return (grid + WORK_RELEASE * self.robots.count) / every
+
+    @property
+    def signal_rates(self) -> tuple[float, float, float]:
+        """The signal's diffusion coefficient (length^2), decay rate and one bound robot's
+        release (concentration x length^3; in active_brownian nM um^3), per engine step."""
+        comm = self.communication
+        if self.physics.model == "active_brownian":
+            dt = self.physics.step_s
+            return (
+                comm.diffusion_um2_s * dt,
+                comm.decay_rate_s * dt,
+                comm.release_molecules_s * dt / MOLECULES_PER_UM3_PER_NM,
+            )
+        decay = -math.log1p(-comm.decay_rate) if comm.decay_rate < 1.0 else LARGEST_DECAY_RATE
+        return comm.diffusion, decay, comm.release_rate
+
+    @property
+    def signal_solver_steps(self) -> tuple[int, int]:
+        """(engine steps per update of the signal's grid, solver steps per update). The explicit
+        solver is stable and keeps every node non-negative while dt (6 D / h^2 + k) <= 1; it
+        takes half that (at the bound a release hops between the lattice's two halves, a
+        checkerboard): the largest whole number of engine steps (at most
+        ``MAX_SIGNAL_EVERY``), or one engine step split into the fewest such solver steps."""
+        diffusion, decay, _ = self.signal_rates
+        spacing = self.space.size / self.communication.nodes_per_axis
+        stable = 0.5 / (6.0 * diffusion / spacing**2 + decay)
+        if stable >= 1.0:
+            return min(MAX_SIGNAL_EVERY, math.floor(stable)), 1
+        return 1, math.ceil(1.0 / stable)
+
     @property
     def robot_steps_budget(self) -> int:
         """The most robot-steps this scenario can cost: robots x max_steps x (training episodes
@@ -1076,6 +1138,13 @@ class Scenario(_Part):
             + WORK_PAIR * (n * c + o * (n + c))
             + n * robot_step
         )
+        robot_step += self._swarm_robot_step()
+        step += self._swarm_step()
+        # a broadcast reaches the robots in the 27 cells of the radio's list around its sender:
+        # at most every robot delivers once an episode, each message scanning that share
+        if self.communication.model == "broadcast":
+            share = min(1.0, (3 * self.communication.range / self.space.size) ** 3)
+            episode += WORK_PAIR * n * n * share
         # units per evaluation step: the field and the nearest cell measured at every robot
         evaluation_step = n * (source * k + WORK_PAIR * c)
         total = (

@@ -120,23 +120,17 @@ def _swarm_params(scenario: Scenario, params: KernelParams) -> KernelParams:
     signal's rates per engine step, its grid solver's step the largest stable one (a whole
     number of engine steps, or a whole number of solver steps per engine step)."""
     comm = scenario.communication
-    brownian = scenario.physics.model == "active_brownian"
-    dt = scenario.physics.step_s
-    if brownian:
-        diffusion = comm.diffusion_um2_s * dt
-        decay = comm.decay_rate_s * dt
-        release = comm.release_molecules_s * dt / MOLECULES_PER_UM3_PER_NM
-    else:
-        diffusion = comm.diffusion
-        decay = -math.log1p(-comm.decay_rate) if comm.decay_rate < 1.0 else 50.0
-        release = comm.release_rate
+    diffusion, decay, release = scenario.signal_rates
     # Berg-Purcell for the signal: a reading of c nM counts pi D a c dt molecules
     signal_counting = 0.0
-    if brownian:
+    if scenario.physics.model == "active_brownian":
         radius = scenario.physics.robot_radius_um
-        signal_counting = math.pi * comm.diffusion_um2_s * radius * dt * MOLECULES_PER_UM3_PER_NM
+        signal_counting = (
+            math.pi * comm.diffusion_um2_s * radius * scenario.physics.step_s
+            * MOLECULES_PER_UM3_PER_NM
+        )  # fmt: skip
     grid = signal_grid(scenario)
-    every, substeps = signal_steps(diffusion, decay, grid.spacing)
+    every, substeps = scenario.signal_solver_steps
     return params._replace(
         capacity=scenario.cells.capacity or 0,
         treated_secretion=scenario.cells.treated_secretion,
@@ -157,23 +151,6 @@ def _swarm_params(scenario: Scenario, params: KernelParams) -> KernelParams:
         signal_dims=grid.dims,
         broadcast_range=comm.range,
     )
-
-
-# Solver steps may span at most this many engine steps, so the signal keeps up with the robots.
-MAX_SIGNAL_EVERY = 10
-
-
-def signal_steps(diffusion: float, decay: float, spacing: float) -> tuple[int, int]:
-    """(engine steps per update of the signal's grid, solver steps per update): the update
-    spans the largest whole number of engine steps the explicit solver takes stably (at most
-    ``MAX_SIGNAL_EVERY``), or, when even one engine step is too long, one engine step split into
-    the fewest stable solver steps."""
-    # half the explicit bound: at the bound itself a node's own weight is 0 and a release
-    # hops between the lattice's two halves (a checkerboard); at half it keeps a weight of 1/2
-    stable = signals.stable_step(diffusion, decay, spacing) / 2.0
-    if stable >= 1.0:
-        return min(MAX_SIGNAL_EVERY, math.floor(stable)), 1
-    return 1, math.ceil(1.0 / stable)
 
 
 def signal_grid(scenario: Scenario) -> signals.SignalGrid:

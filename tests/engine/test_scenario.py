@@ -37,6 +37,7 @@ def test_presets_give_the_papers_figures_and_fields_override_them() -> None:
         "tumour-microswimmers",
         "tumour-nanorobots",
         "tumour-passive",
+        "diffuse-tumour",
     }
     # the paper's and the hard worlds keep the paper's physics; the tumour worlds are physical
     for name in PRESETS:
@@ -101,3 +102,20 @@ def test_a_scenario_error_crosses_process_boundaries_intact() -> None:
     copy = pickle.loads(pickle.dumps(error))
     assert isinstance(copy, ScenarioError)
     assert (copy.field, copy.message, str(copy)) == (error.field, error.message, str(error))
+
+
+def test_the_diffuse_tumour_is_a_swarm_of_robots_that_take_up_space_and_cells_that_need_drug() -> (
+    None
+):
+    s = preset_scenario("diffuse-tumour")
+    assert s.physics.model == "lattice"
+    assert s.robots.exclusion and s.cells.capacity == 3 and s.cells.count == 20
+    assert s.communication.model == "none"  # a study chooses the model
+    signalling = preset_scenario("diffuse-tumour", communication={"model": "attractant"})
+    assert signalling.communication.release_rate == 10.0
+    # the signal's solver step keeps the explicit bound with room: dt (6 D / h^2 + k) <= 1/2
+    every, substeps = signalling.signal_solver_steps
+    d, k, _ = signalling.signal_rates
+    h = s.space.size / s.communication.nodes_per_axis
+    assert (every / substeps) * (6 * d / h**2 + k) <= 0.5
+    assert s.work < signalling.work  # the grid is priced
