@@ -324,6 +324,19 @@ class Trajectory(BaseModel):
         description="[row][robot] the reading the robot took, with its Berg-Purcell noise, "
         "beside the true concentration (active_brownian only; null otherwise)",
     )
+    cell_loads: list[list[int]] | None = Field(
+        None,
+        description="[row][cell] payloads the cell had received (null for results stored "
+        "before they were recorded)",
+    )
+    delivered_to: list[int] | None = Field(
+        None, description="[robot] the cell it delivered its payload to, -1 if none"
+    )
+    signals: list[list[float]] | None = Field(
+        None,
+        description="[row][robot] the net signal (attractant minus repellent; broadcast: 1 "
+        "while a message waits) the robot read (communication.model other than none only)",
+    )
 
 
 class GreedyState(BaseModel):

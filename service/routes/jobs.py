@@ -256,6 +256,9 @@ def get_trajectory(
             robot_steps=arrays["robot_steps"].tolist(),
             headings=strided["headings"].tolist() if "headings" in strided else None,
             sensed=strided["sensed"].tolist() if "sensed" in strided else None,
+            cell_loads=strided["cell_loads"].tolist() if "cell_loads" in strided else None,
+            delivered_to=arrays["delivered_to"].tolist() if "delivered_to" in arrays else None,
+            signals=strided["signals"].tolist() if "signals" in strided else None,
         ).model_dump(),
         headers=IMMUTABLE,
     )
@@ -427,7 +430,7 @@ def _qtable_png(store: JobStore, job_id: int) -> bytes:
 
 
 PER_ROW = ("step", "robots", "cells", "obstacles", "concentration", "distance", "headings",
-           "sensed")  # fmt: skip
+           "sensed", "cell_loads", "signals")  # fmt: skip
 
 
 def _per_row(arrays: dict[str, NDArray[Any]], key: str) -> bool:
@@ -439,7 +442,8 @@ def _json_values(arrays: dict[str, NDArray[Any]], rows: int) -> int:
     """How many numbers a JSON answer with ``rows`` rows holds."""
     per_row = sum(int(arrays[k][0].size) for k in PER_ROW if _per_row(arrays, k))
     once = [k for k in PER_ROW if k in arrays and not _per_row(arrays, k)]
-    fixed = sum(int(arrays[k].size) for k in (*once, "reached", "robot_steps"))
+    per_robot = [k for k in ("reached", "robot_steps", "delivered_to") if k in arrays]
+    fixed = sum(int(arrays[k].size) for k in (*once, *per_robot))
     return rows * per_row + fixed
 
 
@@ -466,6 +470,11 @@ def _csv_lines(arrays: dict[str, NDArray[Any]]) -> Iterator[str]:
     # the active Brownian physics adds each robot's heading and its (noisy) sensed reading
     swimming = "headings" in arrays and "sensed" in arrays
     extra = ["heading_x", "heading_y", "heading_z", "sensed"] if swimming else []
+    # the swarm: each cell's payloads so far, and each robot's net signal with communication
+    loads = "cell_loads" in arrays
+    signals = "signals" in arrays
+    extra += ["load"] if loads else []
+    extra += ["signal"] if signals else []
     blank = [""] * len(extra)
     writer.writerow(["step", "kind", "index", "x", "y", "z", "concentration", "distance", *extra])
     obstacles_move = _per_row(arrays, "obstacles")
@@ -476,9 +485,15 @@ def _csv_lines(arrays: dict[str, NDArray[Any]]) -> Iterator[str]:
             more = []
             if swimming:
                 more = [repr(float(v)) for v in (*arrays["headings"][i, r], arrays["sensed"][i, r])]
+            more += [""] if loads else []
+            more += [repr(float(arrays["signals"][i, r]))] if signals else []
             writer.writerow([step, "robot", r, x, y, z, repr(float(c)), repr(float(d)), *more])
         for k, (x, y, z) in enumerate(arrays["cells"][i].tolist()):
-            writer.writerow([step, "cell", k, x, y, z, "", "", *blank])
+            load = [""] * (4 if swimming else 0) + (
+                [int(arrays["cell_loads"][i, k])] if loads else []
+            )
+            load += [""] if signals else []
+            writer.writerow([step, "cell", k, x, y, z, "", "", *load])
         if obstacles_move or i == 0:
             for k, (x, y, z) in enumerate(arrays["obstacles"][i].tolist()):
                 writer.writerow([step, "obstacle", k, x, y, z, "", "", *blank])

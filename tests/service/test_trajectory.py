@@ -101,3 +101,53 @@ def test_an_active_brownian_trajectory_carries_headings_and_sensed_readings(
         assert lattice.status_code == 422
         assert lattice.json()["errors"][0]["pointer"] == "#/robots/policy"
     store.close()
+
+
+def test_a_swarm_trajectory_carries_cell_loads_deliveries_and_signals(sqlite_url: str) -> None:
+    # cells that take payloads and robots that signal: JSON, CSV and npz agree
+    scenario = {
+        "preset": "paper-swarm",
+        "cells": {"count": 2, "capacity": 3},
+        "robots": {"count": 30, "policy": "rule", "exclusion": True},
+        "communication": {"model": "attractant_repellent"},
+        "learning": {"episodes": 0, "max_steps": 200},
+        "evaluation": {"worlds": 1},
+    }
+    settings = Settings(database_url=sqlite_url)
+    upgrade(sqlite_url)
+    store = JobStore.from_url(sqlite_url)
+    with serve(create_app(settings)) as url, httpx.Client(base_url=url, timeout=30) as client:
+        answer = client.post("/jobs", json=scenario)
+        assert answer.status_code == 202, answer.text
+        job_id = answer.json()["id"]
+        claim = store.claim("test", lease_s=30)
+        assert claim is not None
+        record = run_job(store, claim, settings, threading.Event())
+        assert record is not None and record.status is JobStatus.SUCCEEDED
+        summary = client.get(f"/jobs/{job_id}/metrics").json()["summary"]
+        assert summary["cells_treated"] >= 1
+        body = client.get(f"/jobs/{job_id}/trajectory").json()
+        loads = np.array(body["cell_loads"])
+        delivered = np.array(body["delivered_to"])
+        assert loads.shape == (len(body["step"]), 2) and loads.max() <= 3
+        assert np.array_equal(np.bincount(delivered[delivered >= 0], minlength=2), loads[-1])
+        signals = np.array(body["signals"])
+        assert signals.shape == (len(body["step"]), 30) and signals.max() > 0
+        arrays = unpack(client.get(f"/jobs/{job_id}/trajectory", params={"format": "npz"}).content)
+        assert np.array_equal(arrays["cell_loads"], loads)
+        assert np.array_equal(arrays["signals"], signals)
+        text = client.get(f"/jobs/{job_id}/trajectory", params={"format": "csv"}).text
+        table = list(csv.DictReader(io.StringIO(text)))
+        last = str(body["step"][-1])
+        cells = [r for r in table if r["kind"] == "cell" and r["step"] == last]
+        assert [int(r["load"]) for r in cells] == loads[-1].tolist()
+        robots = [r for r in table if r["kind"] == "robot" and r["step"] == last]
+        assert [float(r["signal"]) for r in robots] == signals[-1].tolist()
+        # and a paper scenario's answer has no signals
+        plain = client.post("/jobs", json={**SCENARIO, "evaluation": {"worlds": 1}})
+        plain_id = plain.json()["id"]
+        claim = store.claim("test", lease_s=30)
+        assert claim is not None
+        run_job(store, claim, settings, threading.Event())
+        assert client.get(f"/jobs/{plain_id}/trajectory").json()["signals"] is None
+    store.close()
