@@ -1,6 +1,6 @@
 """The pictures of a job, as PNG bytes: the paper's Figures 3, 4 and 5 (``trajectory``,
-``concentration``, ``heatmap``), the ``learning`` curve and the learned ``qtable``, a module
-each; ``render`` and ``render_all`` draw them by name.
+``concentration``, ``heatmap``), the ``learning`` curve, the learned ``qtable`` and the swarm's
+``treatment``, a module each; ``render`` and ``render_all`` draw them by name.
 
 These modules only read a finished ``SimulationResult`` (or, for the Q-table, its arrays). Each
 PNG is exactly ``PICTURE_PIXELS`` in size (no tight bounding box), which clients can rely on;
@@ -25,11 +25,13 @@ from nanonav.pictures.job.heatmap import (
 from nanonav.pictures.job.learning import learning_png
 from nanonav.pictures.job.qtable import learned_qtable_png, qtable_png
 from nanonav.pictures.job.trajectory import trajectory_png
+from nanonav.pictures.job.treatment import has_treatment, treatment_drawn, treatment_png
 
 __all__ = [
     "HEATMAP_RESOLUTION",
     "MAX_HEATMAP_RESOLUTION",
     "MIN_HEATMAP_RESOLUTION",
+    "OPTIONAL_PICTURES",
     "PICTURE_NAMES",
     "PICTURE_PIXELS",
     "VERSIONS",
@@ -37,6 +39,7 @@ __all__ = [
     "qtable_png",
     "render",
     "render_all",
+    "treatment_drawn",
     "version",
 ]
 
@@ -49,15 +52,21 @@ PICTURE_NAMES: tuple[str, ...] = (
     "concentration",
     "learning",
     "qtable",
+    "treatment",
 )
 """The keys of ``render_all``: also the file names (``<name>.png``) the command line writes;
-``qtable`` only for a result that learned a Q-table (Q-learning)."""
+``qtable`` only for a result that learned a Q-table (Q-learning), ``treatment`` only for one
+with the swarm's numbers (``treatment.has_treatment``)."""
 
-VERSIONS: dict[str, int] = {"learning": 2}
+OPTIONAL_PICTURES = frozenset({"qtable", "treatment"})
+"""The pictures only some results have (``render`` refuses the others with ``ValueError``)."""
+
+VERSIONS: dict[str, int] = {"learning": 2, "trajectory": 2}
 """The version of each picture's drawing, for the pictures past their first (the others are at
 1). It goes up when a picture drawn before would now be drawn differently, so that a copy kept
 of the older drawing is not served again. 2: ``learning`` of a result stored without its
-trajectory shows the greedy evaluation too."""
+trajectory shows the greedy evaluation too; ``trajectory`` of a swarm's result colours its
+robots by what they did and the signal they read, and its treated cells apart."""
 
 
 def version(name: str) -> int:
@@ -80,7 +89,8 @@ def render(
     if name in planes:
         return heatmap_png(result, planes[name], at=at, resolution=resolution, scale=scale)
     drawers = {"trajectory": trajectory_png, "concentration": concentration_png,
-               "learning": learning_png, "qtable": learned_qtable_png}  # fmt: skip
+               "learning": learning_png, "qtable": learned_qtable_png,
+               "treatment": treatment_png}  # fmt: skip
     if name not in drawers:
         raise ValueError(f"there is no picture {name!r}; there are {', '.join(PICTURE_NAMES)}")
     if at is not None or resolution != HEATMAP_RESOLUTION:
@@ -90,7 +100,8 @@ def render(
 
 def render_all(result: SimulationResult, *, scale: ColourScale = "auto") -> dict[str, bytes]:
     """Every picture the result has, keyed by ``PICTURE_NAMES`` (the Q-table only if it learned
-    one); the field is evaluated once for the four heatmaps."""
+    one, the treatment only with the swarm's numbers); the field is evaluated once for the four
+    heatmaps."""
     planes = ("xy", "xz", "yz")
     slices = heatmap_slices(result, planes)
     resolved = resolve_scale(result, scale)
@@ -103,4 +114,6 @@ def render_all(result: SimulationResult, *, scale: ColourScale = "auto") -> dict
     pictures["learning"] = learning_png(result)
     if result.qtable is not None:
         pictures["qtable"] = learned_qtable_png(result)
+    if has_treatment(result):
+        pictures["treatment"] = treatment_png(result)
     return {name: pictures[name] for name in PICTURE_NAMES if name in pictures}

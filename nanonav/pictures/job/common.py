@@ -24,6 +24,7 @@ PICTURE_PIXELS: dict[str, tuple[int, int]] = {
     "trajectory": (750, 720),
     "concentration": (800, 600),
     "learning": (900, 600),
+    "treatment": (900, 700),
 }
 """(width, height) in pixels of each picture, whatever it shows (one robot or ten thousand, a
 learner or a baseline, any heatmap resolution); the Q-table's grows with the table."""

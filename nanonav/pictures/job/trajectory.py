@@ -1,12 +1,15 @@
 """The 3-D paths, the paper's Figure 3: the robots' paths and the cells' random walks in the
-evaluation episode, with the obstacles to scale."""
+evaluation episode, with the obstacles to scale; for a swarm that delivers payloads, what each
+robot did, the signal it read and which cells were treated."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from matplotlib.artist import Artist
+from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
@@ -14,11 +17,13 @@ from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 from numpy.typing import NDArray
 
 from nanonav.engine import SimulationResult, Trajectory
+from nanonav.engine.simulate import swarm_metrics
 from nanonav.pictures.figure import png
 from nanonav.pictures.job.common import (
     CELL_RED,
     ROBOT_BLUE,
     START_GREEN,
+    concentration_unit,
     evaluation_trajectory,
     last_row,
     length_unit,
@@ -34,6 +39,12 @@ MAX_CELL_PATHS = 4
 # there are, the fainter, so that the paths drawn over them still read.
 SMOOTH_SPHERES = 60
 COARSE_SPHERES_FROM = 300
+# A swarm's robots that still carry their payload: their paths, and their ends when they read no
+# signal; with broadcast, those that hold a message; with a chemical signal, its colour map.
+CARRYING_GREY = "0.55"
+CARRYING_ORANGE = "tab:orange"
+MESSAGE_PURPLE = "tab:purple"
+SIGNAL_CMAP = "viridis"
 
 
 def sphere_facets(count: int) -> tuple[int, int]:
@@ -108,6 +119,65 @@ def cells_with_paths(trajectory: Trajectory) -> NDArray[np.int64]:
     return np.sort(order[:MAX_CELL_PATHS])
 
 
+@dataclass(frozen=True)
+class SwarmView:
+    """What a swarm's robots and cells did by the end of the evaluation episode."""
+
+    ends: NDArray[np.float64]  # (robots, 3) where each robot stopped
+    delivered: NDArray[np.bool_]  # (robots,) it carried its payload to a cell
+    treated: NDArray[np.bool_] | None  # (cells,) treated at the end; None without a capacity
+    signal: NDArray[np.float64] | None  # (robots,) the net chemical signal it read last
+    message: NDArray[np.bool_] | None  # (robots,) broadcast: it held a message at its last step
+
+
+def swarm_view(result: SimulationResult) -> SwarmView | None:
+    """The swarm's state at the end, or None for a result without the swarm's numbers
+    (``swarm_metrics``) or whose episode did not record who delivered where (stored before it
+    was recorded)."""
+    trajectory = result.trajectory
+    if (
+        trajectory is None
+        or trajectory.delivered_to is None
+        or trajectory.cell_loads is None
+        or not swarm_metrics(result.scenario)
+    ):
+        return None
+    robots = trajectory.robots.shape[1]
+    rows = np.minimum(
+        np.searchsorted(trajectory.step, trajectory.robot_steps, side="left"),
+        len(trajectory.step) - 1,
+    )
+    capacity = result.scenario.cells.capacity
+    treated = None if capacity is None else trajectory.cell_loads[-1] >= capacity
+    signal = message = None
+    if trajectory.signals is not None:
+        last = trajectory.signals[rows, np.arange(robots)]
+        if result.scenario.communication.model == "broadcast":
+            message = last > 0.5  # broadcast records 1 while a robot holds a message, else 0
+        else:
+            signal = last
+    return SwarmView(
+        ends=trajectory.robots[rows, np.arange(robots)],
+        delivered=trajectory.delivered_to >= 0,
+        treated=treated,
+        signal=signal,
+        message=message,
+    )
+
+
+def _cube_axes(ax: Any, result: SimulationResult) -> None:
+    """The space's cube, to scale, its axes labelled in the physics' length unit."""
+    half = result.scenario.space.size / 2
+    ax.set_xlim(-half, half)
+    ax.set_ylim(-half, half)
+    ax.set_zlim(-half, half)
+    ax.set_box_aspect((1, 1, 1), zoom=0.92)
+    length = length_unit(result.scenario)
+    ax.set_xlabel(f"x ({length})")
+    ax.set_ylabel(f"y ({length})")
+    ax.set_zlabel(f"z ({length})")
+
+
 def trajectory_figure(result: SimulationResult) -> Figure:
     """Figure 3: the robots' paths (blue, each up to the step it stopped) and the cells' random
     walks (red) in the evaluation episode, with the obstacles to scale (spheres of their radius)
@@ -115,9 +185,18 @@ def trajectory_figure(result: SimulationResult) -> Figure:
     reached a cell (the cell shows through), a cross for one that did not. Beyond
     ``MAX_ROBOT_PATHS`` robots only the first ones' paths are drawn, beyond ``MAX_CELL_PATHS``
     cells only the paths of the cells most reached (every cell is marked where it ended), and
-    the title says so."""
+    the title says so.
+
+    A swarm whose episode recorded its deliveries (``swarm_view``) is drawn by what it did: the
+    paths and ring ends of the robots that delivered their payload blue, those still carrying
+    grey with a cross at the end, coloured by the net signal they read last (a colour bar) with
+    a chemical signal, purple or orange by whether they held a message with broadcast; every
+    robot's end is marked, and a treated cell is a hollow star, a cell still to treat a filled
+    one."""
     trajectory = evaluation_trajectory(result)
-    half = result.scenario.space.size / 2
+    view = swarm_view(result)
+    if view is not None:
+        return _swarm_figure(result, trajectory, view)
     robots_total = trajectory.robots.shape[1]
     cells_total = trajectory.cells.shape[1]
     shown = min(robots_total, MAX_ROBOT_PATHS)
@@ -153,14 +232,7 @@ def trajectory_figure(result: SimulationResult) -> Figure:
         ax.scatter(*ends[~reached].T, color=ROBOT_BLUE, marker="X", s=60, edgecolors="white",
                    linewidths=0.8, depthshade=False, zorder=6,
                    label="robot end, not reached")  # fmt: skip
-    ax.set_xlim(-half, half)
-    ax.set_ylim(-half, half)
-    ax.set_zlim(-half, half)
-    ax.set_box_aspect((1, 1, 1), zoom=0.92)
-    length = length_unit(result.scenario)
-    ax.set_xlabel(f"x ({length})")
-    ax.set_ylabel(f"y ({length})")
-    ax.set_zlabel(f"z ({length})")
+    _cube_axes(ax, result)
     who = "robot" if robots_total == 1 else f"{robots_total} robots"
     cells = "cancer cell" if cells_total == 1 else f"{cells_total} cancer cells"
     notes = []
@@ -203,6 +275,156 @@ def _trajectory_handles(reached: bool, failed: bool, obstacles: bool, moving: bo
         handles.append(Line2D([], [], color=ROBOT_BLUE, marker="X", markersize=8,
                               markeredgecolor="white", linestyle="",
                               label="robot end, not reached"))  # fmt: skip
+    if obstacles:
+        handles.append(Patch(facecolor="0.45", edgecolor="0.3",
+                             label="obstacle at the end" if moving else "obstacle"))  # fmt: skip
+    return handles
+
+
+def _swarm_figure(result: SimulationResult, trajectory: Trajectory, view: SwarmView) -> Figure:
+    robots_total = trajectory.robots.shape[1]
+    cells_total = trajectory.cells.shape[1]
+    shown = min(robots_total, MAX_ROBOT_PATHS)
+    fig = sized_figure("trajectory")
+    ax: Any = fig.add_subplot(projection="3d", computed_zorder=False)
+    _draw_obstacles(ax, trajectory.obstacles_at(-1), trajectory.obstacle_radius)
+    width, alpha = (1.6, 0.9) if shown == 1 else (1.0, 0.85) if shown <= 10 else (0.8, 0.7)
+    for i in range(shown):
+        path = thin(trajectory.robots[: last_row(trajectory, i) + 1, i])
+        colour = ROBOT_BLUE if view.delivered[i] else CARRYING_GREY
+        ax.plot(*path.T, color=colour, linewidth=width, alpha=alpha, zorder=3)
+    ax.scatter(*trajectory.robots[0, :shown].T, color=START_GREEN, marker="o", s=22,
+               edgecolors="white", linewidths=0.6, depthshade=False, zorder=4)  # fmt: skip
+    drawn = cells_with_paths(trajectory)
+    for j in drawn:
+        ax.plot(*thin(trajectory.cells[:, j]).T, color=CELL_RED, linewidth=1.1, alpha=0.8,
+                zorder=2)  # fmt: skip
+    star = 170 if cells_total <= MAX_CELL_PATHS else 110 if cells_total <= 20 else 60
+    treated = np.zeros(cells_total, dtype=np.bool_) if view.treated is None else view.treated
+    ends = trajectory.cells[-1]
+    untreated = "cell at the end" if view.treated is None else "cell to treat"
+    if (~treated).any():
+        ax.scatter(*ends[~treated].T, color=CELL_RED, marker="*", s=star, edgecolors="black",
+                   linewidths=0.7, depthshade=False, zorder=5, label=untreated)  # fmt: skip
+    delivered = view.delivered
+    if delivered.any():
+        for colour, line in (("white", 3.2), (ROBOT_BLUE, 1.6)):
+            ax.scatter(*view.ends[delivered].T, marker="o", s=44, facecolors="none",
+                       edgecolors=colour, linewidths=line, depthshade=False, zorder=6,
+                       label="robot end, delivered")  # fmt: skip
+    carrying = ~delivered
+    if carrying.any():
+        _draw_carrying(fig, ax, result, view, carrying)
+    # A treated cell is a hollow star over the rings of the robots bound to it, so both show.
+    if treated.any():
+        for colour, line in (("white", 3.0), (CELL_RED, 1.5)):
+            ax.scatter(*ends[treated].T, marker="*", s=star * 1.8, facecolors="none",
+                       edgecolors=colour, linewidths=line, depthshade=False, zorder=7,
+                       label="treated cell")  # fmt: skip
+    _cube_axes(ax, result)
+    notes = []
+    if shown < robots_total:
+        notes.append(f"paths of the first {shown} robots")
+    if len(drawn) < cells_total:
+        notes.append(f"paths of the {len(drawn)} cells most reached")
+    treated_text = (
+        "" if view.treated is None else f"; {int(treated.sum())} of {cells_total} treated"
+    )
+    who = "robot" if robots_total == 1 else f"{robots_total} robots"
+    cells = "cancer cell" if cells_total == 1 else f"{cells_total} cancer cells"
+    title = (
+        f"Paths of the {who} and the {cells}, evaluation episode\n"
+        f"{int(delivered.sum())} of {robots_total} delivered "
+        f"{'its payload' if robots_total == 1 else 'their payloads'} in "
+        f"{trajectory.length} steps{treated_text}"
+    )
+    if notes:
+        title += f"\n{' and '.join(notes)} drawn; every robot's end marked"
+    fig.suptitle(title, fontsize="medium")
+    fig.legend(
+        handles=_swarm_handles(view, shown, len(trajectory.obstacles_at(-1)) > 0,
+                               trajectory.obstacles_move),
+        loc="outside lower center", ncols=4, frameon=False, fontsize="small",
+    )  # fmt: skip
+    return fig
+
+
+def _draw_carrying(
+    fig: Figure, ax: Any, result: SimulationResult, view: SwarmView, carrying: NDArray[np.bool_]
+) -> None:
+    """The ends of the robots still carrying their payload: crosses coloured by the signal they
+    read last (with a colour bar), by the message they held, or plain orange."""
+    ends = view.ends[carrying]
+    style: dict[str, Any] = {"marker": "X", "s": 60 if len(ends) <= 30 else 40,
+                             "linewidths": 0.6, "depthshade": False, "zorder": 6,
+                             "label": "robot end, still carrying"}  # fmt: skip
+    if view.signal is not None:
+        values = view.signal[carrying]
+        low, high = min(0.0, float(values.min())), max(0.0, float(values.max()))
+        norm = Normalize(low, high if high > low else low + 1.0)
+        points = ax.scatter(*ends.T, c=values, cmap=SIGNAL_CMAP, norm=norm, edgecolors="black",
+                            **style)  # fmt: skip
+        colourbar = fig.colorbar(points, ax=ax, shrink=0.5, aspect=25, pad=0.12)
+        repellent = result.scenario.communication.model == "attractant_repellent"
+        colourbar.set_label(
+            f"net signal{': attractant - repellent' if repellent else ''} "
+            f"({concentration_unit(result.scenario)})"
+        )
+    elif view.message is not None:
+        held = view.message[carrying]
+        for mask, colour in ((held, MESSAGE_PURPLE), (~held, CARRYING_ORANGE)):
+            if mask.any():
+                ax.scatter(*ends[mask].T, color=colour, edgecolors="white", **style)
+    else:
+        ax.scatter(*ends.T, color=CARRYING_ORANGE, edgecolors="white", **style)
+
+
+def _swarm_handles(view: SwarmView, shown: int, obstacles: bool, moving: bool) -> list[Artist]:
+    """The legend of what the swarm's picture shows, and only that (``shown``: paths drawn)."""
+    delivered = view.delivered
+    carrying = ~delivered
+    treated = view.treated
+    handles: list[Artist] = []
+    if delivered[:shown].any():
+        handles.append(Line2D([], [], color=ROBOT_BLUE, label="path, delivered"))
+    if carrying[:shown].any():
+        handles.append(Line2D([], [], color=CARRYING_GREY, label="path, still carrying"))
+    handles += [
+        Line2D([], [], color=START_GREEN, marker="o", markeredgecolor="white", linestyle="",
+               label="robot start"),
+        Line2D([], [], color=CELL_RED, linewidth=1.1, label="cell path"),
+    ]  # fmt: skip
+    if treated is None or not treated.all():
+        handles.append(Line2D([], [], color=CELL_RED, marker="*", markersize=12,
+                              markeredgecolor="black", linestyle="",
+                              label="cell at the end" if treated is None
+                              else "cell to treat"))  # fmt: skip
+    if treated is not None and treated.any():
+        handles.append(Line2D([], [], marker="*", markersize=14, markerfacecolor="none",
+                              markeredgecolor=CELL_RED, markeredgewidth=1.5, linestyle="",
+                              label="treated cell"))  # fmt: skip
+    if delivered.any():
+        handles.append(Line2D([], [], marker="o", markerfacecolor="none",
+                              markeredgecolor=ROBOT_BLUE, markeredgewidth=1.6, linestyle="",
+                              label="delivered its payload"))  # fmt: skip
+    cross: dict[str, Any] = {"marker": "X", "markersize": 8, "linestyle": ""}
+    if not carrying.any():
+        pass
+    elif view.message is not None:
+        held = view.message[carrying]
+        if held.any():
+            handles.append(Line2D([], [], color=MESSAGE_PURPLE, markeredgecolor="white",
+                                  label="carrying, holds a message", **cross))  # fmt: skip
+        if not held.all():
+            handles.append(Line2D([], [], color=CARRYING_ORANGE, markeredgecolor="white",
+                                  label="carrying, no message", **cross))  # fmt: skip
+    elif view.signal is not None:
+        handles.append(Line2D([], [], color="0.75", markeredgecolor="black",
+                              label="still carrying (colour: last signal read)",
+                              **cross))  # fmt: skip
+    else:
+        handles.append(Line2D([], [], color=CARRYING_ORANGE, markeredgecolor="white",
+                              label="still carrying", **cross))  # fmt: skip
     if obstacles:
         handles.append(Patch(facecolor="0.45", edgecolor="0.3",
                              label="obstacle at the end" if moving else "obstacle"))  # fmt: skip

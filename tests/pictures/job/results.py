@@ -23,6 +23,7 @@ EXPECTED_SIZE = {
     "concentration": (800, 600),
     "learning": (900, 600),
     "qtable": (780, 1500),  # it grows with the table: this is 72 states x 4 actions (behaviors)
+    "treatment": (900, 700),
 }
 
 

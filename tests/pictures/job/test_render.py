@@ -3,7 +3,7 @@
 import pytest
 
 from nanonav.engine import Progress, SimulationResult, simulate
-from nanonav.pictures.job import PICTURE_NAMES, render, render_all
+from nanonav.pictures.job import OPTIONAL_PICTURES, PICTURE_NAMES, render, render_all
 from nanonav.pictures.job.concentration import concentration_png
 from nanonav.pictures.job.heatmap import heatmap_png
 from nanonav.pictures.job.learning import learning_figure, learning_png
@@ -13,7 +13,7 @@ from tests.pictures.job.results import EXPECTED_SIZE, assert_picture, scenario
 
 def test_render_all_gives_every_named_picture_at_its_size(swarm: SimulationResult) -> None:
     pictures = render_all(swarm)
-    assert tuple(pictures) == PICTURE_NAMES
+    assert tuple(pictures) == tuple(n for n in PICTURE_NAMES if n != "treatment")  # no swarm's
     for name, png in pictures.items():
         assert_picture(png, EXPECTED_SIZE[name])
 
@@ -23,7 +23,9 @@ def test_a_policy_that_learns_no_table_has_every_picture_but_the_qtable() -> Non
         scenario(seed=2, robots={"count": 3, "policy": "random"},
                  learning={"episodes": 1, "max_steps": 60}, evaluation={"worlds": 2})
     )  # fmt: skip
-    assert tuple(render_all(walkers)) == tuple(n for n in PICTURE_NAMES if n != "qtable")
+    assert tuple(render_all(walkers)) == tuple(
+        n for n in PICTURE_NAMES if n not in OPTIONAL_PICTURES
+    )
     with pytest.raises(ValueError, match="'random' policy learns no Q-table"):
         render(walkers, "qtable")
 
@@ -63,7 +65,7 @@ def test_a_stored_result_draws_the_same_pictures_as_the_live_one(swarm: Simulati
 
 
 def test_render_names_every_picture_and_refuses_others(single: SimulationResult) -> None:
-    for name in PICTURE_NAMES:
+    for name in (n for n in PICTURE_NAMES if n != "treatment"):  # test_treatment draws that one
         assert_picture(render(single, name), EXPECTED_SIZE[name])
     with pytest.raises(ValueError, match="no picture 'heatmap_xx'"):
         render(single, "heatmap_xx")
