@@ -113,6 +113,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--robots", default=",".join(map(str, SWARMS)), help="comma-separated swarm sizes"
     )
+    parser.add_argument(
+        "--swarm-robots",
+        default=",".join(map(str, SWARM_SIZES)),
+        help="comma-separated sizes of the swarm's table",
+    )
+    parser.add_argument("--skip-fields", action="store_true", help="only the swarm's table")
     args = parser.parse_args(argv)
     models = args.models.split(",")
     swarms = [int(n) for n in args.robots.split(",")]
@@ -123,9 +129,12 @@ def main(argv: list[str] | None = None) -> int:
     simulate(bench_scenario("gaussian", 1, 1000))  # start-up: compile or load numba's cache
     print(f"cpu cores visible: {os.cpu_count()}, numba threads: 1 (the engine is single-threaded)")
     header = f"{'model':<15}{'robots':>7}{'engine rs/s':>14}{'naive rs/s':>12}{'ratio':>9}"
-    print(header)
-    print("-" * len(header))
-    verdicts = []
+    verdicts: list[tuple[str, int, str, float, int]] = []
+    if args.skip_fields:
+        models = []
+    else:
+        print(header)
+        print("-" * len(header))
     for model in models:
         for robots in swarms:
             scenario = bench_scenario(model, robots, workload)
@@ -137,11 +146,13 @@ def main(argv: list[str] | None = None) -> int:
                 verdicts.append((model, robots, "rate", rate, TARGET_RATE_1000))
             if robots in TARGET_RATIO:
                 verdicts.append((model, robots, "ratio", ratio, TARGET_RATIO[robots]))
-    print()
     # the second physics beside the first, in the same run
-    print(f"{'physics, policy':<34}{'robots':>7}{'engine rs/s':>14}{'vs lattice':>12}")
-    print("-" * 67)
-    for robots in [n for n in swarms if n in (15, 1000)] or swarms[-1:]:
+    beside = [] if args.skip_fields else [n for n in swarms if n in (15, 1000)] or swarms[-1:]
+    if beside:
+        print()
+        print(f"{'physics, policy':<34}{'robots':>7}{'engine rs/s':>14}{'vs lattice':>12}")
+        print("-" * 67)
+    for robots in beside:
         lattice, _ = engine_rate(bench_scenario("diffusion", robots, workload), repeats)
         print(f"{'lattice, q_learning (diffusion)':<34}{robots:>7}{lattice:>14,.0f}{'1.00':>12}")
         for policy in ("q_learning", "run_and_tumble", "gradient"):
@@ -153,14 +164,14 @@ def main(argv: list[str] | None = None) -> int:
     print()
     print(f"{'the swarm':<34}{'robots':>7}{'engine rs/s':>14}")
     print("-" * 55)
-    sizes = [n for n in swarms if n in SWARM_SIZES] or list(SWARM_SIZES)
+    sizes = [int(n) for n in args.swarm_robots.split(",")]
     spreads: list[tuple[str, float]] = []
     if args.quick:
         sizes = [n for n in sizes if n <= 10_000]
     for config in SWARM_CONFIGS:
         rates = {}
         for robots in sizes:
-            load = max(workload, 20 * robots * 100)
+            load = max(workload, 3 * robots * 100)  # three training episodes at least
             rate, _ = engine_rate(swarm_scenario(config, robots, load), repeats)
             rates[robots] = rate
             print(f"{config:<34}{robots:>7}{rate:>14,.0f}")

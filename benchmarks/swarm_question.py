@@ -22,6 +22,7 @@ import time
 from concurrent.futures import ProcessPoolExecutor
 from typing import Any
 
+import numpy as np
 from physical_question import paired
 from science import mean_ci
 
@@ -44,6 +45,28 @@ def run_one(job: tuple[str, int, int, str, int, int, int]) -> dict[str, Any]:
     )  # fmt: skip
     summary = simulate(scenario).summary
     return {key: summary[key] for key in METRICS}
+
+
+def idle_robots(job: tuple[str, int]) -> dict[str, float]:
+    """Where the robots that delivered nothing are at the end of the first evaluation world, at
+    20 cells and 100 robots: within 10 units of a treated cell, and how far they moved in the
+    last 200 steps (a robot that searches in straight lines covers up to 100)."""
+    model, seed = job
+    scenario = preset_scenario(PRESET, seed=seed, communication={"model": model},
+                               evaluation={"worlds": 1})  # fmt: skip
+    t = simulate(scenario).trajectory
+    assert t is not None and t.cell_loads is not None and t.delivered_to is not None
+    idle = t.delivered_to < 0
+    capacity = scenario.cells.capacity or 0
+    treated = t.cell_loads[-1] >= capacity
+    ends = t.robots[-1][idle]
+    gaps = np.linalg.norm(ends[:, None, :] - t.cells[-1][None, treated, :], axis=2)
+    before = int(np.searchsorted(t.step, t.step[-1] - 200))
+    moved = np.linalg.norm(ends - t.robots[before][idle], axis=1)
+    return {
+        "near_treated": float((gaps <= 10.0).any(axis=1).mean()) if idle.any() else 0.0,
+        "moved": float(moved.mean()) if idle.any() else 0.0,
+    }
 
 
 def table(header: tuple[str, ...], rows: list[tuple[str, ...]]) -> None:
@@ -112,6 +135,18 @@ def main(argv: list[str] | None = None) -> int:
             paired(share, [r["treated_fraction"] for r in rule]),
         ))  # fmt: skip
     table(("model", "q_learning treated", "rule treated", "q_learning minus rule"), rows)
+    with ProcessPoolExecutor(os.cpu_count() or 1) as pool:
+        idle_jobs = [(model, seed) for model in MODELS for seed in seeds]
+        idle = dict(zip(idle_jobs, pool.map(idle_robots, idle_jobs), strict=True))
+    print("the robots that delivered nothing, 20 cells, 100 robots, the first world of each seed")
+    rows = []
+    for model in MODELS:
+        found = [idle[(model, seed)] for seed in seeds]
+        rows.append((
+            model, mean_ci([f["near_treated"] for f in found]),
+            mean_ci([f["moved"] for f in found], 1, (0.0, float("inf"))),
+        ))  # fmt: skip
+    table(("model", "within 10 of a treated cell", "moved in the last 200 steps"), rows)
     print(f"({time.perf_counter() - started:.0f} s on {os.cpu_count()} cores)")
     return 0
 

@@ -40,6 +40,18 @@ METRICS: tuple[tuple[str, str, Callable[[Any], str]], ...] = (
 )
 
 
+# The swarm's numbers, after Table 1, for runs that have them (nanonav.engine.metrics.SWARM)
+SWARM: tuple[tuple[str, str, Callable[[Any], str]], ...] = (
+    ("Cells Treated", "cells_treated", number),
+    ("Share of Cells Treated", "treated_fraction", percent),
+    ("Steps to Treat Every Cell", "time_to_treat_all", number),
+    ("Payloads per Cell", "robots_per_cell", number),
+    ("Most Payloads on a Cell", "most_robots_on_a_cell", number),
+    ("Robots That Delivered Nothing", "never_delivered", percent),
+    ("Bumps Between Robots", "bumps", number),
+)
+
+
 def significant(value: Any) -> str:
     """Three significant figures: physical concentrations span decades below 1 nM."""
     return "n/a" if value is None else f"{float(value):.3g}"
@@ -72,4 +84,11 @@ def rows(document: Mapping[str, Any]) -> list[tuple[str, str, str]]:
         low, high = spread.get("ci_low"), spread.get("ci_high")
         interval = "" if low is None or high is None else f"[{show(low)}, {show(high)}]"
         found.append((label, show(summary.get(key)), interval))
+    for label, key, show in SWARM:
+        if key not in summary:
+            continue
+        spread = uncertainty.get(key) or {}
+        low, high = spread.get("ci_low"), spread.get("ci_high")
+        interval = "" if low is None or high is None else f"[{show(low)}, {show(high)}]"
+        found.append((label, show(summary[key]), interval))
     return found

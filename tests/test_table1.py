@@ -39,3 +39,19 @@ def test_lattice_rows_are_the_papers() -> None:
         "Average Biomarker Concentration",
     ]
     assert [label for label, _, _ in table1.rows({"summary": SUMMARY})] == labels
+
+
+def test_the_swarms_numbers_follow_table_1_only_when_a_run_has_them() -> None:
+    plain = [label for label, _, _ in table1.rows({"summary": SUMMARY})]
+    assert "Cells Treated" not in plain and len(plain) == len(table1.METRICS)
+    swarm = {**SUMMARY, "cells_treated": 4.5, "treated_fraction": 0.9, "time_to_treat_all": 812.0,
+             "robots_per_cell": 3.0, "most_robots_on_a_cell": 3.0, "never_delivered": 0.4,
+             "bumps": 12.0}  # fmt: skip
+    document = {
+        "summary": swarm,
+        "uncertainty": {"treated_fraction": {"ci_low": 0.8, "ci_high": 1.0}},
+    }
+    shown = {label: (value, interval) for label, value, interval in table1.rows(document)}
+    assert shown["Share of Cells Treated"] == ("90.0%", "[80.0%, 100.0%]")
+    assert shown["Steps to Treat Every Cell"] == ("812.00", "")
+    assert list(shown)[len(table1.METRICS)] == "Cells Treated"
