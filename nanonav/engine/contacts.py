@@ -2,12 +2,13 @@
 list of the robots inside, so that finding every robot within ``cutoff`` of a point looks at the
 27 cells around it, never at the whole swarm.
 
-The grid is rebuilt once a step (O(robots)); robots then move one by one within the step while
-the grid still lists them where they were. That stays exact as long as a cell is at least the
-cutoff plus the longest move of a step wide: a robot listed in its old cell is then still in one
-of the 27 cells around any point within the cutoff of where it is now. ``grid_for`` sizes it so.
-Points outside the grid (a space without walls) are kept in its border cells, which stays exact
-and only costs speed.
+Two ways to keep it exact while robots move one by one within a step. ``rebuild`` lists every
+robot once a step (O(robots)); the grid then still lists a robot where it was, which stays exact
+as long as a cell is at least the cutoff plus the longest move of a step wide (``grid_for``'s
+``step``). Or ``relist`` moves a robot to its new cell as it moves (O(robots in a cell)), which
+stays exact however far a step goes (a Brownian jiggle has no bound): the engine's step does
+this, with cells as wide as the cutoff. Points outside the grid (a space without walls) are kept
+in its border cells, which stays exact and only costs speed.
 """
 
 from __future__ import annotations

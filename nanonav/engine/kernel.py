@@ -2,8 +2,10 @@
 robot senses, chooses, moves, collides or reaches, and learns (eq. 2.7).
 
 The step composes the engine's rooms: ``dynamics.lattice`` (how cells, obstacles and robots
-move), ``sensing`` (readings and the state), ``policies`` (the choice of an action) and
-``learning`` (the Q update). Everything here runs under numba; the loop over robots is compiled,
+move), ``sensing`` (readings and the state), ``policies`` (the choice of an action),
+``learning`` (the Q update), and the swarm's: ``contacts`` (robots that take up space),
+``treatment`` (cells that take payloads) and ``communication`` (signals on the ``signals`` grid,
+or broadcast). Everything here runs under numba; the loop over robots is compiled,
 never a Python loop, and the rooms' small functions are inlined into it. Robots are processed in
 index order within a step, so a shared Q-table written by many robots in one step receives every
 update in a fixed order: the result is exact and reproducible.

@@ -77,3 +77,23 @@ def test_the_grid_is_sized_by_the_cutoff_and_the_step_and_capped() -> None:
     for bad in ((0.0, 1.0, 0.0), (1.0, -1.0, 0.0), (1.0, 1.0, -0.5)):
         with pytest.raises(ValueError):
             contacts.grid_for(*bad, 5)
+
+
+def test_relisting_as_robots_move_keeps_every_search_exact_however_far_they_go() -> None:
+    rng = np.random.default_rng(7)
+    pos = rng.uniform(-20.0, 20.0, (2_000, 3))
+    everyone = np.ones(len(pos), dtype=np.bool_)
+    grid = contacts.grid_for(20.0, 1.0, 0.0, len(pos))  # cells as wide as the cutoff only
+    contacts.rebuild(grid, pos, everyone)
+    for i in rng.integers(0, len(pos), 3_000):
+        pos[i] += rng.normal(0.0, 5.0, 3)  # jumps of many cells, and out of the grid
+        contacts.relist(grid, int(i), *pos[i])
+    assert sorted(np.flatnonzero(grid.cell >= 0)) == list(range(len(pos)))  # each listed once
+    tree = cKDTree(pos)
+    for point in rng.uniform(-25.0, 25.0, (200, 3)):
+        found = np.empty(len(pos), dtype=np.int64)
+        k = contacts.each_within(grid, pos, *point, 1.0, found)
+        expected = sorted(j for j in tree.query_ball_point(point, 1.0 - 1e-12))
+        assert found[:k].tolist() == expected
+        nearest = contacts.first_within(grid, pos, everyone, *point, 1.0, -1)
+        assert nearest == (expected[0] if expected else -1)
