@@ -129,6 +129,12 @@ class NoQTable(ProblemError):
     title = "No Q-table"
 
 
+class NoTreatment(ProblemError):
+    status = 404
+    slug = "no-treatment"
+    title = "No treatment"
+
+
 class NoCallback(ProblemError):
     status = 404
     slug = "no-callback"

@@ -13,7 +13,7 @@ from nanonav.store import JobRecord, JobStatus
 from service.paging import CURSOR_PATTERN
 
 Status = Literal["queued", "running", "succeeded", "failed", "cancelled"]
-PLOTS = ("trajectory", "concentration", "learning", "qtable")
+PLOTS = ("trajectory", "concentration", "learning", "qtable", "treatment")
 PLANES = ("xy", "xz", "yz", "all")
 
 
@@ -42,7 +42,7 @@ JOB_EXAMPLE: dict[str, Any] = {
         "trajectory": "/jobs/42/trajectory",
         "qtable": "/jobs/42/qtable",
         "heatmap": "/jobs/42/heatmap.png",
-        "plots": {name: plot_link("/jobs/42", name) for name in PLOTS},
+        "plots": {name: plot_link("/jobs/42", name) for name in PLOTS if name != "treatment"},
     },
 }
 
@@ -127,6 +127,7 @@ class Job(BaseModel):
         # a job cancelled while it ran keeps the episodes it finished
         kept = job.status is JobStatus.CANCELLED and job.started_at is not None
         learns = (job.scenario.get("robots") or {}).get("policy", "q_learning") == "q_learning"
+        swarm = job_pictures.treatment_drawn(job.scenario)
         return cls(
             id=job.id,
             status=job.status.value,
@@ -157,6 +158,7 @@ class Job(BaseModel):
                     for name in PLOTS
                     if (done or (kept and name in ("learning", "qtable")))
                     and (learns or name != "qtable")
+                    and (swarm or name != "treatment")
                 },
                 study=None if job.study_id is None else f"/studies/{job.study_id}",
             ),

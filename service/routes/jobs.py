@@ -30,7 +30,14 @@ from service.idempotency import IdempotencyDep
 from service.ids import JobId
 from service.paging import Cursor, decode_cursor, encode_cursor
 from service.policy_from import check_policy_from
-from service.problems import InvalidInput, NoCallback, NoQTable, field_error, problems
+from service.problems import (
+    InvalidInput,
+    NoCallback,
+    NoQTable,
+    NoTreatment,
+    field_error,
+    problems,
+)
 from service.schemas import Callback, GreedyState, Job, JobPage, Metrics, QTable, Trajectory
 from service.security import SCRIPTED_ONLY, CallerDep, owned_tables, quota_of
 
@@ -379,12 +386,13 @@ def _draw_heatmap(
 )
 async def get_plot(
     job_id: JobId,
-    name: Literal["trajectory", "concentration", "learning", "qtable"],
+    name: Literal["trajectory", "concentration", "learning", "qtable", "treatment"],
     store: StoreDep,
     drawer: DrawerDep,
 ) -> Response:
-    """A picture of the run: 3-D trajectory, concentration over time, learning curve, or the
-    learned Q-table (404 for a job whose policy learns none).
+    """A picture of the run: 3-D trajectory, concentration over time, learning curve, the
+    learned Q-table (404 for a job whose policy learns none), or the swarm's treatment over
+    time (404 for a job whose robots neither take up space, treat cells nor signal).
 
     The job's links name a picture with ``?v=`` the version of its drawing once it has been
     drawn anew, so that no cache keeps an older one; any ``v`` gets the current drawing."""
@@ -394,6 +402,8 @@ async def get_plot(
 async def _picture(store: JobStore, drawer: Drawer, job_id: int, name: str) -> Response:
     """The stored picture, or drawn now (off the event loop) and stored for next time, under
     the version of its drawing: a copy of an older drawing is drawn again."""
+    if name == "treatment":
+        await run_in_threadpool(_check_treatment, store, job_id)
     stored_as = kept_name(name, pictures.version(name))
     kept = name in KEPT_PICTURES
     png = await run_in_threadpool(partial(store.plot, job_id, stored_as, kept=kept))
@@ -414,6 +424,17 @@ def _draw(store: JobStore, job_id: int, name: str, stored_as: str) -> bytes:
         png = pictures.render(SimulationResult.from_stored(metrics, arrays), name)
     store.save_plot(job_id, stored_as, png)
     return png
+
+
+def _check_treatment(store: JobStore, job_id: int) -> None:
+    """404 for a job without the swarm's numbers, before a drawing is queued."""
+    scenario = store.get(job_id).scenario
+    if not pictures.treatment_drawn(scenario):
+        raise NoTreatment(
+            f"job {job_id} has no treatment to draw: its robots take up no space "
+            "(robots.exclusion), its cells cannot be treated (cells.capacity) and its robots do "
+            "not signal (communication.model)"
+        )
 
 
 def _qtable_png(store: JobStore, job_id: int) -> bytes:

@@ -20,6 +20,7 @@ from nanonav.settings import Settings
 from nanonav.store import JobStatus, JobStore, StudyStore
 from nanonav.store.migrate import upgrade
 from service.app import create_app
+from service.drawing import kept_name
 from tests.conftest import Api, serve
 from tests.service.test_api import assert_problem
 from worker.job import run_job
@@ -58,12 +59,13 @@ def test_a_picture_is_drawn_on_first_request_and_then_read(
     api: Api, api_settings: Settings, drawn: list[str]
 ) -> None:
     job_id = succeeded_job(api.store, api_settings)
-    assert api.store.plot(job_id, "trajectory") is None
+    kept_as = kept_name("trajectory", pictures.version("trajectory"))
+    assert api.store.plot(job_id, kept_as) is None
     first = api.client.get(f"/jobs/{job_id}/plots/trajectory.png")
     assert first.status_code == 200, first.text
     assert first.headers["content-type"] == "image/png"
     assert "immutable" in first.headers["cache-control"]
-    assert api.store.plot(job_id, "trajectory") == first.content
+    assert api.store.plot(job_id, kept_as) == first.content
     again = api.client.get(f"/jobs/{job_id}/plots/trajectory.png")
     assert again.content == first.content
     assert drawn == ["trajectory"]
