@@ -135,6 +135,12 @@ class NoTreatment(ProblemError):
     title = "No treatment"
 
 
+class NoMetric(ProblemError):
+    status = 404
+    slug = "no-metric"
+    title = "No such metric in this study"
+
+
 class NoCallback(ProblemError):
     status = 404
     slug = "no-callback"

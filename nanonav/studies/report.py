@@ -17,11 +17,12 @@ from typing import Any, Literal
 import numpy as np
 
 from nanonav import stats
-from nanonav.engine.metrics import RANGES
+from nanonav.engine.metrics import RANGES, SWARM
 from nanonav.studies.spec import GridValue, StudySpec
 
-# The paper's Table 1 (its duration included), then success, collisions and path efficiency.
-METRICS = (
+# The paper's Table 1 (its duration included), then success, collisions and path efficiency:
+# every study reports them.
+PAPER_METRICS = (
     "total_steps",
     "final_distance",
     "average_distance",
@@ -31,6 +32,10 @@ METRICS = (
     "collisions",
     "path_efficiency",
 )
+# The swarm's numbers (``nanonav.engine.metrics``): only runs whose robots take up space, treat
+# cells or signal have them, so a study reports each only once one of its jobs has it.
+SWARM_METRICS: tuple[str, ...] = SWARM
+METRICS = PAPER_METRICS + SWARM_METRICS
 # A job's learning curve is kept at most this many points long (episodes averaged in bins).
 CURVE_POINTS = 200
 CURVE_KEYS = ("steps", "success_rate", "mean_return")
@@ -50,9 +55,20 @@ class JobOutcome:
 
 
 def study_metrics(document: dict[str, Any]) -> dict[str, Any]:
-    """The metrics a study reads of a succeeded job's metrics document."""
+    """The metrics a study reads of a succeeded job's metrics document: the paper's, and those
+    of the swarm's its run has."""
     summary = document.get("summary") or {}
-    return {key: summary.get(key) for key in METRICS}
+    return {key: summary.get(key) for key in PAPER_METRICS} | {
+        key: summary[key] for key in SWARM_METRICS if key in summary
+    }
+
+
+def reported_metrics(jobs: Sequence[JobOutcome]) -> tuple[str, ...]:
+    """The metrics a study of ``jobs`` reports, in ``METRICS`` order: the paper's always, each
+    of the swarm's once a job that succeeded has it (so a study of the paper's scenarios has
+    no column, chart or statistic of numbers none of its runs gives)."""
+    given = tuple(key for key in SWARM_METRICS if any(_value(j, key) is not None for j in jobs))
+    return PAPER_METRICS + given
 
 
 def learning_curve(document: dict[str, Any]) -> dict[str, list[float]]:
@@ -104,23 +120,24 @@ def report(
     by_point: dict[int, list[JobOutcome]] = {i: [] for i in range(len(values))}
     for job in jobs:
         by_point[job.point].append(job)
+    metrics = reported_metrics(jobs)
     point_rows = []
     for index, point_values in enumerate(values):
         members = by_point[index]
         counts = status_counts(members)
         described = {}
-        for metric in METRICS:
+        for metric in metrics:
             sample = [v for v in (_value(j, metric) for j in members) if v is not None]
             described[metric] = stats.describe(sample, bounds=RANGES[metric]).to_dict()
         point_rows.append(
             {"index": index, "values": point_values, "jobs": dict(counts), "metrics": described}
         )
     return {
-        "metrics": list(METRICS),
+        "metrics": list(metrics),
         "interval": stats.CONFIDENCE_METHOD,
         "test": stats.TEST_METHOD,
         "points": point_rows,
-        "comparisons": comparisons(spec, values, by_point),
+        "comparisons": comparisons(spec, values, by_point, metrics),
     }
 
 
@@ -128,9 +145,10 @@ def comparisons(
     spec: StudySpec,
     values: Sequence[dict[str, GridValue]],
     by_point: dict[int, list[JobOutcome]],
+    metrics: Sequence[str],
 ) -> list[dict[str, Any]]:
     """Each value of ``spec.compare`` against its first, at every combination of the other grid
-    keys, on the seeds where both jobs succeeded."""
+    keys, on the seeds where both jobs succeeded, in each of ``metrics``."""
     key = spec.compare
     if key is None:
         return []
@@ -145,7 +163,7 @@ def comparisons(
         for method in spec.grid[key][1:]:
             treated = {job.seed: job for job in by_point[members[method]]}
             compared = {}
-            for metric in METRICS:
+            for metric in metrics:
                 pairs = [
                     (a, b)
                     for seed in sorted(treated.keys() & baseline.keys())
@@ -169,17 +187,19 @@ def comparisons(
 def table(
     values: Sequence[dict[str, GridValue]], jobs: Sequence[JobOutcome]
 ) -> list[dict[str, Any]]:
-    """A row per job: its id, seed, every grid value, status and the metrics (empty unless it
-    succeeded), in job order."""
+    """A row per job: its id, seed, every grid value, status and the metrics the study reports
+    (``reported_metrics``; empty unless it succeeded), in job order."""
+    metrics = reported_metrics(jobs)
     rows = []
     for job in sorted(jobs, key=lambda j: j.job_id):
         row: dict[str, Any] = {"job_id": job.job_id, "seed": job.seed}
         row.update(values[job.point])
         row["status"] = job.status
-        row.update({metric: _value(job, metric) for metric in METRICS})
+        row.update({metric: _value(job, metric) for metric in metrics})
         rows.append(row)
     return rows
 
 
-def table_columns(spec: StudySpec) -> list[str]:
-    return ["job_id", "seed", *spec.grid, "status", *METRICS]
+def table_columns(spec: StudySpec, jobs: Sequence[JobOutcome]) -> list[str]:
+    """The table's columns: ids, grid keys, status and the metrics a study of ``jobs`` reports."""
+    return ["job_id", "seed", *spec.grid, "status", *reported_metrics(jobs)]

@@ -26,7 +26,6 @@ from nanonav import table1
 from nanonav.scenario import MAX_EXACT_INT, PRESETS, ActionSet, FieldModel, Policy, Scenario
 from nanonav.store import JobNotFound, JobStatus, JobStore, StudyNotFound
 from nanonav.store.queue import PRESENCE_WINDOW_S
-from nanonav.studies.report import METRICS
 from nanonav.studies.spec import GRID_KEYS
 from service.deps import ReportsDep, SettingsDep, StoreDep, StudiesDep
 from service.paging import Cursor, decode_cursor, encode_cursor
@@ -49,9 +48,15 @@ VENDOR: dict[str, tuple[str, str]] = {
 }
 # The interactive 3-D view draws at most this many rows of the trajectory.
 VIEW_ROWS = 400
-# A study's table shows these metrics (its CSV has them all).
+# A study's table shows these metrics, those it reports (its CSV has them all); the swarm's
+# only once a job has them.
 STUDY_COLUMNS = ("success_rate", "total_steps", "final_distance", "average_distance",
-                 "average_concentration", "collisions", "path_efficiency")  # fmt: skip
+                 "average_concentration", "collisions", "path_efficiency", "treated_fraction",
+                 "time_to_treat_all", "never_delivered", "robots_per_cell",
+                 "most_robots_on_a_cell", "bumps")  # fmt: skip
+# And charts these, of those it reports, beside its learning curves.
+STUDY_PICTURES = ("success_rate", "total_steps", "average_distance", "treated_fraction",
+                  "time_to_treat_all", "never_delivered")  # fmt: skip
 PageId = Annotated[int, PathParam(ge=1, le=MAX_EXACT_INT)]
 
 
@@ -216,7 +221,8 @@ def _study_context(
         "keys": keys,
         "other_keys": [k for k in keys if k != compare],
         "compare": compare,
-        "shown_metrics": [m for m in STUDY_COLUMNS if m in METRICS],
+        "shown_metrics": [m for m in STUDY_COLUMNS if m in study.metrics],
+        "shown_pictures": [m for m in STUDY_PICTURES if m in study.metrics],
         "fmt": lambda v: f"{v:.3g}" if abs(v) < 1000 else f"{v:,.0f}",
         "version": done,  # pictures change as jobs finish
     }

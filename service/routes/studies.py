@@ -44,6 +44,7 @@ from service.policy_from import check_policy_from
 from service.problems import (
     InvalidInput,
     NoCallback,
+    NoMetric,
     StudyFinished,
     field_error,
     invalid_body,
@@ -179,7 +180,7 @@ def list_studies(
                 created_at=record.created_at,
                 cancel_requested=record.cancel_requested,
                 jobs=jobs,
-                links=_links(record.id),
+                links=_links(record.id, pictures.EVERY_STUDYS_PICTURES),
             )
         )
     next_cursor = None if page.next_before_id is None else encode_cursor(page.next_before_id)
@@ -260,7 +261,7 @@ def get_results(
     """The study's table, a row per job (metrics empty unless the job succeeded)."""
     loaded = _Loaded.of(studies, studies.get(study_id))
     rows = table(point_values(loaded.spec), loaded.outcomes)
-    columns = table_columns(loaded.spec)
+    columns = table_columns(loaded.spec, loaded.outcomes)
     name = f"nanonav-study-{study_id}"
     # A finished study's table never changes; an unfinished one's is asked for again.
     caching = IMMUTABLE if loaded.done else {}
@@ -286,7 +287,8 @@ async def get_study_plot(
     study_id: StudyId, name: PictureName, studies: StudiesDep, drawer: DrawerDep
 ) -> Response:
     """A metric against the swept numeric parameter with CI bars, a line per compared method
-    (grouped bars when no swept parameter is numeric), or the mean learning curves."""
+    (grouped bars when no swept parameter is numeric), or the mean learning curves. 404 for one
+    of the swarm's metrics while no job of the study has it (its links name those it has)."""
     png = await run_in_threadpool(studies.plot, study_id, kept_name(name, pictures.VERSION))
     if png is not None:
         return Response(png, media_type="image/png", headers=IMMUTABLE)
@@ -307,7 +309,13 @@ def _draw_now(studies: StudyStore, study_id: int, name: str, finished: list[bool
     if name == "learning":
         png = pictures.learning_png(loaded.spec, point_values(loaded.spec), loaded.outcomes)
     else:
-        png = pictures.metric_png(loaded.spec, loaded.report(studies), name)
+        found = loaded.report(studies)
+        if name not in pictures.pictures_of(found):
+            raise NoMetric(
+                f"no job of study {study_id} reports {name}: only runs whose robots take up "
+                "space, treat cells or signal do"
+            )
+        png = pictures.metric_png(loaded.spec, found, name)
     if loaded.done:  # kept under its drawing's version: a copy of an older one is drawn again
         studies.keep_plot(study_id, kept_name(name, pictures.VERSION), png)
     finished.append(loaded.done)
@@ -380,7 +388,7 @@ def study_answer(studies: StudyStore, reports: Reports, record: StudyRecord) -> 
         jobs=JobCounts.of(counts),
         progress=found.work_done / max(total, 1),
         spec=record.spec,
-        links=_links(record.id),
+        links=_links(record.id, pictures.pictures_of(statistics)),
         **statistics,
     )
 
@@ -399,7 +407,10 @@ def _policy_blame(spec: StudySpec, values: Mapping[str, Any]) -> tuple[tuple[str
     return loc, where
 
 
-def _links(study_id: int) -> StudyLinks:
+def _links(study_id: int, plots: tuple[str, ...]) -> StudyLinks:
+    """Where the study's results are; ``plots``, the pictures it has (a list of studies, which
+    reads no report, names those every study has: the swarm's metrics are named by the study
+    itself once a job has them)."""
     base = f"/studies/{study_id}"
     return StudyLinks(
         self_=base,
@@ -407,5 +418,5 @@ def _links(study_id: int) -> StudyLinks:
         jobs=f"/jobs?study={study_id}",
         results_csv=f"{base}/results.csv",
         results_parquet=f"{base}/results.csv?format=parquet",
-        plots={name: f"{base}/plots/{name}.png" for name in pictures.PICTURES},
+        plots={name: f"{base}/plots/{name}.png" for name in plots},
     )

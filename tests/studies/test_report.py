@@ -11,6 +11,7 @@ import pytest
 
 from nanonav.studies.report import (
     METRICS,
+    PAPER_METRICS,
     JobOutcome,
     learning_curve,
     report,
@@ -99,7 +100,7 @@ def test_a_job_keeps_its_study_metrics_and_a_binned_learning_curve() -> None:
     ]
     document = {"summary": {"total_steps": 7, "robots": 1}, "episodes": episodes}
     kept = study_metrics(document)
-    assert kept["total_steps"] == 7 and "robots" not in kept and set(kept) == set(METRICS)
+    assert kept["total_steps"] == 7 and "robots" not in kept and set(kept) == set(PAPER_METRICS)
     curve = learning_curve(document)
     assert len(curve["episode"]) == 200
     assert curve["episode"][0] == 2.0 and curve["steps"][0] == 2.0  # mean of episodes 0..4

@@ -13,7 +13,7 @@ import numpy as np
 
 from nanonav import stats
 from nanonav.pictures.study import charts
-from nanonav.studies.report import METRICS, JobOutcome
+from nanonav.studies.report import METRICS, PAPER_METRICS, JobOutcome
 from nanonav.studies.spec import GridValue, StudySpec
 
 LEARNING_PANELS = {
@@ -22,6 +22,9 @@ LEARNING_PANELS = {
     "mean_return": "mean return per robot",
 }
 PICTURES = (*METRICS, "learning")
+"""Every picture a study can have; ``pictures_of`` says which a given study has."""
+EVERY_STUDYS_PICTURES = (*PAPER_METRICS, "learning")
+"""The pictures every study has, whatever its jobs report."""
 VERSION = 2
 """The version of the drawing of every picture of a study: it goes up when a picture drawn
 before would now be drawn differently, so that a copy kept of the older drawing is drawn again.
@@ -58,8 +61,18 @@ def _label(values: dict[str, GridValue], keys: Sequence[str]) -> str:
     return ", ".join(f"{readable_key(k)}: {_readable_value(values[k])}" for k in keys)
 
 
+def pictures_of(report: dict[str, Any]) -> tuple[str, ...]:
+    """The pictures of the study ``report`` describes: a chart of each metric it reports (the
+    swarm's only once a job has them: ``nanonav.studies.report.reported_metrics``), and the
+    learning curves."""
+    return (*(m for m in METRICS if m in report["metrics"]), "learning")
+
+
 def metric_png(spec: StudySpec, report: dict[str, Any], metric: str) -> bytes:
-    """``metric``'s mean and CI at every grid point of ``report``."""
+    """``metric``'s mean and CI at every grid point of ``report``; ``ValueError`` for a metric
+    the report does not have (one of the swarm's that no job of the study gives)."""
+    if metric not in report["metrics"]:
+        raise ValueError(f"no job of this study reports {metric}")
     axis = axis_key(spec)
     rows = report["points"]
     if axis is not None:
