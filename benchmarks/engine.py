@@ -80,13 +80,13 @@ def brownian_scenario(policy: str, robots: int, robot_steps: int) -> Scenario:
 def swarm_scenario(config: str, robots: int, robot_steps: int) -> Scenario:
     """Q-learning robots (the paper's behaviours, a shared table) that take up space, in a
     cube whose volume grows with the swarm (50 units a side at 1,000 robots), 20 cells each
-    treated by a fortieth of the swarm, 100-step episodes."""
+    treated by 10 payloads, 100-step episodes (fewer when every cell is treated)."""
     size = min(1000.0, 50.0 * (robots / 1000) ** (1 / 3))
     episodes = max(1, robot_steps // (robots * 100))
     return Scenario.model_validate(
         {
             "space": {"size": size},
-            "cells": {"count": 20, "capacity": max(1, robots // 40)},
+            "cells": {"count": 20, "capacity": 10},
             "obstacles": {"count": 10},
             "robots": {"count": robots, "policy": "q_learning", "exclusion": True},
             "learning": {"episodes": episodes, "max_steps": 100},

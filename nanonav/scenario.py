@@ -52,6 +52,7 @@ BROWNIAN_POLICIES = frozenset({"q_learning", "uncontrolled", "run_and_tumble", "
                                "exact_gradient"})  # fmt: skip
 
 MAX_OBSTACLE_VOLUME_FRACTION = 0.3
+DENSEST_PACKING = math.pi / math.sqrt(18)  # Kepler's bound: equal spheres fill at most 74 %
 MAX_ROBOT_VOLUME_FRACTION = 0.1  # robots that take up space start apart at random: room to spare
 # The signal's rates in each physics' units (communication): each physics refuses the other's.
 LATTICE_SIGNAL = ("diffusion", "decay_rate", "release_rate")
@@ -970,6 +971,29 @@ class Scenario(_Part):
                 "Scenario", ("robots", "count"), self.robots.count,
                 f"robots of radius {radius:g} that take up space would fill more than "
                 f"{MAX_ROBOT_VOLUME_FRACTION:.0%} of {where}",
+            )  # fmt: skip
+        return self
+
+    @model_validator(mode="after")
+    def _room_at_a_cell(self) -> Scenario:
+        """Robots that take up space and deliver to a cell must fit within reach of it: at most
+        the densest packing of spheres of their radius in the ball of the reach distance plus
+        a radius round the cell's centre (a bound, never tight)."""
+        capacity = self.cells.capacity
+        if not self.robots.exclusion or capacity is None:
+            return self
+        r = self.robot_radius
+        reach = (
+            self.physics.robot_radius_um + self.physics.cell_radius_um
+            if self.physics.model == "active_brownian"
+            else self.reach_distance
+        )
+        room = math.floor(DENSEST_PACKING * ((reach + r) / r) ** 3)
+        if capacity > room:
+            raise _field_error(
+                "Scenario", ("cells", "capacity"), capacity,
+                f"at most {room} robots of radius {r:g} that take up space fit within reach of "
+                "a cell: a larger capacity could never be delivered",
             )  # fmt: skip
         return self
 

@@ -1,14 +1,20 @@
 """Neighbours in O(n): a cell list, a uniform grid over the space whose cells each hold a linked
 list of the robots inside, so that finding every robot within ``cutoff`` of a point looks at the
-27 cells around it, never at the whole swarm.
+cells around it (at most 8: they are two cutoffs wide), never at the whole swarm.
+
+The cells are narrow, so a dense cluster (robots packed round a cell
+they deliver to) costs a search a few robots, not hundreds. So many cells would not fit in memory
+at 100,000 robots, so they are hashed into about two buckets per robot (spatial hashing):
+robots of two far cells may share a bucket, which costs a distance test and never changes an
+answer, and a search looks at each bucket once.
 
 Two ways to keep it exact while robots move one by one within a step. ``rebuild`` lists every
 robot once a step (O(robots)); the grid then still lists a robot where it was, which stays exact
-as long as a cell is at least the cutoff plus the longest move of a step wide (``grid_for``'s
-``step``). Or ``relist`` moves a robot to its new cell as it moves (O(robots in a cell)), which
-stays exact however far a step goes (a Brownian jiggle has no bound): the engine's step does
-this, with cells as wide as the cutoff. Points outside the grid (a space without walls) are kept
-in its border cells, which stays exact and only costs speed.
+as long as searches reach the longest move of a step further (``grid_for``'s ``step``). Or
+``relist`` moves a robot to its new cell as it moves (O(robots in a bucket)), which stays exact
+however far a step goes (a Brownian jiggle has no bound): the engine's step does this. Points
+outside the grid (a space without walls) are kept in its border cells, which stays exact and
+only costs speed.
 """
 
 from __future__ import annotations
@@ -20,40 +26,49 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-# At most this many cells per axis: beyond, cells are made wider (the search stays exact).
-MAX_CELLS_PER_AXIS = 256
-CELLS_PER_ROBOT = 8
+BUCKETS_PER_ROBOT = 2
+# A cell is this many cutoffs wide: a search then spans at most 2 cells an axis (8 buckets), and
+# a cell of a dense cluster holds a few robots (narrower cells cost more buckets a search).
+CUTOFFS_PER_CELL = 2.0
+FEWEST_BUCKETS = 64
+# Cells per axis at most: the cell's coordinates stay far from overflowing the hash.
+MAX_CELLS_PER_AXIS = 1 << 20
+# The primes of the classic spatial hash (Teschner et al., VMV 2003).
+_PX = 73_856_093
+_PY = 19_349_663
+_PZ = 83_492_791
 
 
 class CellList(NamedTuple):
-    """The grid's arrays: ``heads[c]`` the first robot in cell c (-1 if none), ``next[i]`` the
-    robot after i in its cell's list, ``cell[i]`` the cell robot i is listed in (-1 if not)."""
+    """The grid's arrays: ``heads[b]`` the first robot in bucket b (-1 if none), ``next[i]`` the
+    robot after i in its bucket's list, ``cell[i]`` the bucket robot i is listed in (-1 if not)."""
 
-    heads: NDArray[np.int64]  # (cells,)
+    heads: NDArray[np.int64]  # (buckets,)
     next: NDArray[np.int64]  # (robots,)
     cell: NDArray[np.int64]  # (robots,)
     origin: float  # the grid spans [origin, origin + dims * width) on every axis
     width: float
     dims: int
+    slack: float  # how far a robot may be from where it is listed (the ``step`` of grid_for)
 
 
 def grid_for(half: float, cutoff: float, step: float, robots: int) -> CellList:
-    """An empty cell list over the cube [-half, half]^3 whose cells are at least
-    ``cutoff + step`` wide (see the module docstring), for ``robots`` robots."""
+    """An empty cell list over the cube [-half, half]^3 whose cells are at least two
+    ``cutoff`` wide, for ``robots`` robots that may be up to ``step`` from where they are
+    listed (see the module docstring)."""
     if half <= 0 or cutoff < 0 or step < 0:
         raise ValueError("half must be positive, cutoff and step not negative")
-    least = max(cutoff + step, 1e-9)
-    # no more than about CELLS_PER_ROBOT cells a robot: more would only cost memory
-    roomy = math.ceil((CELLS_PER_ROBOT * max(robots, 1)) ** (1 / 3))
-    dims = max(1, min(MAX_CELLS_PER_AXIS, roomy, math.floor(2 * half / least)))
-    width = 2 * half / dims
+    least = max(CUTOFFS_PER_CELL * cutoff, 1e-9)
+    dims = max(1, min(MAX_CELLS_PER_AXIS, math.floor(2 * half / least)))
+    buckets = min(dims**3, max(FEWEST_BUCKETS, BUCKETS_PER_ROBOT * robots))
     return CellList(
-        heads=np.full(dims**3, -1, dtype=np.int64),
+        heads=np.full(buckets, -1, dtype=np.int64),
         next=np.full(robots, -1, dtype=np.int64),
         cell=np.full(robots, -1, dtype=np.int64),
         origin=-half,
-        width=width,
+        width=2 * half / dims,
         dims=dims,
+        slack=step,
     )
 
 
@@ -63,99 +78,51 @@ def _axis_index(v: float, origin: float, width: float, dims: int) -> int:
     return min(max(k, 0), dims - 1)
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _bucket(grid: CellList, cx: int, cy: int, cz: int) -> int:
+    buckets = grid.heads.shape[0]
+    if buckets == grid.dims * grid.dims * grid.dims:
+        return (cx * grid.dims + cy) * grid.dims + cz  # every cell its own bucket
+    return ((cx * _PX) ^ (cy * _PY) ^ (cz * _PZ)) % buckets
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _span(v: float, reach: float, grid: CellList) -> tuple[int, int]:
+    """The first and last cell along an axis that a ball of radius ``reach`` around v touches."""
+    low = _axis_index(v - reach, grid.origin, grid.width, grid.dims)
+    high = _axis_index(v + reach, grid.origin, grid.width, grid.dims)
+    return low, high
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def cell_of(grid: CellList, x: float, y: float, z: float) -> int:
+    """The bucket that holds (x, y, z) (border cells hold what lies beyond)."""
+    d = grid.dims
+    cx = _axis_index(x, grid.origin, grid.width, d)
+    cy = _axis_index(y, grid.origin, grid.width, d)
+    cz = _axis_index(z, grid.origin, grid.width, d)
+    return _bucket(grid, cx, cy, cz)
+
+
 @njit(cache=True, error_model="numpy")
 def rebuild(grid: CellList, pos: NDArray[np.float64], active: NDArray[np.bool_]) -> None:
-    """List every active robot in the cell it is in now (inactive ones in none)."""
+    """List every active robot in the bucket of the cell it is in now (inactive ones in none)."""
     grid.heads[:] = -1
-    d = grid.dims
     for i in range(pos.shape[0]):
         grid.next[i] = -1
         grid.cell[i] = -1
         if not active[i]:
             continue
-        cx = _axis_index(pos[i, 0], grid.origin, grid.width, d)
-        cy = _axis_index(pos[i, 1], grid.origin, grid.width, d)
-        cz = _axis_index(pos[i, 2], grid.origin, grid.width, d)
-        c = (cx * d + cy) * d + cz
+        c = cell_of(grid, pos[i, 0], pos[i, 1], pos[i, 2])
         grid.cell[i] = c
         grid.next[i] = grid.heads[c]
         grid.heads[c] = i
 
 
 @njit(cache=True, error_model="numpy")
-def first_within(
-    grid: CellList, pos: NDArray[np.float64], active: NDArray[np.bool_],
-    x: float, y: float, z: float, distance: float, skip: int,
-) -> int:  # fmt: skip
-    """The lowest-indexed active robot other than ``skip`` closer than ``distance`` to
-    (x, y, z), or -1: what a robot moving there would run into. The lowest index, not the
-    first found, so the answer does not depend on the lists' order."""
-    d = grid.dims
-    cx = _axis_index(x, grid.origin, grid.width, d)
-    cy = _axis_index(y, grid.origin, grid.width, d)
-    cz = _axis_index(z, grid.origin, grid.width, d)
-    d2 = distance * distance
-    best = -1
-    for ax in range(max(cx - 1, 0), min(cx + 2, d)):
-        for ay in range(max(cy - 1, 0), min(cy + 2, d)):
-            for az in range(max(cz - 1, 0), min(cz + 2, d)):
-                j = grid.heads[(ax * d + ay) * d + az]
-                while j >= 0:
-                    if j != skip and active[j] and (best < 0 or j < best):
-                        dx = pos[j, 0] - x
-                        dy = pos[j, 1] - y
-                        dz = pos[j, 2] - z
-                        if dx * dx + dy * dy + dz * dz < d2:
-                            best = j
-                    j = grid.next[j]
-    return best
-
-
-@njit(cache=True, error_model="numpy")
-def pairs_within(
-    grid: CellList, pos: NDArray[np.float64], active: NDArray[np.bool_], distance: float
-) -> int:
-    """How many pairs of active robots are closer than ``distance`` (each pair once), from a
-    freshly rebuilt grid whose cells are at least ``distance`` wide."""
-    d = grid.dims
-    d2 = distance * distance
-    found = 0
-    for i in range(pos.shape[0]):
-        if not active[i]:
-            continue
-        c = grid.cell[i]
-        cx = c // (d * d)
-        cy = (c // d) % d
-        cz = c % d
-        for ax in range(max(cx - 1, 0), min(cx + 2, d)):
-            for ay in range(max(cy - 1, 0), min(cy + 2, d)):
-                for az in range(max(cz - 1, 0), min(cz + 2, d)):
-                    j = grid.heads[(ax * d + ay) * d + az]
-                    while j >= 0:
-                        if j > i:
-                            dx = pos[j, 0] - pos[i, 0]
-                            dy = pos[j, 1] - pos[i, 1]
-                            dz = pos[j, 2] - pos[i, 2]
-                            if dx * dx + dy * dy + dz * dz < d2:
-                                found += 1
-                        j = grid.next[j]
-    return found
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def cell_of(grid: CellList, x: float, y: float, z: float) -> int:
-    """The index of the grid cell that holds (x, y, z) (border cells hold what lies beyond)."""
-    d = grid.dims
-    cx = _axis_index(x, grid.origin, grid.width, d)
-    cy = _axis_index(y, grid.origin, grid.width, d)
-    cz = _axis_index(z, grid.origin, grid.width, d)
-    return (cx * d + cy) * d + cz
-
-
-@njit(cache=True, error_model="numpy")
 def relist(grid: CellList, i: int, x: float, y: float, z: float) -> None:
-    """Robot ``i`` moved to (x, y, z): list it in the cell it is in now, so that the grid stays
-    exact however far a step goes (a Brownian jiggle has no bound). O(robots in its old cell)."""
+    """Robot ``i`` moved to (x, y, z): list it in the bucket it is in now, so that the grid stays
+    exact however far a step goes. O(robots in its old bucket)."""
     old = grid.cell[i]
     new = cell_of(grid, x, y, z)
     if new == old:
@@ -175,23 +142,68 @@ def relist(grid: CellList, i: int, x: float, y: float, z: float) -> None:
     grid.heads[new] = i
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _seen(buckets: NDArray[np.int64], n: int, b: int) -> bool:
+    for k in range(n):  # noqa: SIM110 (numba compiles the loop; a generator it would not)
+        if buckets[k] == b:
+            return True
+    return False
+
+
+@njit(cache=True, error_model="numpy")
+def first_within(
+    grid: CellList, pos: NDArray[np.float64], active: NDArray[np.bool_],
+    x: float, y: float, z: float, distance: float, skip: int,
+) -> int:  # fmt: skip
+    """The lowest-indexed active robot other than ``skip`` closer than ``distance`` to
+    (x, y, z), or -1: what a robot moving there would run into. The lowest index, not the
+    first found, so the answer does not depend on the lists' order."""
+    reach = distance + grid.slack
+    x0, x1 = _span(x, reach, grid)
+    y0, y1 = _span(y, reach, grid)
+    z0, z1 = _span(z, reach, grid)
+    d2 = distance * distance
+    best = -1
+    for ax in range(x0, x1 + 1):
+        for ay in range(y0, y1 + 1):
+            for az in range(z0, z1 + 1):
+                # a bucket met twice is searched twice: the lowest index is the same answer
+                j = grid.heads[_bucket(grid, ax, ay, az)]
+                while j >= 0:
+                    if j != skip and active[j] and (best < 0 or j < best):
+                        dx = pos[j, 0] - x
+                        dy = pos[j, 1] - y
+                        dz = pos[j, 2] - z
+                        if dx * dx + dy * dy + dz * dz < d2:
+                            best = j
+                    j = grid.next[j]
+    return best
+
+
 @njit(cache=True, error_model="numpy")
 def each_within(
     grid: CellList, pos: NDArray[np.float64], x: float, y: float, z: float, distance: float,
     out: NDArray[np.int64],
 ) -> int:  # fmt: skip
     """Every listed robot closer than ``distance`` to (x, y, z), written to ``out[:k]`` in
-    increasing index order; returns k. The grid's cells must be at least ``distance`` wide."""
-    d = grid.dims
-    cx = _axis_index(x, grid.origin, grid.width, d)
-    cy = _axis_index(y, grid.origin, grid.width, d)
-    cz = _axis_index(z, grid.origin, grid.width, d)
+    increasing index order; returns k."""
+    reach = distance + grid.slack
+    x0, x1 = _span(x, reach, grid)
+    y0, y1 = _span(y, reach, grid)
+    z0, z1 = _span(z, reach, grid)
     d2 = distance * distance
+    visited = np.empty((x1 - x0 + 1) * (y1 - y0 + 1) * (z1 - z0 + 1), dtype=np.int64)
+    n = 0
     k = 0
-    for ax in range(max(cx - 1, 0), min(cx + 2, d)):
-        for ay in range(max(cy - 1, 0), min(cy + 2, d)):
-            for az in range(max(cz - 1, 0), min(cz + 2, d)):
-                j = grid.heads[(ax * d + ay) * d + az]
+    for ax in range(x0, x1 + 1):
+        for ay in range(y0, y1 + 1):
+            for az in range(z0, z1 + 1):
+                b = _bucket(grid, ax, ay, az)
+                if _seen(visited, n, b):
+                    continue
+                visited[n] = b
+                n += 1
+                j = grid.heads[b]
                 while j >= 0:
                     dx = pos[j, 0] - x
                     dy = pos[j, 1] - y
@@ -202,3 +214,43 @@ def each_within(
                     j = grid.next[j]
     out[:k].sort()
     return k
+
+
+@njit(cache=True, error_model="numpy")
+def pairs_within(
+    grid: CellList, pos: NDArray[np.float64], active: NDArray[np.bool_], distance: float
+) -> int:
+    """How many pairs of active robots are closer than ``distance`` (each pair once), from a
+    freshly rebuilt grid."""
+    d2 = distance * distance
+    reach = distance + grid.slack
+    visited = np.empty(64, dtype=np.int64)
+    found = 0
+    for i in range(pos.shape[0]):
+        if not active[i]:
+            continue
+        x0, x1 = _span(pos[i, 0], reach, grid)
+        y0, y1 = _span(pos[i, 1], reach, grid)
+        z0, z1 = _span(pos[i, 2], reach, grid)
+        cells = (x1 - x0 + 1) * (y1 - y0 + 1) * (z1 - z0 + 1)
+        if cells > visited.shape[0]:
+            visited = np.empty(cells, dtype=np.int64)
+        n = 0
+        for ax in range(x0, x1 + 1):
+            for ay in range(y0, y1 + 1):
+                for az in range(z0, z1 + 1):
+                    b = _bucket(grid, ax, ay, az)
+                    if _seen(visited, n, b):
+                        continue
+                    visited[n] = b
+                    n += 1
+                    j = grid.heads[b]
+                    while j >= 0:
+                        if j > i:
+                            dx = pos[j, 0] - pos[i, 0]
+                            dy = pos[j, 1] - pos[i, 1]
+                            dz = pos[j, 2] - pos[i, 2]
+                            if dx * dx + dy * dy + dz * dz < d2:
+                                found += 1
+                        j = grid.next[j]
+    return found

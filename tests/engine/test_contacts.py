@@ -67,13 +67,14 @@ def test_points_outside_the_grid_are_still_found() -> None:
     assert contacts.first_within(grid, pos, active, 0.0, 0.0, 0.0, 1.0, -1) == -1
 
 
-def test_the_grid_is_sized_by_the_cutoff_and_the_step_and_capped() -> None:
+def test_the_grid_is_sized_by_the_cutoff_and_its_memory_by_the_robots() -> None:
     grid = contacts.grid_for(10.0, 1.0, 1.0, 5000)
-    assert grid.width >= 2.0 and grid.dims == 10
-    fine = contacts.grid_for(1000.0, 0.001, 0.0, 10**7)
-    assert fine.dims == contacts.MAX_CELLS_PER_AXIS  # wider cells, never too many
-    few = contacts.grid_for(1000.0, 0.001, 0.0, 5)
-    assert few.dims**3 <= 8 * contacts.CELLS_PER_ROBOT * 5  # a few robots, a few cells
+    assert grid.width >= 2.0 and grid.dims == 10 and grid.slack == 1.0
+    assert grid.heads.shape[0] == 10**3  # fewer cells than buckets: each cell its own
+    fine = contacts.grid_for(1000.0, 0.001, 0.0, 1000)
+    assert fine.width >= 0.002
+    # two million cells a side would not fit: they share a bucket or two per robot
+    assert fine.heads.shape[0] == contacts.BUCKETS_PER_ROBOT * 1000
     for bad in ((0.0, 1.0, 0.0), (1.0, -1.0, 0.0), (1.0, 1.0, -0.5)):
         with pytest.raises(ValueError):
             contacts.grid_for(*bad, 5)
@@ -97,3 +98,17 @@ def test_relisting_as_robots_move_keeps_every_search_exact_however_far_they_go()
         assert found[:k].tolist() == expected
         nearest = contacts.first_within(grid, pos, everyone, *point, 1.0, -1)
         assert nearest == (expected[0] if expected else -1)
+
+
+def test_a_hashed_grid_finds_what_a_k_d_tree_finds_when_far_cells_share_buckets() -> None:
+    # cells of 0.4 in a 100-unit cube, 500 robots: 16 million cells in 1,000 buckets
+    pos = cloud(500, 50.0, 11)
+    pos[:100] = pos[0] + np.random.default_rng(3).normal(0.0, 0.3, (100, 3))  # a tight cluster
+    grid = contacts.grid_for(50.0, 0.2, 0.0, len(pos))
+    active = np.ones(len(pos), dtype=np.bool_)
+    contacts.rebuild(grid, pos, active)
+    assert contacts.pairs_within(grid, pos, active, 0.2) == len(cKDTree(pos).query_pairs(0.2))
+    found = np.empty(len(pos), dtype=np.int64)
+    for point in pos[:50]:
+        k = contacts.each_within(grid, pos, *point, 0.2, found)
+        assert found[:k].tolist() == sorted(cKDTree(pos).query_ball_point(point, 0.2 - 1e-12))

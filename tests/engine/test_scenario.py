@@ -119,3 +119,13 @@ def test_the_diffuse_tumour_is_a_swarm_of_robots_that_take_up_space_and_cells_th
     h = s.space.size / s.communication.nodes_per_axis
     assert (every / substeps) * (6 * d / h**2 + k) <= 0.5
     assert s.work < signalling.work  # the grid is priced
+
+
+def test_a_capacity_more_robots_than_fit_at_a_cell_is_refused_by_name() -> None:
+    # spheres of radius r within reach d of a cell's centre: at most 74 % of ((d + r) / r)^3
+    with pytest.raises(ValidationError) as refused:
+        Scenario.model_validate({"robots": {"exclusion": True}, "cells": {"capacity": 20}})
+    assert refused.value.errors()[0]["loc"] == ("cells", "capacity")
+    assert "at most 19 robots" in str(refused.value)
+    Scenario.model_validate({"robots": {"exclusion": True}, "cells": {"capacity": 19}})
+    Scenario.model_validate({"cells": {"capacity": 10**5}})  # points pass through each other
