@@ -80,7 +80,7 @@ def _axis_index(v: float, origin: float, width: float, dims: int) -> int:
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _bucket(grid: CellList, cx: int, cy: int, cz: int) -> int:
-    buckets = grid.heads.shape[0]
+    buckets: int = grid.heads.shape[0]
     if buckets == grid.dims * grid.dims * grid.dims:
         return (cx * grid.dims + cy) * grid.dims + cz  # every cell its own bucket
     return ((cx * _PX) ^ (cy * _PY) ^ (cz * _PZ)) % buckets
