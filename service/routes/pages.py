@@ -23,7 +23,15 @@ from fastapi.templating import Jinja2Templates
 from pydantic import BaseModel, ConfigDict, Field
 
 from nanonav import table1
-from nanonav.scenario import MAX_EXACT_INT, PRESETS, ActionSet, FieldModel, Policy, Scenario
+from nanonav.scenario import (
+    MAX_EXACT_INT,
+    PRESETS,
+    ActionSet,
+    CommunicationModel,
+    FieldModel,
+    Policy,
+    Scenario,
+)
 from nanonav.store import JobNotFound, JobStatus, JobStore, StudyNotFound
 from nanonav.store.queue import PRESENCE_WINDOW_S
 from nanonav.studies.spec import GRID_KEYS
@@ -87,6 +95,7 @@ def _form_choices() -> dict[str, Any]:
         "policies": get_args(Policy),
         "action_sets": get_args(ActionSet),
         "field_models": get_args(FieldModel),
+        "communication_models": get_args(CommunicationModel),
     }
 
 

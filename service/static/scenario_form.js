@@ -4,7 +4,7 @@
   const form = document.getElementById("job-form");
   const editor = document.getElementById("scenario-json");
   const numeric = new Set(["seed", "robots.count", "obstacles.count", "learning.episodes",
-    "learning.max_steps", "evaluation.worlds"]);
+    "learning.max_steps", "evaluation.worlds", "cells.capacity"]);
 
   function parsed() {
     try {
@@ -29,7 +29,10 @@
     }
   }
 
+  // A checkbox left alone sends nothing (the preset's, shown indeterminate); once clicked, what
+  // it shows.
   function fieldValue(input) {
+    if (input.type === "checkbox") return input.checked;
     if (input.value === "") return undefined;
     return numeric.has(input.name) ? Number(input.value) : input.value;
   }
@@ -58,6 +61,11 @@
     if (scenario === null) return;
     for (const input of form.querySelectorAll("input[name], select[name]")) {
       const value = getPath(scenario, input.name);
+      if (input.type === "checkbox") {
+        input.checked = value === true;
+        input.indeterminate = typeof value !== "boolean";
+        continue;
+      }
       const text = value === undefined || value === null || typeof value === "object" ? "" : String(value);
       input.value = text;
       if (input.tagName === "SELECT" && input.value !== text) input.selectedIndex = -1;
