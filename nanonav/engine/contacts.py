@@ -26,7 +26,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-BUCKETS_PER_ROBOT = 2
+BUCKETS_PER_ROBOT = 2  # at least: rounded up to a power of two
 # A cell is this many cutoffs wide: a search then spans at most 2 cells an axis (8 buckets), and
 # a cell of a dense cluster holds a few robots (narrower cells cost more buckets a search).
 CUTOFFS_PER_CELL = 2.0
@@ -60,7 +60,9 @@ def grid_for(half: float, cutoff: float, step: float, robots: int) -> CellList:
         raise ValueError("half must be positive, cutoff and step not negative")
     least = max(CUTOFFS_PER_CELL * cutoff, 1e-9)
     dims = max(1, min(MAX_CELLS_PER_AXIS, math.floor(2 * half / least)))
-    buckets = min(dims**3, max(FEWEST_BUCKETS, BUCKETS_PER_ROBOT * robots))
+    # a power of two, so that a bucket is the hash's low bits (a mask, not a division)
+    wanted = max(FEWEST_BUCKETS, BUCKETS_PER_ROBOT * robots)
+    buckets = min(dims**3, 1 << (wanted - 1).bit_length())
     return CellList(
         heads=np.full(buckets, -1, dtype=np.int64),
         next=np.full(robots, -1, dtype=np.int64),
@@ -83,7 +85,7 @@ def _bucket(grid: CellList, cx: int, cy: int, cz: int) -> int:
     buckets: int = grid.heads.shape[0]
     if buckets == grid.dims * grid.dims * grid.dims:
         return (cx * grid.dims + cy) * grid.dims + cz  # every cell its own bucket
-    return ((cx * _PX) ^ (cy * _PY) ^ (cz * _PZ)) % buckets
+    return ((cx * _PX) ^ (cy * _PY) ^ (cz * _PZ)) & (buckets - 1)
 
 
 @njit(cache=True, error_model="numpy", inline="always")

@@ -74,7 +74,7 @@ def test_the_grid_is_sized_by_the_cutoff_and_its_memory_by_the_robots() -> None:
     fine = contacts.grid_for(1000.0, 0.001, 0.0, 1000)
     assert fine.width >= 0.002
     # two million cells a side would not fit: they share a bucket or two per robot
-    assert fine.heads.shape[0] == contacts.BUCKETS_PER_ROBOT * 1000
+    assert fine.heads.shape[0] == 2048  # two a robot, rounded up to a power of two
     for bad in ((0.0, 1.0, 0.0), (1.0, -1.0, 0.0), (1.0, 1.0, -0.5)):
         with pytest.raises(ValueError):
             contacts.grid_for(*bad, 5)
