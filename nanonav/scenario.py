@@ -831,7 +831,8 @@ class Scenario(_Part):
         "units only) and 30 drifting obstacles. Physical (physics.model active_brownian, um "
         "and s): 'tumour-microswimmers', one tumour cell (7.5 um) among 40 tissue obstacles "
         "(5 um) in a 150 um cube, 20 robots of 1 um swimming at 10 um/s that sense a cell by "
-        "touching it, 60 s; 'tumour-nanorobots', the same with robots of 0.2 um; "
+        "touching it and take up space (hard spheres), 60 s; 'tumour-nanorobots', the same "
+        "with robots of 0.2 um; "
         "'tumour-passive', robots of 1 um that do not swim (uncontrolled, speed 0). The "
         "swarm's: 'diffuse-tumour', 20 small cells that each need 3 payloads, scattered through "
         "a 100-unit cube, each shedding a faint, short-range marker (spread 3, a noise floor "
@@ -1283,7 +1284,7 @@ TUMOUR: dict[str, Any] = {
     "space": {"size": 150.0},
     "cells": {"count": 1},
     "obstacles": {"count": 40, "radius": 5.0},
-    "robots": {"count": 20, "cell_sensing_radius": 0.0},
+    "robots": {"count": 20, "cell_sensing_radius": 0.0, "exclusion": True},
 }
 # The swarm's world (lattice units and steps): see the README's "A swarm that is a swarm".
 DIFFUSE_TUMOUR: dict[str, Any] = {
