@@ -182,7 +182,7 @@ def test_the_document_states_each_grid_keys_values(api: Api) -> None:
     assert "seed" not in grid["propertyNames"]["enum"]
     counts = grid["properties"]["robots.count"]
     assert counts["uniqueItems"] is True
-    assert counts["items"] == {"type": "integer", "minimum": 1, "maximum": 10_000}
+    assert counts["items"] == {"type": "integer", "minimum": 1, "maximum": 100_000}
     assert grid["properties"]["robots.policy"]["items"]["enum"][0] == "q_learning"
     assert grid["properties"]["learning.epsilon_decay"]["items"]["type"] == "number"
 
