@@ -42,11 +42,13 @@ JOB_PICTURES: dict[str, tuple[str, dict[str, str]]] = {
     **{f"heatmap_{p}": ("heatmap.png", {"plane": p}) for p in ("xy", "xz", "yz", "all")},
     **{
         name: (f"plots/{name}.png", {})
-        for name in ("trajectory", "concentration", "learning", "qtable")
+        for name in ("trajectory", "concentration", "learning", "qtable", "treatment")
     },
 }
 # Pictures only a job whose policy learns a Q-table has; others answer 404 for them.
 QTABLE_PICTURES = frozenset({"qtable"})
+# Pictures only a job whose run reports the swarm's numbers has (its links name them).
+SWARM_PICTURES = frozenset({"treatment"})
 PAGE_SIZE = 100  # the most the API lists per page
 
 _T = TypeVar("_T")

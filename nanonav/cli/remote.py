@@ -25,7 +25,15 @@ from nanonav.cli.common import (
     validation_messages,
 )
 from nanonav.cli.tables import format_jobs, format_study, format_table, plural, study_counts
-from nanonav.client import JOB_PICTURES, QTABLE_PICTURES, Client, Job, Status, Study
+from nanonav.client import (
+    JOB_PICTURES,
+    QTABLE_PICTURES,
+    SWARM_PICTURES,
+    Client,
+    Job,
+    Status,
+    Study,
+)
 from nanonav.scenario import PRESETS
 
 JOB_POLL_S = 0.25
@@ -303,9 +311,12 @@ def _job_files(api: Client, job_id: int) -> Iterator[tuple[str, bytes]]:
     yield "trajectory.npz", api.trajectory_npz(job_id)
     qtable = api.qtable(job_id)
     yield "qtable.json", _document(qtable)
+    plots = job.links.get("plots") or {}
     for name in JOB_PICTURES:
         if name in QTABLE_PICTURES and not qtable["states"]:
             continue  # a baseline policy learns no table to draw
+        if name in SWARM_PICTURES and name not in plots:
+            continue  # a run of lone robots has no treatment to draw
         yield f"{name}.png", api.picture(job_id, name)
 
 

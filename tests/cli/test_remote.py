@@ -21,7 +21,7 @@ import pytest
 from matplotlib.image import imread
 
 from nanonav.cli import main
-from nanonav.client import JOB_PICTURES, Client, Job, Study
+from nanonav.client import JOB_PICTURES, SWARM_PICTURES, Client, Job, Study
 from tests.client.test_client import CROWDED, LONG, STUDY, TINY
 from tests.conftest import LiveApi
 from tests.processes import clean_environment, free_port
@@ -218,7 +218,8 @@ def test_fetch_writes_a_jobs_results(
     out_dir = tmp_path / "made" / "here"
     assert main(["fetch", str(job.id), "--out", str(out_dir), "--url", live_api.url]) == 0
     out = capsys.readouterr().out
-    names = ["metrics.json", "trajectory.npz", "qtable.json", *(f"{n}.png" for n in JOB_PICTURES)]
+    drawn = [n for n in JOB_PICTURES if n not in SWARM_PICTURES]  # lone robots: no treatment
+    names = ["metrics.json", "trajectory.npz", "qtable.json", *(f"{n}.png" for n in drawn)]
     assert sorted(p.name for p in out_dir.iterdir()) == sorted(names)
     lines = out.splitlines()
     assert lines[0] == f"Wrote {len(names)} files to {out_dir}:"
@@ -230,8 +231,18 @@ def test_fetch_writes_a_jobs_results(
         assert arrays["robot_steps"].tolist() == [
             r["total_steps"] for r in api.metrics(job.id)["robots"]
         ]
-    for name in JOB_PICTURES:
+    for name in drawn:
         assert imread(out_dir / f"{name}.png", format="png").ndim == 3
+
+
+def test_fetch_of_a_swarm_job_writes_its_treatment_picture(
+    live_api: LiveApi, tmp_path: Path, capsys: pytest.CaptureFixture[str], api: Client
+) -> None:
+    swarm = {**TINY, "robots": {"count": 3, "policy": "gradient"}, "cells": {"capacity": 1}}
+    job = api.wait(api.submit(swarm).id)
+    assert job.status == "succeeded"
+    assert main(["fetch", str(job.id), "--out", str(tmp_path), "--url", live_api.url]) == 0
+    assert imread(tmp_path / "treatment.png", format="png").ndim == 3
 
 
 def test_fetch_of_a_baseline_job_writes_no_qtable_picture(
