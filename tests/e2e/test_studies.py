@@ -235,3 +235,34 @@ def test_a_physical_study_over_robot_radius_runs_with_a_fitting_step_at_each(
     for name in ("success_rate", "learning"):
         response = api.client.get(f"/studies/{study['id']}/plots/{name}.png")
         assert response.status_code == 200 and response.content.startswith(b"\x89PNG"), name
+
+
+def test_a_swarm_study_over_communication_reports_the_cells_treated(
+    api: Api, start_worker: Callable[..., Worker]
+) -> None:
+    # the swarm's question, small: communication model in the diffuse tumour, paired by seed
+    start_worker()
+    spec = {
+        "name": "signals",
+        "base": {
+            "preset": "diffuse-tumour",
+            "cells": {"count": 5},
+            "robots": {"count": 30},
+            "learning": {"max_steps": 300},
+            "evaluation": {"worlds": 1},
+        },
+        "grid": {"communication.model": ["none", "attractant_repellent", "broadcast"]},
+        "seeds": [1, 2],
+        "compare": "communication.model",
+    }
+    created = api.client.post("/studies", json=spec)
+    assert created.status_code == 202, created.text
+    study = wait_study(api, created.json()["id"], FIRST_JOB_S + 120)
+    assert study["status"] == "succeeded", study["jobs"]
+    assert len(study["comparisons"]) == 2  # each model against the first, paired by seed
+    assert "treated_fraction" in study["links"]["plots"]
+    for name in ("treated_fraction", "time_to_treat_all"):
+        response = api.client.get(f"/studies/{study['id']}/plots/{name}.png")
+        assert response.status_code == 200 and response.content.startswith(b"\x89PNG"), name
+    table = api.client.get(f"/studies/{study['id']}/results.csv")
+    assert table.status_code == 200 and "treated_fraction" in table.text.splitlines()[0]
