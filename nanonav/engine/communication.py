@@ -26,6 +26,7 @@ from nanonav.engine.dynamics.brownian import read_counted
 from nanonav.engine.state import (
     ACTIVE_BROWNIAN,
     ATTRACTANT_REPELLENT,
+    BROADCAST,
     KernelParams,
     Social,
 )
@@ -190,3 +191,23 @@ def toward_message(
         so.has_message[i] = False
         return 0.0, 0.0, 0.0
     return dx, dy, dz
+
+
+@njit(cache=True, error_model="numpy")
+def listen(
+    p: KernelParams, rng: np.random.Generator, grid: NDArray[np.float64],
+    pos: NDArray[np.float64], so: Social, i: int, arrived: float,
+) -> tuple[int, float, float, float]:  # fmt: skip
+    """What robot ``i`` receives this step: the state's 'signal', and the way it points (up
+    the net signal, or toward the message it holds, dropped within ``arrived`` of it); the
+    reading is kept in ``so.signal`` (broadcast: 1 while a message waits)."""
+    if p.signal == BROADCAST:
+        ux, uy, uz = toward_message(p, pos, so, i, arrived)
+        heard = MESSAGE if so.has_message[i] else NOTHING
+        so.signal[i] = heard
+        return heard, ux, uy, uz
+    net, ux, uy, uz = receive(p, rng, grid, pos[i, 0], pos[i, 1], pos[i, 2])
+    heard = received(p, net, so.prev_signal[i])
+    so.prev_signal[i] = net
+    so.signal[i] = net
+    return heard, ux, uy, uz

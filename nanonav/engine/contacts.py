@@ -256,3 +256,19 @@ def pairs_within(
                                 found += 1
                         j = grid.next[j]
     return found
+
+
+@njit(cache=True, error_model="numpy")
+def bumped_back(
+    grid: CellList, pos: NDArray[np.float64], everyone: NDArray[np.bool_], i: int,
+    px: float, py: float, pz: float, contact: float,
+) -> bool:  # fmt: skip
+    """Robot ``i`` moved from p to where ``pos`` has it: if another robot is now closer than
+    ``contact``, put it back at p and return True (a bump); else list it where it is."""
+    if first_within(grid, pos, everyone, pos[i, 0], pos[i, 1], pos[i, 2], contact, i) >= 0:
+        pos[i, 0] = px
+        pos[i, 1] = py
+        pos[i, 2] = pz
+        return True
+    relist(grid, i, pos[i, 0], pos[i, 1], pos[i, 2])
+    return False

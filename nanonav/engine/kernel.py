@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 
 from nanonav.engine import communication as radio_room
 from nanonav.engine import treatment
-from nanonav.engine.contacts import CellList, first_within, rebuild, relist
+from nanonav.engine.contacts import CellList, bumped_back, rebuild, relist
 from nanonav.engine.dynamics import brownian
 from nanonav.engine.dynamics.lattice import (
     _move_cells,
@@ -406,17 +406,10 @@ def _run_steps(
             ux = 0.0
             uy = 0.0
             uz = 0.0
-            if p.signal == BROADCAST:
-                ux, uy, uz = radio_room.toward_message(
-                    p, s.pos, so, i, max(p.cell_sensing_radius, p.speed)
+            if p.signal != NO_SIGNAL:
+                heard, ux, uy, uz = radio_room.listen(
+                    p, rng, sig, s.pos, so, i, max(p.cell_sensing_radius, p.speed)
                 )  # fmt: skip
-                heard = 1 if so.has_message[i] else 0
-                so.signal[i] = heard
-            elif p.signal != NO_SIGNAL:
-                net, ux, uy, uz = radio_room.receive(p, rng, sig, px, py, pz)
-                heard = radio_room.received(p, net, so.prev_signal[i])
-                so.prev_signal[i] = net
-                so.signal[i] = net
 
             # one call site for the behaviours, whoever chooses them: the compiled loop stays small
             behavior = NO_BEHAVIOR
@@ -463,23 +456,21 @@ def _run_steps(
             hz = s.heading[i, 2]
             path = s.path_length[i]
             nx, ny, nz, blocked = _move_robot(p, w, s, i, px, py, pz, dx, dy, dz, step)
-            if p.exclusion and not blocked:
-                if first_within(near, s.pos, everyone, nx, ny, nz, p.contact, i) >= 0:
-                    # another robot is in the way: the move is refused, a bump
-                    so.bumps[i] += 1
-                    blocked = True
-                    s.path_length[i] = path
-                    s.heading[i, 0] = hx
-                    s.heading[i, 1] = hy
-                    s.heading[i, 2] = hz
-                    nx = px
-                    ny = py
-                    nz = pz
-                    s.pos[i, 0] = px
-                    s.pos[i, 1] = py
-                    s.pos[i, 2] = pz
-                else:
-                    relist(near, i, nx, ny, nz)
+            if (
+                p.exclusion
+                and not blocked
+                and bumped_back(near, s.pos, everyone, i, px, py, pz, p.contact)
+            ):
+                # another robot is in the way: the move is refused, a bump
+                so.bumps[i] += 1
+                blocked = True
+                s.path_length[i] = path
+                s.heading[i, 0] = hx
+                s.heading[i, 1] = hy
+                s.heading[i, 2] = hz
+                nx = px
+                ny = py
+                nz = pz
             if p.signal == BROADCAST and not blocked:
                 relist(radio, i, nx, ny, nz)
             reward = p.reward_step
@@ -651,17 +642,11 @@ def _swim_steps(
             ux = 0.0
             uy = 0.0
             uz = 0.0
-            if p.signal == BROADCAST:
-                ux, uy, uz = radio_room.toward_message(
-                    p, s.pos, so, i, max(p.cell_sensing_radius + p.reach_distance, p.speed)
+            if p.signal != NO_SIGNAL:
+                heard, ux, uy, uz = radio_room.listen(
+                    p, rng, sig, s.pos, so, i,
+                    max(p.cell_sensing_radius + p.reach_distance, p.speed),
                 )  # fmt: skip
-                heard = 1 if so.has_message[i] else 0
-                so.signal[i] = heard
-            elif p.signal != NO_SIGNAL:
-                net, ux, uy, uz = radio_room.receive(p, rng, sig, px, py, pz)
-                heard = radio_room.received(p, net, so.prev_signal[i])
-                so.prev_signal[i] = net
-                so.signal[i] = net
             if p.policy == Q_LEARNING:
                 state = _steering_state(p, c, rising, s.blocked[i], sensed)
                 if p.signal != NO_SIGNAL:
@@ -707,21 +692,19 @@ def _swim_steps(
 
             path = s.path_length[i]
             nx, ny, nz, blocked = brownian.move_robot(p, rng, w, s, i, px, py, pz)
-            if p.exclusion and not blocked:
-                if first_within(near, s.pos, everyone, nx, ny, nz, p.contact, i) >= 0:
-                    # hard spheres: a step into another robot is refused, a bump (the heading
-                    # has diffused all the same, as when an obstacle refuses it)
-                    so.bumps[i] += 1
-                    blocked = True
-                    s.path_length[i] = path
-                    nx = px
-                    ny = py
-                    nz = pz
-                    s.pos[i, 0] = px
-                    s.pos[i, 1] = py
-                    s.pos[i, 2] = pz
-                else:
-                    relist(near, i, nx, ny, nz)
+            if (
+                p.exclusion
+                and not blocked
+                and bumped_back(near, s.pos, everyone, i, px, py, pz, p.contact)
+            ):
+                # hard spheres: a step into another robot is refused, a bump (the heading
+                # has diffused all the same, as when an obstacle refuses it)
+                so.bumps[i] += 1
+                blocked = True
+                s.path_length[i] = path
+                nx = px
+                ny = py
+                nz = pz
             if p.signal == BROADCAST and not blocked:
                 relist(radio, i, nx, ny, nz)
             s.blocked[i] = blocked
