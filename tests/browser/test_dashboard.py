@@ -10,6 +10,7 @@ from typing import Any
 
 import httpx
 import pytest
+from playwright.sync_api import Error as BrowserError
 from playwright.sync_api import Page, Route, expect
 
 from tests.browser.conftest import Site, screenshot
@@ -51,11 +52,23 @@ def test_a_job_submitted_through_the_form_runs_live_and_shows_its_results(
 
     seen: set[str] = set()
     deadline = time.monotonic() + 120
-    while page.locator("#table-1").count() == 0:
+    while True:
         assert time.monotonic() < deadline, "the job did not finish"
         # read in one step: the progress card goes when the job ends, and a locator that
         # counted it a moment ago would then wait for it
-        text = page.evaluate("document.getElementById('progress-text')?.innerText ?? null")
+        try:
+            text, done = page.evaluate(
+                "[document.getElementById('progress-text')?.innerText ?? null,"
+                " document.getElementById('table-1') !== null]"
+            )
+        except BrowserError as error:
+            # the page reloads itself when the job ends; a read that meets the reload is retried
+            if "context was destroyed" not in str(error):
+                raise
+            page.wait_for_load_state()
+            continue
+        if done:
+            break
         if text is not None:
             seen.add(text)
         page.wait_for_timeout(100)
