@@ -10,7 +10,7 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -63,7 +63,7 @@ class Progress:
 ProgressCallback = Callable[[Progress], bool | None]
 
 
-def _params(scenario: Scenario, record_bytes: int = DEFAULT_RECORD_BYTES) -> KernelParams:
+def kernel_params(scenario: Scenario, record_bytes: int = DEFAULT_RECORD_BYTES) -> KernelParams:
     """The kernel's constants, flattened from the scenario."""
     b = fields.biomarker_of(scenario)
     base = max(scenario.robots.sensing_radius, scenario.robots.speed)
@@ -309,6 +309,90 @@ def swarm_metrics(scenario: Scenario) -> bool:
     )
 
 
+class EpisodeArrays(NamedTuple):
+    """The arrays one world's episodes run on, reused from episode to episode."""
+
+    world: World
+    swarm: Swarm
+    social: Social
+    treatment: Treatment
+    near: contacts.CellList  # robots that take up space: their neighbours
+    radio: contacts.CellList  # broadcast: who hears a sender
+    everyone: NDArray[np.bool_]
+    found: NDArray[np.int64]  # scratch for a neighbour search's answers
+    signals: signals.SignalGrid
+
+
+def episode_arrays(scenario: Scenario) -> EpisodeArrays:
+    """Empty arrays for one world of ``scenario`` (``world.draw_world`` fills them)."""
+    n = scenario.robots.count
+    cells = scenario.cells.count
+    obstacles = scenario.obstacles.count
+    k = fields.source_count(scenario.biomarker, cells)
+    world = World(
+        cells=np.empty((cells, 3)),
+        obstacles=np.empty((obstacles, 3)),
+        # drawn for every field model, so that all of them see the same worlds
+        offsets=np.zeros((cells * scenario.biomarker.emitters_per_cell, 3)),
+        sx=np.empty(k),
+        sy=np.empty(k),
+        sz=np.empty(k),
+    )
+    treatment = Treatment(
+        load=np.zeros(cells, dtype=np.int64),
+        treated_at=np.full(cells, -1, dtype=np.int64),
+        tx=np.empty(k),
+        ty=np.empty(k),
+        tz=np.empty(k),
+        treated_sources=np.zeros(1, dtype=np.int64),
+    )
+    swarm = Swarm(
+        pos=np.empty((n, 3)),
+        heading=np.empty((n, 3)),
+        active=np.ones(n, dtype=np.bool_),
+        steps=np.zeros(n, dtype=np.int64),
+        prev_conc=np.full(n, -1.0),
+        returns=np.zeros(n),
+        collisions=np.zeros(n, dtype=np.int64),
+        path_length=np.zeros(n),
+        pending=np.zeros(n, dtype=np.bool_),
+        last_state=np.zeros(n, dtype=np.int64),
+        last_action=np.zeros(n, dtype=np.int64),
+        last_reward=np.zeros(n),
+        start=np.empty((n, 3)),
+        sum_conc=np.zeros(n),
+        sum_dist=np.zeros(n),
+        last_dist=np.zeros(n),
+        reading=np.zeros(n),
+        reading_grad=np.zeros((n, 3)),
+        swept=np.zeros(n, dtype=np.bool_),
+        blocked=np.zeros(n, dtype=np.bool_),
+        sensed=np.zeros(n),
+    )
+    social = Social(
+        bound_to=np.full(n, -1, dtype=np.int64),
+        bumps=np.zeros(n, dtype=np.int64),
+        signal=np.zeros(n),
+        prev_signal=np.zeros(n),
+        message=np.zeros((n, 3)),
+        has_message=np.zeros(n, dtype=np.bool_),
+    )
+    half = scenario.space.size / 2
+    comm = scenario.communication.model
+    near = contacts.grid_for(
+        half, 2.0 * scenario.robot_radius if scenario.robots.exclusion else 2 * half, 0.0,
+        n if scenario.robots.exclusion else 1,
+    )  # fmt: skip
+    radio = contacts.grid_for(
+        half, scenario.communication.range if comm == "broadcast" else 2 * half, 0.0,
+        n if comm == "broadcast" else 1,
+    )  # fmt: skip
+    return EpisodeArrays(
+        world, swarm, social, treatment, near, radio, np.ones(n, dtype=np.bool_),
+        np.empty(n, dtype=np.int64), signal_grid(scenario),
+    )  # fmt: skip
+
+
 class _Run:
     """The arrays of one run, allocated once and reused by every episode, and the two
     generators: one draws the worlds (so every policy faces the same ones), one the dynamics."""
@@ -334,68 +418,17 @@ class _Run:
         n = scenario.robots.count
         cells = scenario.cells.count
         obstacles = scenario.obstacles.count
-        k = fields.source_count(scenario.biomarker, cells)
-        self.world = World(
-            cells=np.empty((cells, 3)),
-            obstacles=np.empty((obstacles, 3)),
-            # drawn for every field model, so that all of them see the same worlds
-            offsets=np.zeros((cells * scenario.biomarker.emitters_per_cell, 3)),
-            sx=np.empty(k),
-            sy=np.empty(k),
-            sz=np.empty(k),
-        )
-        self.treatment = Treatment(
-            load=np.zeros(cells, dtype=np.int64),
-            treated_at=np.full(cells, -1, dtype=np.int64),
-            tx=np.empty(k),
-            ty=np.empty(k),
-            tz=np.empty(k),
-            treated_sources=np.zeros(1, dtype=np.int64),
-        )
-        self.swarm = Swarm(
-            pos=np.empty((n, 3)),
-            heading=np.empty((n, 3)),
-            active=np.ones(n, dtype=np.bool_),
-            steps=np.zeros(n, dtype=np.int64),
-            prev_conc=np.full(n, -1.0),
-            returns=np.zeros(n),
-            collisions=np.zeros(n, dtype=np.int64),
-            path_length=np.zeros(n),
-            pending=np.zeros(n, dtype=np.bool_),
-            last_state=np.zeros(n, dtype=np.int64),
-            last_action=np.zeros(n, dtype=np.int64),
-            last_reward=np.zeros(n),
-            start=np.empty((n, 3)),
-            sum_conc=np.zeros(n),
-            sum_dist=np.zeros(n),
-            last_dist=np.zeros(n),
-            reading=np.zeros(n),
-            reading_grad=np.zeros((n, 3)),
-            swept=np.zeros(n, dtype=np.bool_),
-            blocked=np.zeros(n, dtype=np.bool_),
-            sensed=np.zeros(n),
-        )
-        self.social = Social(
-            bound_to=np.full(n, -1, dtype=np.int64),
-            bumps=np.zeros(n, dtype=np.int64),
-            signal=np.zeros(n),
-            prev_signal=np.zeros(n),
-            message=np.zeros((n, 3)),
-            has_message=np.zeros(n, dtype=np.bool_),
-        )
-        half = scenario.space.size / 2
+        arrays = episode_arrays(scenario)
+        self.world = arrays.world
+        self.treatment = arrays.treatment
+        self.swarm = arrays.swarm
+        self.social = arrays.social
+        self.near = arrays.near
+        self.radio = arrays.radio
+        self.everyone = arrays.everyone
+        self.found = arrays.found
+        self.signals = arrays.signals
         comm = scenario.communication.model
-        self.near = contacts.grid_for(
-            half, 2.0 * scenario.robot_radius if scenario.robots.exclusion else 2 * half, 0.0,
-            n if scenario.robots.exclusion else 1,
-        )  # fmt: skip
-        self.radio = contacts.grid_for(
-            half, scenario.communication.range if comm == "broadcast" else 2 * half, 0.0,
-            n if comm == "broadcast" else 1,
-        )  # fmt: skip
-        self.everyone = np.ones(n, dtype=np.bool_)
-        self.found = np.empty(n, dtype=np.int64)
-        self.signals = signal_grid(scenario)
         rows = history_rows(params.max_steps, params.record_stride)
         brownian = scenario.physics.model == "active_brownian"
         self.recording = Recording(
@@ -521,7 +554,7 @@ def _warm_up() -> None:
         {"learning": {"episodes": 1, "max_steps": 2}, "obstacles": {"count": 1},
          "evaluation": {"worlds": 1}}
     )  # fmt: skip
-    run = _Run(tiny, _params(tiny))
+    run = _Run(tiny, kernel_params(tiny))
     while run.episode < tiny.episodes:
         run.advance(CHUNK_ROBOT_STEPS)
     fields.field_and_gradient(
@@ -550,7 +583,7 @@ def simulate(
     recorded, never the run. A scenario whose start and end rows alone exceed it raises
     ``ScenarioError`` before any work.
     """
-    params = _params(scenario, record_bytes)
+    params = kernel_params(scenario, record_bytes)
     _warm_up()
     learning = scenario.learning
     total = scenario.episodes

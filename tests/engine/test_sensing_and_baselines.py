@@ -12,7 +12,7 @@ import pytest
 
 from nanonav.engine import qlearning, sensing, simulate
 from nanonav.engine.result import without_timings
-from nanonav.engine.simulate import _params, _Run
+from nanonav.engine.simulate import _Run, kernel_params
 from nanonav.scenario import Scenario, preset_scenario
 
 
@@ -35,7 +35,7 @@ def test_each_sensed_gradient_component_carries_the_noise_of_two_readings_a_base
     # (c(x + b) + e1 - c(x) - e2) / b, with e1 and e2 N(0, floor^2): sd sqrt(2) * floor / b
     floor, baseline = 0.02, 0.25
     s = scenario(biomarker={"noise_floor": floor}, robots={"sensor_baseline": baseline})
-    run = _Run(s, _params(s))
+    run = _Run(s, kernel_params(s))
     run.swarm.reading[0] = 1.0  # above any threshold; the true gradient is 0
     rng = np.random.default_rng(11)
     samples = np.array([sensing._sense(run.params, rng, run.swarm, 0) for _ in range(20_000)])
@@ -84,7 +84,7 @@ def test_the_rule_runs_and_tumbles_above_the_mid_level_and_climbs_below(seed: in
         learning={"episodes": 0, "max_steps": 400}, evaluation={"worlds": 1},
         reach_distance=0.01,  # so that it passes the cell and tumbles
     )  # fmt: skip
-    mid = _params(s).level_2
+    mid = kernel_params(s).level_2
     t = simulate(s).trajectory
     assert t is not None and t.stride == 1
     rows = int(t.robot_steps[0]) + 1

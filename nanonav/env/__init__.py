@@ -1,0 +1,24 @@
+"""NanoNav as an environment: Gymnasium's ``NanoNavEnv`` (one robot) and ``NanoNavVectorEnv``
+(many worlds in one compiled call), PettingZoo's ``NanoNavParallelEnv`` (the swarm). Importing
+this package registers ``NanoNav-v0``, so ``gymnasium.make("NanoNav-v0", scenario={...})`` and
+``gymnasium.make_vec("NanoNav-v0", num_envs=N, vectorization_mode="vector_entry_point")`` work
+(or, without the import, ``gymnasium.make("nanonav.env:NanoNav-v0")``)."""
+
+from __future__ import annotations
+
+import gymnasium
+
+from nanonav.env.robot import NanoNavEnv, NanoNavVectorEnv
+from nanonav.env.swarm import NanoNavParallelEnv
+from nanonav.env.worlds import OBSERVATION_LABELS
+
+ENV_ID = "NanoNav-v0"
+
+if ENV_ID not in gymnasium.registry:
+    gymnasium.register(
+        id=ENV_ID,
+        entry_point="nanonav.env.robot:NanoNavEnv",
+        vector_entry_point="nanonav.env.robot:NanoNavVectorEnv",
+    )
+
+__all__ = ["ENV_ID", "OBSERVATION_LABELS", "NanoNavEnv", "NanoNavParallelEnv", "NanoNavVectorEnv"]

@@ -1,0 +1,165 @@
+"""Gymnasium environments over the engine: ``NanoNavEnv``, one robot in a scenario's world, and
+``NanoNavVectorEnv``, many such worlds stepped in one compiled call."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any, SupportsFloat
+
+import gymnasium
+import numpy as np
+from gymnasium import spaces
+from gymnasium.vector import AutoresetMode, VectorEnv
+from numpy.typing import NDArray
+
+from nanonav.env.worlds import (
+    Worlds,
+    action_labels,
+    as_scenario,
+    observation_of,
+    state_labels,
+    with_robots,
+)
+from nanonav.scenario import Scenario
+
+ScenarioLike = Scenario | Mapping[str, Any] | None
+
+
+class NanoNavEnv(gymnasium.Env[NDArray[np.float64], np.int64]):
+    """One robot hunting the cells of a scenario's world (the scenario's other robots are a
+    swarm's: ``NanoNavParallelEnv``; here ``robots.count`` is 1).
+
+    Observation: a ``Box`` of float64s, what the robot senses this step, in the scenario's
+    units (lattice: its concentration and length units; active_brownian: nM, nM/um, um);
+    ``observation_labels`` names those the scenario fills, of: the reading (with the sensor's
+    noise; 0 below the detection threshold); its change (from the last reading, or in
+    active_brownian from the reading's memory); the sensed gradient (x, y, z; lattice only:
+    an active Brownian robot reads it only when it steers up it); the obstacle (lattice: the
+    distance to the nearest obstacle's surface, capped at the sensing radius; active_brownian:
+    1 if its last move was stopped); the cell (the distance to the nearest untreated cell,
+    between surfaces in active_brownian, capped at the cell sensor's range, which reads as
+    none sensed); and with a communication model the net signal it reads (attractant minus
+    repellent, or 1 while a message waits) and, for a chemical signal, its change.
+
+    Action: ``Discrete`` over the scenario's action set (``action_labels``). Reward: the
+    scenario's (paper 2.7). Terminated when the robot reaches a cell (delivers its payload),
+    truncated at ``learning.max_steps`` or once every cell is treated. ``info["state"]`` is the
+    tabular state the engine's learner would see (``state_labels`` names them), so that a
+    table from ``/qtable`` can act here.
+
+    ``reset(seed=s)`` draws, episode after episode, the worlds a job of seed s evaluates in;
+    ``reset()`` goes on to the next world; before any seed, the scenario's seed is used. Reset
+    takes no options (any given are ignored, as PettingZoo's checker expects).
+    """
+
+    metadata: dict[str, Any] = {"render_modes": []}  # noqa: RUF012 (gymnasium's own layout)
+
+    def __init__(self, scenario: ScenarioLike = None) -> None:
+        self.scenario = with_robots(as_scenario(scenario), 1)
+        self._worlds = Worlds(self.scenario, 1)
+        self._seen = observation_of(self.scenario)
+        self.observation_space = spaces.Box(self._seen.low, self._seen.high, dtype=np.float64)
+        self.action_space = spaces.Discrete(self._worlds.actions)
+        self.observation_labels = self._seen.labels
+        self.action_labels = action_labels(self.scenario)
+        self.state_labels = state_labels(self.scenario)
+        self._fresh = np.ones(1, dtype=np.bool_)
+        self._stale = np.zeros(1, dtype=np.bool_)
+        self._actions = np.zeros((1, 1), dtype=np.int64)
+        self._ended = True
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[NDArray[np.float64], dict[str, Any]]:
+        super().reset(seed=seed)
+        if seed is not None:
+            self._worlds.seed([seed])
+        self._worlds.step(None, self._fresh)
+        self._ended = False
+        return self._worlds.obs[0, 0, self._seen.columns], self._info()
+
+    def step(
+        self, action: np.int64 | int
+    ) -> tuple[NDArray[np.float64], SupportsFloat, bool, bool, dict[str, Any]]:
+        if self._ended:
+            raise RuntimeError("the episode is over (or never began): call reset()")
+        if not self.action_space.contains(action):
+            raise ValueError(f"action {action!r} is not in {self.action_space}")
+        self._actions[0, 0] = int(action)
+        w = self._worlds
+        w.step(self._actions, self._stale)
+        terminated = not bool(w.active[0, 0])
+        truncated = bool(w.over[0]) and not terminated
+        self._ended = terminated or truncated
+        return (
+            w.obs[0, 0, self._seen.columns],
+            float(w.reward[0, 0]),
+            terminated,
+            truncated,
+            self._info(),
+        )
+
+    def _info(self) -> dict[str, Any]:
+        return {"state": int(self._worlds.state[0, 0]), "step": self._worlds.steps(0)}
+
+
+class NanoNavVectorEnv(VectorEnv[NDArray[np.float64], NDArray[np.int64], NDArray[Any]]):
+    """``num_envs`` worlds of one robot (as ``NanoNavEnv``), stepped in one compiled call.
+
+    World k reset with seed s + k (``reset(seed=s)``), or with a seed each; a world whose
+    episode ended is drawn afresh at the next step (Gymnasium's next-step autoreset: that step's
+    action is unused, its reward 0). ``infos["state"]`` holds each world's tabular state.
+    """
+
+    metadata: dict[str, Any] = {  # noqa: RUF012 (gymnasium's own layout)
+        "autoreset_mode": AutoresetMode.NEXT_STEP,
+        "render_modes": [],
+    }
+
+    def __init__(self, num_envs: int = 1, scenario: ScenarioLike = None) -> None:
+        if num_envs < 1:
+            raise ValueError("num_envs must be at least 1")
+        self.scenario = with_robots(as_scenario(scenario), 1)
+        self.num_envs = num_envs
+        self._worlds = Worlds(self.scenario, num_envs)
+        self._seen = observation_of(self.scenario)
+        self.observation_labels = self._seen.labels
+        self.single_observation_space = spaces.Box(
+            self._seen.low, self._seen.high, dtype=np.float64
+        )
+        self.single_action_space = spaces.Discrete(self._worlds.actions)
+        self.observation_space = gymnasium.vector.utils.batch_space(
+            self.single_observation_space, num_envs
+        )
+        self.action_space = gymnasium.vector.utils.batch_space(self.single_action_space, num_envs)
+        self.action_labels = action_labels(self.scenario)
+        self.state_labels = state_labels(self.scenario)
+        self._all = np.ones(num_envs, dtype=np.bool_)
+        self._ended = np.zeros(num_envs, dtype=np.bool_)
+
+    def reset(
+        self, *, seed: int | Sequence[int] | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[NDArray[np.float64], dict[str, Any]]:
+        if seed is not None:
+            seeds = [seed + k for k in range(self.num_envs)] if isinstance(seed, int) else seed
+            self._worlds.seed(list(seeds))
+            self._np_random, self._np_random_seed = gymnasium.utils.seeding.np_random(seeds[0])
+        self._worlds.step(None, self._all)
+        self._ended[:] = False
+        return self._worlds.obs[:, 0][:, self._seen.columns], self._infos()
+
+    def step(
+        self, actions: NDArray[np.int64]
+    ) -> tuple[NDArray[np.float64], NDArray[Any], NDArray[Any], NDArray[Any], dict[str, Any]]:
+        given = np.asarray(actions, dtype=np.int64).reshape(self.num_envs, 1)
+        w = self._worlds
+        fresh = self._ended.copy()
+        w.step(given, fresh)
+        terminated = ~w.active[:, 0] & ~fresh
+        truncated = w.over & ~terminated & ~fresh
+        self._ended = terminated | truncated
+        obs = w.obs[:, 0][:, self._seen.columns]
+        return obs, w.reward[:, 0].copy(), terminated, truncated, self._infos()
+
+    def _infos(self) -> dict[str, Any]:
+        return {"state": self._worlds.state[:, 0].copy()}

@@ -1,0 +1,223 @@
+"""Many worlds of one scenario, driven from outside: the arrays, the generators and the one
+compiled call (``engine.stepping.step_worlds``) that every environment here steps them with.
+
+What the observation means, its units and its bounds are written once here, for the
+environments' spaces and the README alike.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any, NamedTuple
+
+import numpy as np
+from numba.typed import List
+from numpy.typing import NDArray
+
+from nanonav.engine import qlearning, stepping
+from nanonav.engine.simulate import episode_arrays, kernel_params
+from nanonav.engine.state import Recording
+from nanonav.engine.world import DYNAMICS_STREAM, EVALUATION_STREAM, raise_for_layout, stream
+from nanonav.scenario import Scenario
+
+# No history is recorded: the cap only keeps kernel_params from refusing a large swarm.
+_NO_HISTORY_CAP = 2**62
+# The bound of a column with none (as Gymnasium's CartPole bounds its velocities): finite, so
+# that a learner may normalise by it.
+UNBOUNDED = float(np.finfo(np.float32).max)
+OBSERVATION_LABELS = (
+    "reading",
+    "reading_change",
+    "gradient_x",
+    "gradient_y",
+    "gradient_z",
+    "obstacle",
+    "cell",
+    "signal",
+    "signal_change",
+)
+
+
+def as_scenario(scenario: Scenario | Mapping[str, Any] | None) -> Scenario:
+    """A scenario from a ``Scenario``, its JSON as a mapping (validated as the API does), or
+    None (the defaults)."""
+    if isinstance(scenario, Scenario):
+        return scenario
+    return Scenario.model_validate(dict(scenario or {}))
+
+
+def with_robots(scenario: Scenario, count: int) -> Scenario:
+    """``scenario`` with ``count`` robots (validated again: a count that does not fit is
+    refused as a scenario would be)."""
+    if scenario.robots.count == count:
+        return scenario
+    data = scenario.model_dump(mode="json")
+    data["robots"]["count"] = count
+    return Scenario.model_validate(data)
+
+
+def _bounds(scenario: Scenario) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(low, high) of each engine column (``stepping.OBS_*``) in this scenario's units:
+    readings and signals are unbounded (``UNBOUNDED``; a noise floor can read below 0), the
+    distances are capped at the sensors' ranges, the obstacle contact of active_brownian is 0
+    or 1; a column the scenario never fills is 0 to 0."""
+    low = np.full(stepping.FEATURES, -UNBOUNDED)
+    high = np.full(stepping.FEATURES, UNBOUNDED)
+    brownian = scenario.physics.model == "active_brownian"
+    low[stepping.OBS_OBSTACLE] = 0.0
+    high[stepping.OBS_OBSTACLE] = 1.0 if brownian else scenario.robots.sensing_radius
+    low[stepping.OBS_CELL] = 0.0
+    high[stepping.OBS_CELL] = scenario.robots.cell_sensing_radius
+    if brownian:
+        low[stepping.OBS_GRADIENT : stepping.OBS_GRADIENT + 3] = 0.0
+        high[stepping.OBS_GRADIENT : stepping.OBS_GRADIENT + 3] = 0.0
+    if scenario.communication.model == "none":
+        low[stepping.OBS_SIGNAL :] = 0.0
+        high[stepping.OBS_SIGNAL :] = 0.0
+    elif scenario.communication.model == "broadcast":
+        low[stepping.OBS_SIGNAL] = 0.0
+        high[stepping.OBS_SIGNAL] = 1.0
+        low[stepping.OBS_SIGNAL_CHANGE] = 0.0
+        high[stepping.OBS_SIGNAL_CHANGE] = 0.0
+    return low, high
+
+
+class Observation(NamedTuple):
+    """What a robot's observation holds in a scenario: the engine's columns it keeps (those the
+    scenario fills), their names, and their bounds."""
+
+    columns: NDArray[np.int64]
+    labels: tuple[str, ...]
+    low: NDArray[np.float64]
+    high: NDArray[np.float64]
+
+
+def observation_of(scenario: Scenario) -> Observation:
+    """The observation of a robot of ``scenario`` (``OBSERVATION_LABELS`` says what each
+    column is; a column the scenario never fills, such as the signal without communication, is
+    left out)."""
+    low, high = _bounds(scenario)
+    columns = np.flatnonzero(low != high)
+    return Observation(
+        columns, tuple(OBSERVATION_LABELS[c] for c in columns), low[columns], high[columns]
+    )
+
+
+def action_labels(scenario: Scenario) -> list[str]:
+    """The scenario's action set, in the order the ``Discrete`` action numbers them."""
+    return qlearning.labels(scenario.learning.actions, scenario.communication.model)[1]
+
+
+def state_labels(scenario: Scenario) -> list[str]:
+    """The tabular states (``info["state"]`` indexes them), as ``/qtable`` names them."""
+    return qlearning.labels(scenario.learning.actions, scenario.communication.model)[0]
+
+
+def _empty_recording(robots: int, cells: int) -> Recording:
+    nothing = np.zeros((0, robots))
+    return Recording(
+        pos=np.zeros((0, robots, 3)),
+        cells=np.zeros((0, cells, 3)),
+        obstacles=np.zeros((0, 0, 3)),
+        conc=nothing,
+        dist=nothing,
+        step=np.zeros(0, dtype=np.int64),
+        offsets=np.zeros((0, 3)),
+        heading=np.zeros((0, robots, 3)),
+        sensed=nothing,
+        load=np.zeros((0, cells), dtype=np.int64),
+        signal=nothing,
+    )
+
+
+class Worlds:
+    """``count`` independent worlds of ``scenario``, each with its robots and its two
+    generators (the worlds' and the dynamics'), stepped together in one compiled call.
+
+    World k seeded with s draws, episode after episode, the worlds a job of seed s evaluates
+    in (``simulate``'s evaluation stream) and runs on the dynamics stream of seed s, so a policy
+    evaluated here with seed s meets what the service would evaluate it in: train on other seeds.
+    """
+
+    def __init__(self, scenario: Scenario, count: int) -> None:
+        if count < 1:
+            raise ValueError("count must be at least 1")
+        self.scenario = scenario
+        self.count = count
+        self.robots = scenario.robots.count
+        self.params = kernel_params(scenario, _NO_HISTORY_CAP)
+        self.actions = len(action_labels(scenario))
+        self.directions = np.ascontiguousarray(qlearning.DIRECTIONS)
+        self.sims: List[stepping.Sim] = List()
+        for _ in range(count):
+            arrays = episode_arrays(scenario)
+            n = self.robots
+            percept = stepping.Percept(
+                obs=np.zeros((n, stepping.FEATURES)),
+                state=np.zeros(n, dtype=np.int64),
+                target=np.full(n, -1, dtype=np.int64),
+                target_d=np.zeros(n),
+                way=np.zeros((n, 3)),
+                reward=np.zeros(n),
+                clock=np.zeros(stepping.CLOCK_SLOTS, dtype=np.int64),
+            )
+            self.sims.append(
+                stepping.Sim(
+                    arrays.world,
+                    arrays.swarm,
+                    arrays.social,
+                    arrays.treatment,
+                    arrays.near,
+                    arrays.radio,
+                    arrays.everyone,
+                    arrays.found,
+                    arrays.signals.conc,
+                    arrays.signals.scratch,
+                    _empty_recording(n, scenario.cells.count),
+                    percept,
+                )
+            )
+        self.world_rngs: List[np.random.Generator] = List()
+        self.rngs: List[np.random.Generator] = List()
+        for k in range(count):
+            self.world_rngs.append(stream(scenario.seed + k, EVALUATION_STREAM))
+            self.rngs.append(stream(scenario.seed + k, DYNAMICS_STREAM))
+        self.obs = np.zeros((count, self.robots, stepping.FEATURES))
+        self.state = np.zeros((count, self.robots), dtype=np.int64)
+        self.reward = np.zeros((count, self.robots))
+        self.active = np.zeros((count, self.robots), dtype=np.bool_)
+        self.over = np.ones(count, dtype=np.bool_)
+        self._no_actions = np.zeros((count, self.robots), dtype=np.int64)
+
+    def seed(self, seeds: Sequence[int]) -> None:
+        """Restart world k's generators from ``seeds[k]``."""
+        if len(seeds) != self.count:
+            raise ValueError(f"{len(seeds)} seeds for {self.count} worlds")
+        for k, seed in enumerate(seeds):
+            self.world_rngs[k] = stream(int(seed), EVALUATION_STREAM)
+            self.rngs[k] = stream(int(seed), DYNAMICS_STREAM)
+
+    def step(self, actions: NDArray[np.int64] | None, fresh: NDArray[np.bool_]) -> None:
+        """Step every world on ``actions`` (worlds x robots; an inactive robot's is unused), or
+        draw a fresh one where ``fresh``; the outputs are in ``obs``, ``state``, ``reward``,
+        ``active`` and ``over``. An action outside the action set raises ValueError."""
+        if actions is None:
+            actions = self._no_actions
+        elif actions.shape != (self.count, self.robots):
+            raise ValueError(f"actions of shape {actions.shape}, not {(self.count, self.robots)}")
+        elif actions.size and (actions.min() < 0 or actions.max() >= self.actions):
+            bad = actions[(actions < 0) | (actions >= self.actions)][0]
+            raise ValueError(f"action {bad} is not in the action set 0..{self.actions - 1}")
+        status = stepping.step_worlds(
+            self.params, self.world_rngs, self.rngs, self.sims, actions, fresh, self.directions,
+            self.obs, self.state, self.reward, self.active, self.over,
+        )  # fmt: skip
+        raise_for_layout(status, self.scenario)
+
+    def steps(self, k: int) -> int:
+        """The step world ``k`` is at."""
+        return int(self.sims[k].pc.clock[stepping.CLOCK_STEP])
+
+    def robot_steps(self) -> int:
+        """Robot-steps simulated in every world so far."""
+        return sum(int(sim.pc.clock[stepping.CLOCK_ROBOT_STEPS]) for sim in self.sims)
