@@ -117,7 +117,7 @@ class Sim(NamedTuple):
     pc: Percept
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _prelude(p: KernelParams, rng: np.random.Generator, sim: Sim, t: int) -> None:
     """The start of step ``t``: the world moves, its sources and the signal are placed, and the
     true field is read at every active robot (as at the top of the kernel's step)."""
@@ -151,7 +151,7 @@ def _delivered(p: KernelParams, sim: Sim, i: int, cell: int, t: int) -> None:
         radio_room.broadcast(p, s.pos, s.active, sim.so, sim.radio, sim.found, i)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _perceive(p: KernelParams, rng: np.random.Generator, sim: Sim, t: int) -> None:
     """Every active robot, in index order, at the start of step ``t``: a cell that drifted
     within reach is received (the robot's step is spent so, as in the kernel); otherwise it
@@ -230,7 +230,7 @@ def _perceive(p: KernelParams, rng: np.random.Generator, sim: Sim, t: int) -> No
         pc.way[i, 2] = uz
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _act(
     p: KernelParams, rng: np.random.Generator, sim: Sim, actions: NDArray[np.int64], t: int,
     directions: NDArray[np.float64],
@@ -370,7 +370,7 @@ def reset_world(
     return 0
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def step_world(
     p: KernelParams, rng: np.random.Generator, sim: Sim, actions: NDArray[np.int64],
     directions: NDArray[np.float64],
@@ -397,36 +397,89 @@ def step_world(
         clock[CLOCK_OVER] = 1
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _world_at(b: World, k: int) -> World:
+    return World(b.cells[k], b.obstacles[k], b.offsets[k], b.sx[k], b.sy[k], b.sz[k])
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _swarm_at(b: Swarm, k: int) -> Swarm:
+    return Swarm(
+        b.pos[k], b.heading[k], b.active[k], b.steps[k], b.prev_conc[k], b.returns[k],
+        b.collisions[k], b.path_length[k], b.pending[k], b.last_state[k], b.last_action[k],
+        b.last_reward[k], b.start[k], b.sum_conc[k], b.sum_dist[k], b.last_dist[k],
+        b.reading[k], b.reading_grad[k], b.swept[k], b.blocked[k], b.sensed[k],
+    )  # fmt: skip
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _social_at(b: Social, k: int) -> Social:
+    return Social(
+        b.bound_to[k], b.bumps[k], b.signal[k], b.prev_signal[k], b.message[k], b.has_message[k]
+    )
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _treatment_at(b: Treatment, k: int) -> Treatment:
+    return Treatment(b.load[k], b.treated_at[k], b.tx[k], b.ty[k], b.tz[k], b.treated_sources[k])
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _cells_at(b: CellList, k: int) -> CellList:
+    return CellList(b.heads[k], b.next[k], b.cell[k], b.origin, b.width, b.dims, b.slack)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _recording_at(b: Recording, k: int) -> Recording:
+    return Recording(
+        b.pos[k], b.cells[k], b.obstacles[k], b.conc[k], b.dist[k], b.step[k], b.offsets[k],
+        b.heading[k], b.sensed[k], b.load[k], b.signal[k],
+    )  # fmt: skip
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _percept_at(b: Percept, k: int) -> Percept:
+    return Percept(
+        b.obs[k], b.state[k], b.target[k], b.target_d[k], b.way[k], b.reward[k], b.clock[k]
+    )
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _sim_at(b: Sim, k: int) -> Sim:
+    """World ``k`` of a batch whose every array has a leading axis of worlds, as views: the
+    worlds' arrays lie side by side in memory, so stepping them one after another streams
+    through it (separate arrays per world cost each step a cache miss per array)."""
+    return Sim(
+        _world_at(b.w, k), _swarm_at(b.s, k), _social_at(b.so, k), _treatment_at(b.tr, k),
+        _cells_at(b.near, k), _cells_at(b.radio, k), b.everyone[k], b.found[k], b.sig[k],
+        b.sig_scratch[k], _recording_at(b.rec, k), _percept_at(b.pc, k),
+    )  # fmt: skip
+
+
 @njit(cache=True, error_model="numpy")
 def step_worlds(
-    p: KernelParams,
+    params: List[KernelParams],
     world_rngs: List[np.random.Generator],
     rngs: List[np.random.Generator],
-    sims: List[Sim],
+    batches: List[Sim],
     actions: NDArray[np.int64],
     fresh: NDArray[np.bool_],
     directions: NDArray[np.float64],
-    obs: NDArray[np.float64],
-    state: NDArray[np.int64],
-    reward: NDArray[np.float64],
-    active: NDArray[np.bool_],
-    over: NDArray[np.bool_],
 ) -> int:
-    """Every world k one step on ``actions[k]`` (robots x 1), or, where ``fresh[k]``, into a
-    fresh world (its actions unused); then copy each world's observations, tabular states,
-    rewards, active robots and whether its episode is over into the outputs (worlds x ...).
-    Returns the first non-zero ``draw_world`` status, or 0."""
-    for k in range(len(sims)):
-        sim = sims[k]
+    """Every world k of ``batches[0]`` (its arrays shaped worlds x ...) one step on
+    ``actions[k]`` (robots x 1), or, where ``fresh[k]``, into a fresh world (its actions
+    unused); a world whose episode is over and is not fresh stays as it is. What each world's
+    robots perceived and got is then in its ``pc``. Returns the first non-zero ``draw_world``
+    status, or 0. (The parameters and the batch come in lists of one: a list crosses into
+    compiled code at once, where a tuple of many arrays is checked array by array each call.)"""
+    p = params[0]
+    batch = batches[0]
+    for k in range(batch.pc.clock.shape[0]):
+        sim = _sim_at(batch, k)
         if fresh[k]:
             status = reset_world(p, world_rngs[k], rngs[k], sim)
             if status != 0:
                 return status
         elif sim.pc.clock[CLOCK_OVER] == 0:
             step_world(p, rngs[k], sim, actions[k], directions)
-        obs[k] = sim.pc.obs
-        state[k] = sim.pc.state
-        reward[k] = sim.pc.reward
-        active[k] = sim.s.active
-        over[k] = sim.pc.clock[CLOCK_OVER] != 0
     return 0

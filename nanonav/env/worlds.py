@@ -16,7 +16,7 @@ from numpy.typing import NDArray
 
 from nanonav.engine import qlearning, stepping
 from nanonav.engine.simulate import episode_arrays, kernel_params
-from nanonav.engine.state import Recording
+from nanonav.engine.state import KernelParams, Recording
 from nanonav.engine.world import DYNAMICS_STREAM, EVALUATION_STREAM, raise_for_layout, stream
 from nanonav.scenario import Scenario
 
@@ -130,6 +130,16 @@ def _empty_recording(robots: int, cells: int) -> Recording:
     )
 
 
+def _stacked(one: Any, count: int) -> Any:
+    """``one`` (a NamedTuple of arrays, scalars and such tuples) with every array repeated
+    along a new leading axis of ``count`` worlds; scalars are shared."""
+    if isinstance(one, np.ndarray):
+        return np.ascontiguousarray(np.repeat(one[np.newaxis], count, axis=0))
+    if isinstance(one, tuple):
+        return type(one)(*(_stacked(part, count) for part in one))
+    return one
+
+
 class Worlds:
     """``count`` independent worlds of ``scenario``, each with its robots and its two
     generators (the worlds' and the dynamics'), stepped together in one compiled call.
@@ -148,45 +158,36 @@ class Worlds:
         self.params = kernel_params(scenario, _NO_HISTORY_CAP)
         self.actions = len(action_labels(scenario))
         self.directions = np.ascontiguousarray(qlearning.DIRECTIONS)
-        self.sims: List[stepping.Sim] = List()
-        for _ in range(count):
-            arrays = episode_arrays(scenario)
-            n = self.robots
-            percept = stepping.Percept(
-                obs=np.zeros((n, stepping.FEATURES)),
-                state=np.zeros(n, dtype=np.int64),
-                target=np.full(n, -1, dtype=np.int64),
-                target_d=np.zeros(n),
-                way=np.zeros((n, 3)),
-                reward=np.zeros(n),
-                clock=np.zeros(stepping.CLOCK_SLOTS, dtype=np.int64),
-            )
-            self.sims.append(
-                stepping.Sim(
-                    arrays.world,
-                    arrays.swarm,
-                    arrays.social,
-                    arrays.treatment,
-                    arrays.near,
-                    arrays.radio,
-                    arrays.everyone,
-                    arrays.found,
-                    arrays.signals.conc,
-                    arrays.signals.scratch,
-                    _empty_recording(n, scenario.cells.count),
-                    percept,
-                )
-            )
+        arrays = episode_arrays(scenario)
+        n = self.robots
+        percept = stepping.Percept(
+            obs=np.zeros((n, stepping.FEATURES)),
+            state=np.zeros(n, dtype=np.int64),
+            target=np.full(n, -1, dtype=np.int64),
+            target_d=np.zeros(n),
+            way=np.zeros((n, 3)),
+            reward=np.zeros(n),
+            clock=np.zeros(stepping.CLOCK_SLOTS, dtype=np.int64),
+        )
+        one = stepping.Sim(
+            arrays.world, arrays.swarm, arrays.social, arrays.treatment, arrays.near,
+            arrays.radio, arrays.everyone, arrays.found, arrays.signals.conc,
+            arrays.signals.scratch, _empty_recording(n, scenario.cells.count), percept,
+        )  # fmt: skip
+        self.batch: stepping.Sim = _stacked(one, count)
+        self._batches: List[stepping.Sim] = List([self.batch])
+        self._params: List[KernelParams] = List([self.params])
         self.world_rngs: List[np.random.Generator] = List()
         self.rngs: List[np.random.Generator] = List()
         for k in range(count):
             self.world_rngs.append(stream(scenario.seed + k, EVALUATION_STREAM))
             self.rngs.append(stream(scenario.seed + k, DYNAMICS_STREAM))
-        self.obs = np.zeros((count, self.robots, stepping.FEATURES))
-        self.state = np.zeros((count, self.robots), dtype=np.int64)
-        self.reward = np.zeros((count, self.robots))
-        self.active = np.zeros((count, self.robots), dtype=np.bool_)
-        self.over = np.ones(count, dtype=np.bool_)
+        pc = self.batch.pc
+        self.obs = pc.obs  # (worlds, robots, features)
+        self.state = pc.state
+        self.reward = pc.reward
+        self.active = self.batch.s.active
+        pc.clock[:, stepping.CLOCK_OVER] = 1
         self._no_actions = np.zeros((count, self.robots), dtype=np.int64)
 
     def seed(self, seeds: Sequence[int]) -> None:
@@ -209,15 +210,26 @@ class Worlds:
             bad = actions[(actions < 0) | (actions >= self.actions)][0]
             raise ValueError(f"action {bad} is not in the action set 0..{self.actions - 1}")
         status = stepping.step_worlds(
-            self.params, self.world_rngs, self.rngs, self.sims, actions, fresh, self.directions,
-            self.obs, self.state, self.reward, self.active, self.over,
-        )  # fmt: skip
+            self._params,
+            self.world_rngs,
+            self.rngs,
+            self._batches,
+            actions,
+            fresh,
+            self.directions,
+        )
         raise_for_layout(status, self.scenario)
+
+    @property
+    def over(self) -> NDArray[np.bool_]:
+        """Whether each world's episode is over."""
+        over: NDArray[np.bool_] = self.batch.pc.clock[:, stepping.CLOCK_OVER] != 0
+        return over
 
     def steps(self, k: int) -> int:
         """The step world ``k`` is at."""
-        return int(self.sims[k].pc.clock[stepping.CLOCK_STEP])
+        return int(self.batch.pc.clock[k, stepping.CLOCK_STEP])
 
     def robot_steps(self) -> int:
         """Robot-steps simulated in every world so far."""
-        return sum(int(sim.pc.clock[stepping.CLOCK_ROBOT_STEPS]) for sim in self.sims)
+        return int(self.batch.pc.clock[:, stepping.CLOCK_ROBOT_STEPS].sum())

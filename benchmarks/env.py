@@ -1,0 +1,141 @@
+"""NanoNav through the RL interfaces: env-steps per second of the single env stepped from a
+Python loop (the ecosystem's usual case) beside a bare Gymnasium env (CartPole) in the same run,
+of the vector env at N = 1, 100 and 1,000 worlds, and of the swarm env at 1,000 robots (through
+PettingZoo's dicts and through its arrays), all with random actions, on one core.
+
+    python benchmarks/env.py            # about a minute
+    python benchmarks/env.py --quick    # a smoke run
+
+Worlds: the single env and the vector env's are 'paper-single' (one robot, one cell, ten
+obstacles, the paper's behaviours); the swarm's is 'paper-swarm' with 1,000 robots. A robot that
+reaches its cell leaves; a finished world is drawn afresh. A robot-step is one robot moved one
+step; figures are medians of 3 repeats, each timing only steps (no numba start-up).
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+from collections.abc import Callable
+
+import gymnasium
+import numpy as np
+
+from nanonav.env import NanoNavEnv, NanoNavParallelEnv, NanoNavVectorEnv
+
+SINGLE = {"preset": "paper-single"}
+SWARM = {"preset": "paper-swarm", "robots": {"count": 1000}}
+VECTOR_WORLDS = (1, 100, 1000)
+SWARM_ROBOTS = 1000
+TARGET_RATE = 1_000_000  # robot-steps/s: the vector env and the swarm env at 1,000
+REPEATS = 3
+
+
+def _median(run: Callable[[], tuple[int, float]]) -> float:
+    """Median over repeats of (robot-steps / seconds) that ``run`` measured."""
+    rates = []
+    for _ in range(REPEATS):
+        steps, seconds = run()
+        rates.append(steps / seconds)
+    return statistics.median(rates)
+
+
+def single_env(env: gymnasium.Env, steps: int) -> Callable[[], tuple[int, float]]:
+    """A Python loop of ``steps`` env-steps with random actions, resetting as episodes end."""
+    actions = np.random.default_rng(0).integers(0, env.action_space.n, steps)  # type: ignore[attr-defined]
+
+    def run() -> tuple[int, float]:
+        env.reset(seed=0)
+        started = time.perf_counter()
+        for action in actions:
+            _, _, terminated, truncated, _ = env.step(int(action))
+            if terminated or truncated:
+                env.reset()
+        return steps, time.perf_counter() - started
+
+    return run
+
+
+def vector_env(worlds: int, robot_steps: int) -> Callable[[], tuple[int, float]]:
+    env = NanoNavVectorEnv(worlds, SINGLE)
+    rng = np.random.default_rng(0)
+    n = env.single_action_space.n
+
+    def run() -> tuple[int, float]:
+        env.reset(seed=0)
+        calls = max(1, robot_steps // worlds)
+        started = time.perf_counter()
+        for _ in range(calls):
+            env.step(rng.integers(0, n, worlds))
+        return calls * worlds, time.perf_counter() - started
+
+    return run
+
+
+def swarm_env(robot_steps: int, arrays: bool) -> Callable[[], tuple[int, float]]:
+    env = NanoNavParallelEnv(SWARM)
+    rng = np.random.default_rng(0)
+    n = len(env.action_labels)
+
+    def run() -> tuple[int, float]:
+        env.reset(seed=0)
+        done = 0
+        started = time.perf_counter()
+        while done < robot_steps:
+            if not env.agents:
+                env.reset()
+            live = len(env.agents)
+            if arrays:
+                env.step_arrays(rng.integers(0, n, SWARM_ROBOTS))
+            else:
+                choice = rng.integers(0, n, live).tolist()
+                env.step(dict(zip(env.agents, choice, strict=True)))
+            done += live
+        return done, time.perf_counter() - started
+
+    return run
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="small workloads")
+    args = parser.parse_args(argv)
+    scale = 10 if args.quick else 1
+    single_steps = 20_000 // scale
+    robot_steps = 2_000_000 // scale
+
+    # compile (or load numba's cache) before any timing
+    _warm = NanoNavVectorEnv(2, SINGLE)
+    _warm.reset(seed=0)
+    _warm.step(np.zeros(2, dtype=np.int64))
+
+    nanonav = _median(single_env(NanoNavEnv(SINGLE), single_steps))
+    cartpole = _median(single_env(gymnasium.make("CartPole-v1").unwrapped, single_steps))
+    print("single env, a Python loop (env-steps per second, and the time per step)")
+    print(f"  {'NanoNavEnv (paper-single)':32s} {nanonav:>12,.0f}  {1e6 / nanonav:7.1f} us")
+    print(f"  {'CartPole-v1 (bare gymnasium)':32s} {cartpole:>12,.0f}  {1e6 / cartpole:7.1f} us")
+    print(f"  NanoNav's step costs x{cartpole / nanonav:.1f} CartPole's")
+    print()
+    print("vector env (robot-steps per second; one robot a world)")
+    verdicts = []
+    for worlds in VECTOR_WORLDS:
+        rate = _median(vector_env(worlds, robot_steps))
+        print(f"  {worlds:>6,} worlds {rate:>14,.0f}")
+        if worlds == 1000:
+            verdicts.append(("vector env, 1,000 worlds", rate))
+    print()
+    print(f"swarm env ({SWARM_ROBOTS:,} robots of paper-swarm; robot-steps per second)")
+    for label, arrays in (("PettingZoo dicts", False), ("step_arrays", True)):
+        rate = _median(swarm_env(robot_steps, arrays))
+        print(f"  {label:20s} {rate:>14,.0f}")
+        verdicts.append((f"swarm env, {SWARM_ROBOTS:,} robots, {label}", rate))
+    print()
+    for what, rate in verdicts:
+        status = "meets" if rate >= TARGET_RATE else "BELOW"
+        print(f"{status} target: {what}, {rate:,.0f} vs {TARGET_RATE:,} robot-steps/s")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
