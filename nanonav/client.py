@@ -330,6 +330,42 @@ class Study(StudySummary):
         )
 
 
+@dataclass(frozen=True, kw_only=True)
+class Policy:
+    """A policy as ``POST /policies`` answers it and ``GET /policies`` lists it: a Q-table made
+    elsewhere, that a scenario evaluates by naming ``policy_from``."""
+
+    id: int
+    policy_from: str  # what a scenario's policy_from names it by: "policy-<id>"
+    name: str | None
+    action_set: str  # the learning.actions it is for
+    communication: list[str]  # the communication.model values whose states are its rows
+    state_count: int
+    action_count: int
+    table_count: int  # 1 for a table every robot starts from, else one per robot
+    per_robot: bool
+    created_at: datetime
+    links: dict[str, Any]
+    raw: dict[str, Any] = field(repr=False, compare=False)
+
+    @classmethod
+    def of(cls, data: dict[str, Any]) -> Policy:
+        return cls(
+            id=int(data["id"]),
+            policy_from=str(data["policy_from"]),
+            name=data.get("name"),
+            action_set=str(data["action_set"]),
+            communication=list(data["communication"]),
+            state_count=int(data["state_count"]),
+            action_count=int(data["action_count"]),
+            table_count=int(data["table_count"]),
+            per_robot=bool(data["per_robot"]),
+            created_at=datetime.fromisoformat(data["created_at"]),
+            links=data.get("links") or {},
+            raw=data,
+        )
+
+
 _D = TypeVar("_D", JobCounts, Interval, Difference)
 
 
@@ -603,6 +639,46 @@ class Client:
         """A PNG: a metric's means and CIs across the grid (``name`` is a metric, as in
         ``Study.metrics``), or ``learning`` for the mean learning curves."""
         return self._request("GET", f"/studies/{study_id}/plots/{name}.png").content
+
+    # ------------------------------------------------------------ policies
+
+    def send_policy(
+        self,
+        states: Sequence[str],
+        actions: Sequence[str],
+        *,
+        values: NDArray[Any] | Sequence[Any] | None = None,
+        greedy: Sequence[Mapping[str, Any]] | None = None,
+        name: str | None = None,
+    ) -> Policy:
+        """Send a Q-table made elsewhere: ``states`` and ``actions`` label its rows and columns
+        (an environment's ``state_labels`` and ``action_labels``), and the table is ``values``
+        (states x actions, or robots x states x actions) or ``greedy`` (``{"state", "action"}``
+        items, as ``qtable(job_id)["greedy"]`` has them), one of the two. A scenario evaluates
+        it with ``policy_from`` set to the answer's ``policy_from``."""
+        body: dict[str, Any] = {"states": list(states), "actions": list(actions)}
+        if values is not None:
+            body["values"] = np.asarray(values, dtype=np.float64).tolist()
+        if greedy is not None:
+            body["greedy"] = [dict(choice) for choice in greedy]
+        if name is not None:
+            body["name"] = name
+        return Policy.of(self._json("POST", "/policies", json=body))
+
+    def policy(self, policy_id: int) -> dict[str, Any]:
+        """A policy with its table: ``states``, ``actions``, ``values`` and ``greedy``."""
+        return self._json("GET", f"/policies/{policy_id}")
+
+    def policies(self, *, limit: int | None = None) -> Iterator[Policy]:
+        """Policies newest first, without their tables (``policy(id)`` has them)."""
+        params = {"limit": PAGE_SIZE if limit is None else min(limit, PAGE_SIZE)}
+        pages = self._pages("/policies", params, "policies")
+        yield from _capped((Policy.of(item) for item in pages), limit)
+
+    def delete_policy(self, policy_id: int) -> None:
+        """Delete a policy (404 if there is no such policy, or no more); a queued job that
+        names it fails when it is claimed."""
+        self._request("DELETE", f"/policies/{policy_id}")
 
     # ------------------------------------------------------------ HTTP
 

@@ -1,26 +1,90 @@
-"""A learned Q-table as data: the greedy action of every state, and whether a table fits a run.
+"""A Q-table as data: the greedy action of every state, whether a table fits a run, and the
+checks a table made elsewhere passes before it is kept as a policy.
 
 These functions read the arrays a job stores (``states``, ``actions``, ``values``, ``visits``)
-and touch no database: the API shows the greedy table and checks ``policy_from`` at submit, and
-the worker checks it again before the run, with the same rule.
+or a policy was sent with, and touch no database: the API shows the greedy table, checks a sent
+table and checks ``policy_from`` at submit, and the worker checks it again before the run, with
+the same rule.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, get_args
 
 import numpy as np
 from numpy.typing import NDArray
 
 from nanonav.engine import qlearning
-from nanonav.scenario import ActionSet, Scenario
+from nanonav.scenario import ActionSet, CommunicationModel, Scenario
 from nanonav.store.errors import JobNotFound, ResultsUnavailable
 from nanonav.store.models import JobStatus
+from nanonav.store.policies import PolicyNotFound, PolicySource, policy_number
 
 UNVISITED = "unvisited"
-ACTION_SETS: tuple[ActionSet, ...] = ("behaviors", "directions")
+ACTION_SETS: tuple[ActionSet, ...] = get_args(ActionSet)
+COMMUNICATION_MODELS: tuple[CommunicationModel, ...] = get_args(CommunicationModel)
+# A policy holds one table every robot starts from, or one per robot, at most this many.
+MAX_TABLES = 1000
+# The rules a sent table may break, as a 422 types them: labels that are no layout's, and
+# values or greedy choices that do not fill the layout's table.
+LAYOUT_RULE = "policy_layout"
+TABLE_RULE = "policy_table"
+
+TableReader = Callable[[PolicySource], Mapping[str, NDArray[Any]]]
+
+
+@dataclass(frozen=True)
+class Layout:
+    """What a Q-table's rows and columns are: the states a robot senses and the actions it
+    takes, with ``actions`` under ``communication`` (``qlearning.labels``). Models that sense
+    the same states share a layout (the attractant's and the attractant and repellent's)."""
+
+    actions: ActionSet
+    communication: tuple[CommunicationModel, ...]
+    state_labels: tuple[str, ...]
+    action_labels: tuple[str, ...]
+
+    @property
+    def title(self) -> str:
+        """How a message names it: ``'behaviors' with communication.model 'none'``."""
+        if self.actions not in qlearning.SIGNAL_ACTION:
+            return f"'{self.actions}'"
+        return f"'{self.actions}' with communication.model {_either(self.communication)}"
+
+
+def _layouts() -> tuple[Layout, ...]:
+    """Every layout a scenario can learn or evaluate: an action set that cannot follow signals
+    (``directions``) is used without communication only."""
+    found: dict[tuple[ActionSet, tuple[str, ...], tuple[str, ...]], list[CommunicationModel]] = {}
+    for action_set in ACTION_SETS:
+        signals = action_set in qlearning.SIGNAL_ACTION
+        for model in COMMUNICATION_MODELS if signals else ("none",):
+            states, actions = qlearning.labels(action_set, model)
+            found.setdefault((action_set, tuple(states), tuple(actions)), []).append(model)
+    return tuple(
+        Layout(action_set, tuple(models), states, actions)
+        for (action_set, states, actions), models in found.items()
+    )
+
+
+LAYOUTS = _layouts()
+MAX_STATES = max(len(layout.state_labels) for layout in LAYOUTS)
+MAX_ACTIONS = max(len(layout.action_labels) for layout in LAYOUTS)
+
+
+def _either(names: Sequence[str]) -> str:
+    """``'a'``, ``'a' or 'b'``, ``'a', 'b' or 'c'``."""
+    quoted = [f"'{name}'" for name in names]
+    return quoted[0] if len(quoted) == 1 else ", ".join(quoted[:-1]) + " or " + quoted[-1]
+
+
+def _named(source: PolicySource) -> tuple[str, str]:
+    """How messages name what a ``policy_from`` names, and the verb for what its table holds."""
+    if isinstance(source, str):
+        return f"policy {policy_number(source)}", "has"
+    return f"job {source}", "learned"
 
 
 @dataclass(frozen=True)
@@ -96,81 +160,239 @@ class UnusablePolicy(ValueError):
     """A ``policy_from`` whose table cannot drive the scenario; the message says why."""
 
 
-def _action_set(actions: Sequence[str]) -> str | None:
-    for name in ACTION_SETS:
-        if list(actions) == qlearning.labels(name)[1]:
-            return name
-    return None
+def fit_problem(
+    scenario: Scenario, source: PolicySource, table: Mapping[str, NDArray[Any]]
+) -> str | None:
+    """Why the table ``table`` that ``source`` names (a job's learned one, or a policy's) cannot
+    be evaluated in ``scenario``, or None when it fits.
 
-
-def fit_problem(scenario: Scenario, job_id: int, table: Mapping[str, NDArray[Any]]) -> str | None:
-    """Why job ``job_id``'s stored Q-table ``table`` cannot be evaluated in ``scenario``, or
-    None when it fits.
-
-    It fits when it was learned with the same action set (the same state and action labels as
-    the engine has now) and its shape fits the learners: a shared table fits shared or
-    per-robot learners (every robot starts from it), a per-robot table needs per-robot
-    learners and the same number of robots."""
+    It fits when its labels are those the engine has now for the scenario's action set and
+    communication model (its layout), and its shape fits the learners: a shared table fits
+    shared or per-robot learners (every robot starts from it), a per-robot table needs
+    per-robot learners and the same number of robots."""
+    name, verb = _named(source)
     if "values" not in table:
-        return f"job {job_id} learned no Q-table: only q_learning jobs do"
+        return f"{name} learned no Q-table: only q_learning jobs do"
     wanted = scenario.learning.actions
-    states, actions = qlearning.labels(wanted)
-    learned_with = _action_set(table["actions"].tolist())
-    if learned_with is None:
-        return f"job {job_id}'s actions are not those of any action set this engine knows"
-    if learned_with != wanted:
+    communication = scenario.communication.model
+    states, actions = qlearning.labels(wanted, communication)
+    table_states, table_actions = table["states"].tolist(), table["actions"].tolist()
+    same_actions = [layout for layout in LAYOUTS if list(layout.action_labels) == table_actions]
+    if not same_actions:
+        return f"{name}'s actions are not those of any action set this engine knows"
+    if same_actions[0].actions != wanted:
         return (
-            f"job {job_id} learned the '{learned_with}' actions and this scenario uses "
+            f"{name} {verb} the '{same_actions[0].actions}' actions and this scenario uses "
             f"'{wanted}': learning.actions must be the same"
         )
-    if table["states"].tolist() != states:
+    if table_states != states or table_actions != actions:
+        layout = next((la for la in same_actions if list(la.state_labels) == table_states), None)
+        if layout is None:
+            sensed = f"'{wanted}'" + (
+                "" if communication == "none" else f" and communication.model '{communication}'"
+            )
+            return (
+                f"{name}'s table has {len(table_states)} states that are not the {len(states)} "
+                f"this engine senses with {sensed}; it was made by another version"
+            )
+        models = layout.communication
         return (
-            f"job {job_id}'s table has {len(table['states'])} states that are not the "
-            f"{len(states)} this engine senses with '{wanted}'; it was learned by another version"
+            f"{name}'s table is laid out for communication.model {_either(models)} and this "
+            f"scenario's is '{communication}': communication.model must be "
+            + ("the same" if len(models) == 1 else "one of them")
         )
     shape = table["values"].shape
     if shape[-2:] != (len(states), len(actions)) or len(shape) not in (2, 3):
-        return f"job {job_id}'s table has the shape {shape}, not (states, actions) of '{wanted}'"
+        return f"{name}'s table has the shape {shape}, not (states, actions) of '{wanted}'"
     if len(shape) == 3:
         robots = scenario.robots.count
         if scenario.learning.shared_table:
             return (
-                f"job {job_id} learned a table per robot and this scenario's robots share one: "
+                f"{name} {verb} a table per robot and this scenario's robots share one: "
                 "learning.shared_table must be false"
             )
         if shape[0] != robots:
             return (
-                f"job {job_id} learned a table for each of its {shape[0]} robots and this "
+                f"{name} {verb} a table for each of its {shape[0]} robots and this "
                 f"scenario has {robots}: robots.count must be the same"
             )
     return None
 
 
-def learned_table(
-    scenario: Scenario, read: Callable[[int], Mapping[str, NDArray[Any]]]
-) -> NDArray[np.float64]:
+def learned_table(scenario: Scenario, read: TableReader) -> NDArray[np.float64]:
     """The values of the Q-table ``scenario.policy_from`` names, for ``simulate(policy=)``.
 
-    ``read`` is how a stored table is read (``JobStore.qtable``). Raises ``UnusablePolicy``
-    when the job does not exist, has not succeeded, or its table does not fit."""
-    job_id = scenario.policy_from
-    if job_id is None:
+    ``read`` is how a stored table is read (``JobStore.qtable``, which reads a job's or a
+    policy's). Raises ``UnusablePolicy`` when the job or policy does not exist, the job has not
+    succeeded, or the table does not fit."""
+    source = scenario.policy_from
+    if source is None:
         raise ValueError("the scenario names no policy_from")
+    name, _ = _named(source)
     try:
-        table = read(job_id)
-    except JobNotFound:
-        raise UnusablePolicy(f"there is no job {job_id}") from None
+        table = read(source)
+    except (JobNotFound, PolicyNotFound):
+        raise UnusablePolicy(f"there is no {name}") from None
     except ResultsUnavailable as error:
         if error.status is JobStatus.SUCCEEDED:
-            raise UnusablePolicy(f"job {job_id} stored no results") from None
+            raise UnusablePolicy(f"{name} stored no results") from None
         raise UnusablePolicy(
-            f"job {job_id} is {error.status.value}: only a succeeded job's table can be evaluated"
+            f"{name} is {error.status.value}: only a succeeded job's table can be evaluated"
         ) from None
-    problem = fit_problem(scenario, job_id, table)
+    problem = fit_problem(scenario, source, table)
     if problem is not None:
         raise UnusablePolicy(problem)
     values: NDArray[np.float64] = np.asarray(table["values"], dtype=np.float64)
     return values
+
+
+# ---------------------------------------------------------------- a table made elsewhere
+
+
+class InvalidPolicy(ValueError):
+    """A table sent as a policy that the engine could not evaluate. ``loc`` is the field at
+    fault in what was sent (``("states",)``, ``("greedy", 3, "state")``), ``rule`` the rule
+    broken (``LAYOUT_RULE`` or ``TABLE_RULE``)."""
+
+    def __init__(self, loc: tuple[str | int, ...], message: str, rule: str) -> None:
+        super().__init__(message)
+        self.loc = loc
+        self.rule = rule
+
+
+def layout_of(states: Sequence[str], actions: Sequence[str]) -> Layout:
+    """The layout whose state and action labels ``states`` and ``actions`` are, in order;
+    ``InvalidPolicy`` naming the one that is not, and saying what would be."""
+    states, actions = list(states), list(actions)
+    same_actions = [layout for layout in LAYOUTS if list(layout.action_labels) == actions]
+    if not same_actions:
+        raise InvalidPolicy(("actions",), _actions_problem(actions), LAYOUT_RULE)
+    for layout in same_actions:
+        if list(layout.state_labels) == states:
+            return layout
+    raise InvalidPolicy(("states",), _states_problem(states, same_actions), LAYOUT_RULE)
+
+
+def _actions_problem(actions: list[str]) -> str:
+    kinds: dict[tuple[str, ...], list[Layout]] = {}
+    for layout in LAYOUTS:
+        kinds.setdefault(layout.action_labels, []).append(layout)
+    for labels, layouts in kinds.items():
+        if sorted(labels) == sorted(actions):
+            return (
+                f"these are the actions of {_actions_title(layouts)} in another order: the "
+                f"columns must be in the engine's order, {', '.join(labels)}"
+            )
+    known = "; ".join(
+        f"{_actions_title(layouts)}: {len(labels)} ({_preview(labels)})"
+        for labels, layouts in kinds.items()
+    )
+    return f"{len(actions)} actions that are not those of any action set; the engine's are {known}"
+
+
+def _actions_title(layouts: Sequence[Layout]) -> str:
+    """What layouts that share their actions have in common: the action set, and with a
+    follow-the-signal action, a communication model."""
+    action_set = layouts[0].actions
+    models = [model for layout in layouts for model in layout.communication]
+    if models == ["none"] or action_set not in qlearning.SIGNAL_ACTION:
+        return f"'{action_set}'"
+    return f"'{action_set}' with communication.model {_either(models)}"
+
+
+def _states_problem(states: list[str], layouts: Sequence[Layout]) -> str:
+    for layout in layouts:
+        if sorted(layout.state_labels) == sorted(states):
+            return (
+                f"these are the states of {layout.title} in another order: the rows must be in "
+                f"the engine's order ({_preview(layout.state_labels)})"
+            )
+    for layout in layouts:
+        if len(layout.state_labels) == len(states):
+            pairs = zip(states, layout.state_labels, strict=True)
+            i = next(i for i, (given, known) in enumerate(pairs) if given != known)
+            return (
+                f"states[{i}] is {states[i]!r} where the {len(states)} states of {layout.title} "
+                f"have {layout.state_labels[i]!r}: the rows must be the engine's states, in its "
+                "order"
+            )
+    sizes = " or ".join(f"{len(la.state_labels)} ({la.title})" for la in layouts)
+    return (
+        f"{len(states)} states, and the actions are those of {_actions_title(layouts)}, whose "
+        f"layouts have {sizes}"
+    )
+
+
+def _preview(labels: Sequence[str]) -> str:
+    shown = list(labels) if len(labels) <= 6 else [*labels[:3], "...", labels[-1]]
+    return ", ".join(shown)
+
+
+def policy_values(layout: Layout, values: Sequence[Any]) -> NDArray[np.float64]:
+    """``values``, nested lists shaped states x actions (or robots x states x actions, one
+    table per robot) of ``layout``, as an array; ``InvalidPolicy`` at ``values`` when a row
+    or a table has the wrong length, there are over ``MAX_TABLES`` tables, or a value is not
+    a finite number."""
+    states, actions = len(layout.state_labels), len(layout.action_labels)
+    per_robot = len(values) > 0 and len(values[0]) > 0 and np.ndim(values[0][0]) > 0
+    tables = values if per_robot else [values]
+    if len(tables) > MAX_TABLES:
+        detail = f"values has {len(tables)} tables, over the {MAX_TABLES} a policy may hold"
+        raise InvalidPolicy(("values",), detail, TABLE_RULE)
+    for r, table in enumerate(tables):
+        where = f"values[{r}]" if per_robot else "values"
+        if len(table) != states:
+            detail = (
+                f"{where} has {len(table)} rows where {layout.title} has {states} states: a "
+                "table is states x actions, or robots x states x actions"
+            )
+            raise InvalidPolicy(("values",), detail, TABLE_RULE)
+        for i, row in enumerate(table):
+            if np.ndim(row) != 1 or len(row) != actions:
+                detail = f"{where}[{i}] is not a row of {actions} values, one per action"
+                raise InvalidPolicy(("values",), detail, TABLE_RULE)
+    array = np.asarray(values, dtype=np.float64)
+    wrong = np.argwhere(~np.isfinite(array))
+    if wrong.size:
+        index = tuple(int(i) for i in wrong[0])
+        detail = (
+            "values" + "".join(f"[{i}]" for i in index) + f" is {array[index]}: every value must "
+            "be a finite number"
+        )
+        raise InvalidPolicy(("values",), detail, TABLE_RULE)
+    return array
+
+
+def greedy_values(layout: Layout, choices: Sequence[tuple[str, str]]) -> NDArray[np.float64]:
+    """A table of ``layout`` whose greedy action in each state is the one ``choices`` pairs it
+    with: 1.0 there and 0 elsewhere; a row of zeros (no action preferred) for a state paired
+    with ``UNVISITED`` or left out. ``InvalidPolicy`` at ``("greedy", i, "state")`` or
+    ``"action"`` for a label the layout does not have, or a state given twice."""
+    rows = {label: i for i, label in enumerate(layout.state_labels)}
+    columns = {label: a for a, label in enumerate(layout.action_labels)}
+    table = np.zeros((len(rows), len(columns)))
+    given: dict[str, int] = {}
+    for k, (state, action) in enumerate(choices):
+        if state not in rows:
+            detail = (
+                f"{state!r} is not a state of {layout.title}, whose "
+                f"{len(rows)} states are {_preview(layout.state_labels)}"
+            )
+            raise InvalidPolicy(("greedy", k, "state"), detail, TABLE_RULE)
+        if state in given:
+            detail = f"{state!r} is given twice: at greedy/{given[state]} too"
+            raise InvalidPolicy(("greedy", k, "state"), detail, TABLE_RULE)
+        given[state] = k
+        if action == UNVISITED:
+            continue
+        if action not in columns:
+            detail = (
+                f"{action!r} is neither an action of {layout.title} "
+                f"({', '.join(layout.action_labels)}) nor '{UNVISITED}'"
+            )
+            raise InvalidPolicy(("greedy", k, "action"), detail, TABLE_RULE)
+        table[rows[state], columns[action]] = 1.0
+    return table
 
 
 @dataclass(frozen=True)

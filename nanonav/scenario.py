@@ -12,9 +12,17 @@ quantities only it has carry their unit in their name (``physics``).
 from __future__ import annotations
 
 import math
-from typing import Any, Literal, get_args
+from typing import Annotated, Any, Literal, get_args
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    ValidatorFunctionWrapHandler,
+    field_validator,
+    model_validator,
+)
 from pydantic_core import InitErrorDetails, PydanticCustomError
 
 PresetName = Literal[
@@ -865,16 +873,33 @@ class Scenario(_Part):
         description="A robot within this distance of a cell, length units, has reached it and "
         "stops; less than half of space.size.",
     )
-    policy_from: int | None = Field(
+    policy_from: (
+        Annotated[int, Field(ge=1, le=MAX_EXACT_INT)]
+        | Annotated[str, Field(pattern=r"^policy-[1-9][0-9]{0,14}$")]
+        | None
+    ) = Field(
         None,
-        ge=1,
-        le=MAX_EXACT_INT,
-        description="The id of a succeeded Q-learning job whose learned table this run starts "
-        "from, to evaluate it in this scenario's worlds without training (learning.episodes "
-        "must be 0 and robots.policy q_learning). The action set must be the job's; a shared "
-        "table may drive robots that each learn their own, a per-robot table needs as many "
-        "robots.",
+        description="The table this run starts from, to evaluate it in this scenario's worlds "
+        "without training (learning.episodes must be 0 and robots.policy q_learning): the id of "
+        "a succeeded Q-learning job, whose learned table it is, or 'policy-<id>', a table made "
+        "elsewhere and sent to POST /policies. Its action set and state layout must be this "
+        "scenario's (learning.actions, communication.model); a shared table may drive robots "
+        "that each learn their own, a per-robot table needs as many robots.",
     )
+
+    @field_validator("policy_from", mode="wrap")
+    @classmethod
+    def _names_a_job_or_a_policy(cls, value: Any, handler: ValidatorFunctionWrapHandler) -> Any:
+        """One error saying what may be named, rather than one per kind of name."""
+        try:
+            return handler(whole(value))
+        except ValidationError:
+            raise PydanticCustomError(
+                "policy_from",
+                "must be a job's id (an integer from 1) or a policy's name as POST /policies "
+                "answers it, 'policy-<id>'; not {value}",
+                {"value": repr(value)[:60]},
+            ) from None
 
     @model_validator(mode="before")
     @classmethod

@@ -15,7 +15,7 @@ from fastapi.staticfiles import StaticFiles
 
 import nanonav
 from nanonav.settings import Settings
-from nanonav.store import JobStore, StudyStore
+from nanonav.store import JobStore, PolicyNotFound, StudyStore
 from nanonav.store.deliveries import DeliveryStore
 from service import problems
 from service.caching import ETags
@@ -25,7 +25,7 @@ from service.limits import BodySizeLimit
 from service.methods import HeadAsGet
 from service.orphans import stop_when_orphaned
 from service.reports import Reports
-from service.routes import events, jobs, meta, pages, studies
+from service.routes import events, jobs, meta, pages, policies, studies
 from service.security import (
     BEARER,
     CORS_EXPOSED_HEADERS,
@@ -40,7 +40,8 @@ DESCRIPTION = """Submit nanorobot scenarios, watch them run, and fetch their res
 
 A dashboard for people is at `/`. `POST /jobs` queues a scenario (`{}` is all defaults); worker
 processes run it. `POST /studies` queues a grid of scenarios x seeds and answers with means,
-confidence intervals and paired comparisons as its jobs finish. Errors are
+confidence intervals and paired comparisons as its jobs finish. `POST /policies` keeps a Q-table
+trained elsewhere, for scenarios to evaluate as `policy_from: "policy-<id>"`. Errors are
 `application/problem+json` (RFC 9457); a 422 names the offending fields.
 """
 
@@ -113,8 +114,10 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         )
     problems.install(app)
     app.add_exception_handler(events.NothingNew, events.nothing_new)
+    app.add_exception_handler(PolicyNotFound, policies.policy_not_found)
     app.include_router(jobs.router)
     app.include_router(studies.router)
+    app.include_router(policies.router)
     app.include_router(events.router)
     app.include_router(meta.router)
     app.include_router(pages.router)

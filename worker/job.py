@@ -121,7 +121,8 @@ def run_job(
         return store.fail(claim, f"the stored scenario is no longer valid: {error}")
     policy = None
     if scenario.policy_from is not None:
-        # checked at submit too; the run uses the table as the store holds it now
+        # checked at submit too; the run uses the table as the store holds it now, a job's or
+        # a policy's (either may have been deleted since: the job fails, saying which is gone)
         try:
             policy = learned_table(scenario, store.qtable)
         except UnusablePolicy as error:

@@ -63,11 +63,13 @@ def _run(args: argparse.Namespace) -> int:
     from nanonav.engine import simulate
 
     scenario = load_scenario(args.scenario, preset=args.preset, seed=args.seed)
-    if scenario.policy_from is not None:
+    source = scenario.policy_from
+    if source is not None:
+        named = f"{source} is a policy" if isinstance(source, str) else f"job {source} is a job"
         raise UsageError(
             [
-                f"policy_from: job {scenario.policy_from} is a job of the service, whose table "
-                "only the service can read; submit this scenario with `nanonav submit`"
+                f"policy_from: {named} of the service, whose table only the service can read; "
+                "submit this scenario with `nanonav submit`"
             ]
         )
     show_bar = not args.json and sys.stderr.isatty()

@@ -14,6 +14,15 @@ from nanonav.store.errors import (
 )
 from nanonav.store.idempotency import Idempotency
 from nanonav.store.models import JobStatus
+from nanonav.store.policies import (
+    PolicyNotFound,
+    PolicyPage,
+    PolicyRecord,
+    PolicySource,
+    PolicyStore,
+    policy_name,
+    policy_number,
+)
 from nanonav.store.queue import Census, Claim, JobRecord, JobStore, Outcome, Page
 from nanonav.store.retention import Expired, RetentionStore
 from nanonav.store.studies import (
@@ -41,6 +50,11 @@ __all__ = [
     "LeaseLost",
     "Outcome",
     "Page",
+    "PolicyNotFound",
+    "PolicyPage",
+    "PolicyRecord",
+    "PolicySource",
+    "PolicyStore",
     "ResultsUnavailable",
     "RetentionStore",
     "StoreError",
@@ -52,4 +66,6 @@ __all__ = [
     "StudyProgress",
     "StudyRecord",
     "StudyStore",
+    "policy_name",
+    "policy_number",
 ]

@@ -7,6 +7,7 @@ the PNGs drawn the first time each was asked for. ``studies`` groups jobs (a gri
 x seeds); ``study_plots`` keeps the pictures of finished studies. ``workers`` says which worker
 processes were seen lately. ``deliveries`` is the outbox of webhooks: a row per job or study
 that named a ``callback_url``, from its submit until the receiver took it or it was given up.
+``policies`` holds the Q-tables clients made elsewhere and sent, for scenarios to evaluate.
 A claim gives a job a lease: ``lease_token`` names the claim, ``lease_expires_at`` says until when
 it holds (every progress write renews it) and every later write by the worker is fenced by the
 token, so a worker that lost its lease can neither report progress nor store a result.
@@ -238,3 +239,25 @@ class Delivery(Base):
     last_error: Mapped[str | None] = mapped_column(String(500))
     lease_token: Mapped[str | None] = mapped_column(String(64))
     lease_expires_at: Mapped[datetime | None] = mapped_column(UTCDateTime())
+
+
+class Policy(Base):
+    """A Q-table made elsewhere and sent, for scenarios to evaluate (``policy_from``)."""
+
+    __tablename__ = "policies"
+    __table_args__ = (Index(None, "owner", "id"), {"sqlite_autoincrement": True})
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
+    name: Mapped[str | None] = mapped_column(String(200))
+    # The SHA-256 of the API key that sent it; '' when the API has no keys.
+    owner: Mapped[str] = mapped_column(String(64), default="", server_default="")
+    created_at: Mapped[datetime] = mapped_column(UTCDateTime())
+    action_set: Mapped[str] = mapped_column(String(16))
+    # The communication models whose state layout its rows are (several share one).
+    communication: Mapped[list[str]] = mapped_column(JSON)
+    states: Mapped[int] = mapped_column(Integer)
+    actions: Mapped[int] = mapped_column(Integer)
+    tables: Mapped[int] = mapped_column(Integer)
+    per_robot: Mapped[bool] = mapped_column(Boolean)
+    # ``.npz``: the arrays ``states`` and ``actions`` (labels) and ``values``.
+    table: Mapped[bytes] = mapped_column(LargeBinary)

@@ -31,6 +31,7 @@ from nanonav.store.deliveries import add_waiting
 from nanonav.store.errors import JobAlreadyFinished, JobNotFound, LeaseLost, ResultsUnavailable
 from nanonav.store.idempotency import Idempotency, insert_once
 from nanonav.store.models import Job, JobPlot, JobResult, JobStatus, UTCDateTime, Worker
+from nanonav.store.policies import PolicySource, PolicyStore, policy_number
 from nanonav.store.quotas import Quota, check_quota
 from nanonav.store.retention import delete_job
 from nanonav.store.wakeups import announce
@@ -137,6 +138,7 @@ class JobStore:
     def __init__(self, engine: Engine) -> None:
         self.engine = engine
         self._sessions = make_sessionmaker(engine)
+        self.policies = PolicyStore(engine)
 
     @classmethod
     def from_url(cls, url: str, *, busy_timeout_s: float = BUSY_TIMEOUT_S) -> JobStore:
@@ -200,8 +202,11 @@ class JobStore:
             raise JobNotFound(job_id)
         return JobRecord.of(row)
 
-    def owner_of(self, job_id: int) -> str | None:
-        """The owner of the job (its key's digest, '' for none), or None if there is no job."""
+    def owner_of(self, job_id: PolicySource) -> str | None:
+        """The owner of the job (its key's digest, '' for none), or None if there is no job;
+        given a policy's name (``policy-<id>``, as a ``policy_from`` names it), the policy's."""
+        if isinstance(job_id, str):
+            return self.policies.owner_of(policy_number(job_id))
         with unit_of_work(self._sessions) as session:
             owner: str | None = session.scalar(select(Job.owner).where(Job.id == job_id))
             return owner
@@ -301,8 +306,11 @@ class JobStore:
             blob: bytes | None = _result_column(session, job_id, JobResult.trajectory)
             return blob
 
-    def qtable(self, job_id: int) -> dict[str, NDArray[Any]]:
-        """A succeeded job's Q-table, or the one a cancelled job learned until it stopped."""
+    def qtable(self, job_id: PolicySource) -> dict[str, NDArray[Any]]:
+        """A succeeded job's Q-table, or the one a cancelled job learned until it stopped; given
+        a policy's name (``policy-<id>``), the table sent as that policy."""
+        if isinstance(job_id, str):
+            return self.policies.table(policy_number(job_id))
         with unit_of_work(self._sessions) as session:
             blob: bytes | None = _result_column(session, job_id, JobResult.qtable, kept=True)
         return unpack(blob) if blob is not None else {}

@@ -1,5 +1,5 @@
-"""End to end: a table learned by one job, evaluated by another in a different field, through
-the API and a real ``python -m worker`` process."""
+"""End to end: a table learned by one job, evaluated by another in a different field, and the
+same table sent as a policy, through the API and a real ``python -m worker`` process."""
 
 from __future__ import annotations
 
@@ -63,3 +63,27 @@ def test_a_learned_table_is_evaluated_in_another_field_without_learning(
     assert not np.any(api.client.get(f"/jobs/{untrained}/qtable").json()["values"])
     assert summary(api, evaluated) != summary(api, untrained)
     decode_png(api.client.get(f"/jobs/{evaluated}/plots/qtable.png").content)
+
+
+def test_a_policy_sent_with_a_jobs_table_evaluates_exactly_as_that_jobs_table(
+    api: Api, start_worker: Callable[..., Worker]
+) -> None:
+    """The table a job learned, sent back as a policy (as a table trained elsewhere is), drives
+    the same seed's robots to the same summary as the job's own table does."""
+    start_worker()
+    trained = run(api, TRAIN, FIRST_JOB_S)
+    source = api.client.get(f"/jobs/{trained}/qtable").json()
+    body = {"states": source["states"], "actions": source["actions"], "values": source["values"]}
+    sent = api.client.post("/policies", json=body)
+    assert sent.status_code == 201, sent.text
+    policy = sent.json()
+
+    from_job = run(api, {**EVALUATE, "policy_from": trained})
+    from_policy = run(api, {**EVALUATE, "policy_from": policy["policy_from"]})
+
+    job = api.client.get(f"/jobs/{from_policy}").json()
+    assert job["scenario"]["policy_from"] == policy["policy_from"]
+    assert summary(api, from_policy) == summary(api, from_job)
+    assert summary(api, from_policy) != summary(api, run(api, EVALUATE))
+    evaluated = api.client.get(f"/jobs/{from_policy}/qtable").json()
+    assert evaluated["values"] == source["values"]  # evaluated greedily, not trained further

@@ -30,8 +30,9 @@ _URL = f"sqlite:///{Path(_DIRECTORY.name) / 'nanonav.db'}"
 # Rules a request the schema allows may still break, each stated in its operation's description
 # and answered with a 422 whose every error carries the rule's type: they relate one value to
 # another (epsilon_end to epsilon_start, an obstacle's radius to the cube), to the server's
-# settings (the work budget, the hosts a callback may reach) or to what is stored (the job a
-# policy_from names, the size of a job's trajectory or cube), which JSON Schema cannot say.
+# settings (the work budget, the hosts a callback may reach), to what is stored (the job a
+# policy_from names, the size of a job's trajectory or cube) or to the engine (the labels and
+# shape of a policy's table), which JSON Schema cannot say.
 IDEMPOTENCY_RULES = frozenset({"idempotency_key", "idempotency_key_reused"})
 STATED_RULES: dict[str, frozenset[str]] = {
     "POST /jobs": frozenset(
@@ -55,6 +56,7 @@ STATED_RULES: dict[str, frozenset[str]] = {
         }
         | IDEMPOTENCY_RULES
     ),
+    "POST /policies": frozenset({"policy_layout", "policy_table"}),
     "GET /jobs/{job_id}/trajectory": frozenset({"too_large"}),
     "GET /jobs/{job_id}/heatmap.png": frozenset({"out_of_range"}),
 }

@@ -1,5 +1,5 @@
-"""Another key never reaches a job or study it did not make, however the id in the path is
-spelled: every route of the OpenAPI document that names one, every method, every spelling the
+"""Another key never reaches a job, study or policy it did not make, however the id in the path
+is spelled: every route of the OpenAPI document that names one, every method, every spelling the
 routes read as the same integer, on SQLite and PostgreSQL."""
 
 from __future__ import annotations
@@ -9,6 +9,7 @@ from typing import Any
 
 import pytest
 
+from nanonav.engine import qlearning
 from nanonav.settings import Settings
 from nanonav.store import JobStatus
 from tests.service.test_security import KEY_A, KEY_B, STUDY, TINY, Served, bearer, run_next, submit
@@ -20,7 +21,7 @@ SPELLINGS = ("{}", "+{}", "%20{}", "{}%20", "{}.0", "{}%0A", "0{}")
 METHODS = ("GET", "HEAD", "POST", "PUT", "PATCH", "DELETE")
 # Pages the OpenAPI document leaves out, by the id they name.
 PAGES = {"job_id": ["/ui/jobs/{job_id}"], "study_id": ["/ui/studies/{study_id}",
-         "/ui/studies/{study_id}/results"]}  # fmt: skip
+         "/ui/studies/{study_id}/results"], "policy_id": []}  # fmt: skip
 EXAMPLE_PARAMS = {"name": "learning"}
 
 
@@ -51,10 +52,16 @@ def test_another_key_gets_only_404_on_every_route_method_and_id_spelling(
     job = submit(api, KEY_A, TINY)["id"]
     assert run_next(api) == job
     study = submit(api, KEY_A, STUDY, "/studies")["id"]
+    states, actions = qlearning.labels("directions")
+    table = {"states": states, "actions": actions, "greedy": []}
+    sent = api.client.post("/policies", json=table, headers=bearer(KEY_A))
+    assert sent.status_code == 201, sent.text
+    policy = sent.json()["id"]
     tried = 0
-    for parameter, own_id in (("job_id", job), ("study_id", study)):
+    least = {"job_id": 9, "study_id": 6, "policy_id": 1}
+    for parameter, own_id in (("job_id", job), ("study_id", study), ("policy_id", policy)):
         routes = routes_naming(api, parameter)
-        assert len(routes) >= (9 if parameter == "job_id" else 6), routes
+        assert len(routes) >= least[parameter], routes
         for template, allowed in routes.items():
             for spelling in SPELLINGS:
                 path = template.replace("{" + parameter + "}", spelling.format(own_id))
@@ -67,6 +74,7 @@ def test_another_key_gets_only_404_on_every_route_method_and_id_spelling(
                     tried += 1
     assert tried > 500
     assert api.store.get(job).status is JobStatus.SUCCEEDED
+    assert api.client.get(f"/policies/{policy}", headers=bearer(KEY_A)).status_code == 200
     answer = api.client.get(f"/studies/{study}", headers=bearer(KEY_A))
     assert answer.status_code == 200 and answer.json()["status"] == "queued"
     assert api.client.get(f"/jobs/+{job}", headers=bearer(KEY_A)).json()["id"] == job

@@ -25,6 +25,7 @@ def test_migrations_and_models_agree_both_ways(database_url: str) -> None:
         "study_plots",
         "workers",
         "deliveries",
+        "policies",
     }
     downgrade(database_url, "base")
     assert tables(database_url) == set()

@@ -1,0 +1,179 @@
+"""Every query about policies: Q-tables made elsewhere and sent, that scenarios evaluate.
+
+A scenario names one as ``policy_from: "policy-<id>"``, as it names a job's learned table by the
+job's id. Each public method of :class:`PolicyStore` is one transaction. The store keeps what it
+is given: the labels and values were checked by whoever sent them (``nanonav.policy``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from sqlalchemy import Engine, delete, select
+from sqlalchemy.orm import Session, defer
+
+from nanonav.store.arrays import pack, unpack
+from nanonav.store.db import make_sessionmaker, unit_of_work
+from nanonav.store.errors import StoreError
+from nanonav.store.models import Policy
+
+# What a scenario's policy_from names: a job's id, or a policy's name, POLICY_PREFIX + its id.
+PolicySource = int | str
+POLICY_PREFIX = "policy-"
+# A record is read without the table, which may be large: only ``table()`` reads it.
+WITHOUT_TABLE = defer(Policy.table)
+
+
+def policy_name(policy_id: int) -> str:
+    """What a scenario's ``policy_from`` names the policy by."""
+    return f"{POLICY_PREFIX}{policy_id}"
+
+
+def policy_number(name: str) -> int:
+    """The id of the policy ``name`` (``policy-<id>``) names; ValueError for another string."""
+    digits = name.removeprefix(POLICY_PREFIX)
+    if digits == name or not digits.isdigit():
+        raise ValueError(f"{name!r} is not a policy's name, {POLICY_PREFIX}<id>")
+    return int(digits)
+
+
+class PolicyNotFound(StoreError):
+    def __init__(self, policy_id: int) -> None:
+        super().__init__(f"there is no policy {policy_id}")
+        self.policy_id = policy_id
+
+
+@dataclass(frozen=True)
+class PolicyRecord:
+    """A policy as its row says, without its table."""
+
+    id: int
+    name: str | None
+    owner: str
+    created_at: datetime
+    action_set: str
+    communication: tuple[str, ...]
+    states: int
+    actions: int
+    tables: int  # 1 for a table every robot starts from, else one per robot
+    per_robot: bool
+
+    @property
+    def policy_from(self) -> str:
+        return policy_name(self.id)
+
+    @classmethod
+    def of(cls, row: Policy) -> PolicyRecord:
+        return cls(
+            id=row.id,
+            name=row.name,
+            owner=row.owner,
+            created_at=row.created_at,
+            action_set=row.action_set,
+            communication=tuple(row.communication),
+            states=row.states,
+            actions=row.actions,
+            tables=row.tables,
+            per_robot=row.per_robot,
+        )
+
+
+@dataclass(frozen=True)
+class PolicyPage:
+    policies: list[PolicyRecord]
+    next_before_id: int | None
+
+
+class PolicyStore:
+    """The policies on one database."""
+
+    def __init__(self, engine: Engine) -> None:
+        self._sessions = make_sessionmaker(engine)
+
+    def add(
+        self,
+        *,
+        action_set: str,
+        communication: tuple[str, ...],
+        states: list[str],
+        actions: list[str],
+        values: NDArray[np.float64],
+        name: str | None = None,
+        owner: str = "",
+        now: datetime | None = None,
+    ) -> PolicyRecord:
+        """Keep a table ``values`` of ``states`` x ``actions``, or one such table per robot."""
+        if values.ndim not in (2, 3) or values.shape[-2:] != (len(states), len(actions)):
+            raise ValueError(f"a table of shape {values.shape} is not states x actions")
+        table = {
+            "states": np.array(states, dtype=np.str_),
+            "actions": np.array(actions, dtype=np.str_),
+            "values": np.asarray(values, dtype=np.float64),
+        }
+        row = Policy(
+            name=name,
+            owner=owner,
+            created_at=now or datetime.now(UTC),
+            action_set=action_set,
+            communication=list(communication),
+            states=len(states),
+            actions=len(actions),
+            tables=1 if values.ndim == 2 else int(values.shape[0]),
+            per_robot=values.ndim == 3,
+            table=pack(table),
+        )
+        with unit_of_work(self._sessions) as session:
+            session.add(row)
+            session.flush()
+            return PolicyRecord.of(row)
+
+    def get(self, policy_id: int) -> PolicyRecord:
+        with unit_of_work(self._sessions) as session:
+            return PolicyRecord.of(_policy(session, policy_id))
+
+    def owner_of(self, policy_id: int) -> str | None:
+        """The owner of the policy (its key's digest, '' for none), or None if there is none."""
+        with unit_of_work(self._sessions) as session:
+            owner: str | None = session.scalar(select(Policy.owner).where(Policy.id == policy_id))
+            return owner
+
+    def table(self, policy_id: int) -> dict[str, NDArray[Any]]:
+        """The policy's ``states`` and ``actions`` labels and its ``values``, as a job's
+        Q-table is read (without visits: it was not learned here)."""
+        with unit_of_work(self._sessions) as session:
+            blob = session.scalar(select(Policy.table).where(Policy.id == policy_id))
+        if blob is None:
+            raise PolicyNotFound(policy_id)
+        return unpack(blob)
+
+    def page(self, *, limit: int, before_id: int | None, owner: str | None = None) -> PolicyPage:
+        """Up to ``limit`` policies, newest first, older than ``before_id`` when given; only
+        ``owner``'s when given."""
+        query = select(Policy).options(WITHOUT_TABLE).order_by(Policy.id.desc()).limit(limit + 1)
+        if owner is not None:
+            query = query.where(Policy.owner == owner)
+        if before_id is not None:
+            query = query.where(Policy.id < before_id)
+        with unit_of_work(self._sessions) as session:
+            rows = [PolicyRecord.of(row) for row in session.scalars(query)]
+        more = len(rows) > limit
+        rows = rows[:limit]
+        return PolicyPage(policies=rows, next_before_id=rows[-1].id if more else None)
+
+    def delete(self, policy_id: int) -> None:
+        """Forget the policy; a queued job that names it fails when a worker claims it."""
+        with unit_of_work(self._sessions, write=True) as session:
+            if session.scalar(select(Policy.id).where(Policy.id == policy_id)) is None:
+                raise PolicyNotFound(policy_id)
+            session.execute(delete(Policy).where(Policy.id == policy_id))
+
+
+def _policy(session: Session, policy_id: int) -> Policy:
+    row = session.get(Policy, policy_id, options=[WITHOUT_TABLE])
+    if row is None:
+        raise PolicyNotFound(policy_id)
+    return row

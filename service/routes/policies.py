@@ -1,0 +1,154 @@
+"""Policies: Q-tables made elsewhere and sent, for scenarios to evaluate as ``policy-<id>``."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+import numpy as np
+from fastapi import APIRouter, Body, Query, Request, Response
+from numpy.typing import NDArray
+
+from nanonav.policy import (
+    TABLE_RULE,
+    InvalidPolicy,
+    Layout,
+    greedy_table,
+    greedy_values,
+    layout_of,
+    policy_values,
+)
+from service.deps import JsonBody, StoreDep
+from service.ids import PolicyId
+from service.paging import Cursor, decode_cursor, encode_cursor
+from service.problems import (
+    PROBLEM_BASE,
+    InvalidInput,
+    Problem,
+    field_error,
+    problem_response,
+    problems,
+)
+from service.schemas import (
+    NEW_POLICY_EXAMPLES,
+    GreedyState,
+    NewPolicy,
+    Policy,
+    PolicyPage,
+    PolicySummary,
+)
+from service.security import SCRIPTED_ONLY, CallerDep
+
+router = APIRouter(prefix="/policies", tags=["policies"])
+
+
+@router.post(
+    "",
+    status_code=201,
+    response_model=PolicySummary,
+    dependencies=[JsonBody],
+    responses=problems(400, 403, 413, 415, 422),
+)
+def send_policy(
+    policy: Annotated[NewPolicy, Body(openapi_examples=NEW_POLICY_EXAMPLES)],
+    store: StoreDep,
+    caller: CallerDep,
+    response: Response,
+) -> PolicySummary:
+    """Keep a Q-table made elsewhere; a scenario evaluates it as ``policy_from: "policy-<id>"``.
+
+    A body the schema allows may still be refused with 422, each error typed by its rule:
+    ``policy_layout`` (``states`` or ``actions`` that are not, in order, the labels of one of
+    the engine's action sets and communication models; the detail says which would be) and
+    ``policy_table`` (both or neither of ``values`` and ``greedy``; values not shaped states x
+    actions or not finite; a greedy state or action the layout does not have, or a state given
+    twice)."""
+    try:
+        layout = layout_of(policy.states, policy.actions)
+        values = _values(policy, layout)
+    except InvalidPolicy as error:
+        problem = field_error(["body", *error.loc], str(error), error.rule)
+        raise InvalidInput(f"{problem.pointer}: {problem.detail}", [problem]) from None
+    record = store.policies.add(
+        action_set=layout.actions,
+        communication=layout.communication,
+        states=list(layout.state_labels),
+        actions=list(layout.action_labels),
+        values=values,
+        name=policy.name,
+        owner=caller.owner,
+    )
+    response.headers["Location"] = f"/policies/{record.id}"
+    return PolicySummary.of(record)
+
+
+def _values(policy: NewPolicy, layout: Layout) -> NDArray[np.float64]:
+    if policy.values is not None and policy.greedy is None:
+        return policy_values(layout, policy.values)
+    if policy.greedy is not None and policy.values is None:
+        return greedy_values(layout, [(choice.state, choice.action) for choice in policy.greedy])
+    detail = "give exactly one of values and greedy, not " + (
+        "neither" if policy.values is None else "both"
+    )
+    errors = [field_error(["body", name], detail, TABLE_RULE) for name in ("values", "greedy")]
+    raise InvalidInput(detail, errors)
+
+
+@router.get("", response_model=PolicyPage, responses=problems(422))
+def list_policies(
+    store: StoreDep,
+    caller: CallerDep,
+    limit: Annotated[int, Query(ge=1, le=100, description="Policies per page.")] = 20,
+    cursor: Cursor = None,
+) -> PolicyPage:
+    """A page of policies, newest first, without their tables; with API keys, the caller's."""
+    before = None if cursor is None else decode_cursor(cursor)
+    page = store.policies.page(limit=limit, before_id=before, owner=caller.only)
+    next_cursor = None if page.next_before_id is None else encode_cursor(page.next_before_id)
+    return PolicyPage(
+        policies=[PolicySummary.of(record) for record in page.policies],
+        next_cursor=next_cursor,
+        next=None if next_cursor is None else f"/policies?limit={limit}&cursor={next_cursor}",
+    )
+
+
+@router.get("/{policy_id}", response_model=Policy, responses=problems(404, 422))
+def get_policy(policy_id: PolicyId, store: StoreDep) -> Policy:
+    """A policy with its table and the greedy action of every state."""
+    record = store.policies.get(policy_id)
+    table = store.policies.table(policy_id)
+    states, actions = table["states"].tolist(), table["actions"].tolist()
+    values = table["values"]
+    unvisited = np.zeros(values.shape, dtype=np.int64)
+    greedy = greedy_table(states, actions, values, unvisited)
+    return Policy(
+        **PolicySummary.fields_of(record),
+        states=states,
+        actions=actions,
+        values=values.tolist(),
+        greedy=[GreedyState.model_validate(g.to_dict()) for g in greedy],
+    )
+
+
+@router.delete(
+    "/{policy_id}",
+    status_code=204,
+    response_class=Response,
+    responses={204: {"description": "Deleted."}, **problems(403, 404, 415, 422)},
+    openapi_extra=SCRIPTED_ONLY,
+)
+def delete_policy(policy_id: PolicyId, store: StoreDep) -> Response:
+    """Delete a policy; a queued job that names it fails, saying so, when it is claimed."""
+    store.policies.delete(policy_id)
+    return Response(status_code=204)
+
+
+async def policy_not_found(request: Request, exc: Exception) -> Response:
+    """A policy that is not there, or is another key's: 404, as a missing job is."""
+    problem = Problem(
+        type=PROBLEM_BASE + "policy-not-found",
+        title="Policy not found",
+        status=404,
+        detail=str(exc),
+        instance=request.url.path,
+    )
+    return problem_response(problem)
