@@ -9,7 +9,9 @@ PettingZoo's dicts and through its arrays), all with random actions, on one core
 Worlds: the single env and the vector env's are 'paper-single' (one robot, one cell, ten
 obstacles, the paper's behaviours); the swarm's is 'paper-swarm' with 1,000 robots. A robot that
 reaches its cell leaves; a finished world is drawn afresh. A robot-step is one robot moved one
-step; figures are medians of 3 repeats, each timing only steps (no numba start-up).
+step; figures are medians of 3 repeats, each timing only steps (no numba start-up). Beside
+them, ``simulate``'s own compiled loop in the same worlds with behaviours chosen at random, as
+the env's random agent chooses them: what stepping from outside costs.
 """
 
 from __future__ import annotations
@@ -22,7 +24,9 @@ from collections.abc import Callable
 import gymnasium
 import numpy as np
 
+from nanonav.engine import simulate
 from nanonav.env import NanoNavEnv, NanoNavParallelEnv, NanoNavVectorEnv
+from nanonav.scenario import Scenario
 
 SINGLE = {"preset": "paper-single"}
 SWARM = {"preset": "paper-swarm", "robots": {"count": 1000}}
@@ -97,6 +101,22 @@ def swarm_env(robot_steps: int, arrays: bool) -> Callable[[], tuple[int, float]]
     return run
 
 
+def engine_rate(world: dict[str, object], robot_steps: int) -> float:
+    """``simulate``'s own compiled loop in the same world, its robots choosing behaviours at
+    random (Q-learning at epsilon 1): what the engine does without an agent outside."""
+    robots = int(world.get("robots", {}).get("count", 1))  # type: ignore[attr-defined]
+    scenario = Scenario.model_validate(
+        {
+            **world,
+            "learning": {"episodes": max(1, robot_steps // (robots * 1000)), "max_steps": 1000,
+                         "epsilon_start": 1.0, "epsilon_end": 1.0},
+            "evaluation": {"worlds": 1},
+        }
+    )  # fmt: skip
+    work = simulate(scenario).work
+    return float(work["robot_steps"]) / float(work["engine_s"])
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="small workloads")
@@ -119,17 +139,21 @@ def main(argv: list[str] | None = None) -> int:
     print()
     print("vector env (robot-steps per second; one robot a world)")
     verdicts = []
+    lone = engine_rate(SINGLE, robot_steps // 4)
     for worlds in VECTOR_WORLDS:
         rate = _median(vector_env(worlds, robot_steps))
-        print(f"  {worlds:>6,} worlds {rate:>14,.0f}")
+        print(f"  {worlds:>6,} worlds {rate:>14,.0f}  {rate / lone:5.2f} of the engine's own")
         if worlds == 1000:
             verdicts.append(("vector env, 1,000 worlds", rate))
+    print(f"  {'simulate, one world':13s} {lone:>14,.0f}  (its own loop, random behaviours)")
     print()
     print(f"swarm env ({SWARM_ROBOTS:,} robots of paper-swarm; robot-steps per second)")
+    own = engine_rate(SWARM, robot_steps)
     for label, arrays in (("PettingZoo dicts", False), ("step_arrays", True)):
         rate = _median(swarm_env(robot_steps, arrays))
-        print(f"  {label:20s} {rate:>14,.0f}")
+        print(f"  {label:20s} {rate:>14,.0f}  {rate / own:5.2f} of the engine's own")
         verdicts.append((f"swarm env, {SWARM_ROBOTS:,} robots, {label}", rate))
+    print(f"  {'simulate':20s} {own:>14,.0f}  (its own loop, random behaviours)")
     print()
     for what, rate in verdicts:
         status = "meets" if rate >= TARGET_RATE else "BELOW"

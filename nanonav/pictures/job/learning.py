@@ -268,7 +268,10 @@ def _learning_title(result: SimulationResult, trials: int, planned: int, trial_n
     actions = result.scenario.learning.actions
     if trials == 0:
         source = result.scenario.policy_from
-        table = f"the table of job {source}" if source is not None else "an untrained table"
+        if isinstance(source, str):
+            table = f"the table sent as {source}"
+        else:
+            table = f"the table of job {source}" if source is not None else "an untrained table"
         return f"Q-learning ({actions}): {table}, evaluated without training"
     return f"Learning curve: Q-learning ({actions}), {done} training episodes{stopped}"
 
