@@ -83,11 +83,12 @@ class NanoNavEnv(gymnasium.Env[NDArray[np.float64], np.int64]):
     ) -> tuple[NDArray[np.float64], SupportsFloat, bool, bool, dict[str, Any]]:
         if self._ended:
             raise RuntimeError("the episode is over (or never began): call reset()")
-        if not self.action_space.contains(action):
+        chosen = int(action) if isinstance(action, (int, np.integer)) else -1
+        if not 0 <= chosen < self._worlds.actions:
             raise ValueError(f"action {action!r} is not in {self.action_space}")
-        self._actions[0, 0] = int(action)
+        self._actions[0, 0] = chosen
         w = self._worlds
-        w.step(self._actions, self._stale)
+        w.step(self._actions, self._stale, checked=True)
         terminated = not bool(w.active[0, 0])
         truncated = bool(w.over[0]) and not terminated
         self._ended = terminated or truncated

@@ -198,12 +198,18 @@ class Worlds:
             self.world_rngs[k] = stream(int(seed), EVALUATION_STREAM)
             self.rngs[k] = stream(int(seed), DYNAMICS_STREAM)
 
-    def step(self, actions: NDArray[np.int64] | None, fresh: NDArray[np.bool_]) -> None:
+    def step(
+        self, actions: NDArray[np.int64] | None, fresh: NDArray[np.bool_], *, checked: bool = False
+    ) -> None:
         """Step every world on ``actions`` (worlds x robots; an inactive robot's is unused), or
         draw a fresh one where ``fresh``; the outputs are in ``obs``, ``state``, ``reward``,
-        ``active`` and ``over``. An action outside the action set raises ValueError."""
+        ``active`` and ``over``. An action outside the action set raises ValueError, unless
+        the caller ``checked`` them already (an action the engine indexes with unchecked would
+        read memory that is not its own)."""
         if actions is None:
             actions = self._no_actions
+        elif checked:
+            pass
         elif actions.shape != (self.count, self.robots):
             raise ValueError(f"actions of shape {actions.shape}, not {(self.count, self.robots)}")
         elif actions.size and (actions.min() < 0 or actions.max() >= self.actions):
