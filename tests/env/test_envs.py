@@ -195,6 +195,15 @@ def test_the_swarm_env_driven_by_a_greedy_table_reproduces_simulates_evaluation(
         assert mean == pytest.approx(world["mean_return"], rel=1e-12, abs=1e-12), k
 
 
+def test_gymnasium_makes_it_by_module_too_with_its_own_spec() -> None:
+    env = gymnasium.make("nanonav.env:NanoNav-v0", scenario=LATTICE)
+    assert env.spec is not None and env.spec.id == ENV_ID
+    assert isinstance(env.unwrapped, NanoNavEnv)
+    first, _ = env.reset(seed=7)
+    again, _ = NanoNavEnv(LATTICE).reset(seed=7)
+    np.testing.assert_array_equal(first, again)
+
+
 def test_what_a_user_can_get_wrong_is_refused_by_name() -> None:
     env = NanoNavEnv(LATTICE)
     with pytest.raises(RuntimeError, match="reset"):
