@@ -18,8 +18,7 @@ from nanonav.engine import simulate
 from nanonav.env import ENV_ID, NanoNavEnv, NanoNavParallelEnv, NanoNavVectorEnv
 from nanonav.scenario import Scenario
 
-# one worker compiles the env's step (over a minute, cold) and runs them all: not both
-pytestmark = [pytest.mark.timeout(300), pytest.mark.xdist_group("env")]
+pytestmark = pytest.mark.timeout(300)
 
 LATTICE = {"preset": "paper-single", "learning": {"max_steps": 80}}
 BROWNIAN = {"preset": "tumour-microswimmers", "robots": {"count": 1},

@@ -7,11 +7,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pytest
 
 from tests.conftest import Api
-
-pytestmark = pytest.mark.xdist_group("env")  # with tests/env/test_envs.py: one compile
 
 README = Path(__file__).resolve().parents[2] / "README.md"
 
