@@ -83,8 +83,7 @@ FEATURES = 9
 # clock[] slots of a world
 CLOCK_STEP = 0  # the step the world is at
 CLOCK_OVER = 1  # 1 once its episode is over
-CLOCK_ROBOT_STEPS = 2  # robot-steps simulated since the world was made
-CLOCK_SLOTS = 3
+CLOCK_SLOTS = 2
 
 
 class Percept(NamedTuple):
@@ -336,13 +335,6 @@ def _act(
         pc.reward[i] = reward
 
 
-@njit(cache=True, error_model="numpy", inline="always")
-def _over(p: KernelParams, sim: Sim, t: int) -> bool:
-    if t >= p.max_steps or not sim.s.active.any():
-        return True
-    return p.capacity > 0 and treatment.untreated(sim.tr.treated_at) == 0
-
-
 @njit(cache=True, error_model="numpy")
 def reset_world(
     p: KernelParams, world_rng: np.random.Generator, rng: np.random.Generator, sim: Sim
@@ -361,7 +353,6 @@ def reset_world(
     if status != 0:
         clock[CLOCK_OVER] = 1
         return status
-    clock[CLOCK_ROBOT_STEPS] += sim.s.pos.shape[0]
     _prelude(p, rng, sim, 0)
     _perceive(p, rng, sim, 0)
     if not sim.s.active.any():
@@ -381,14 +372,9 @@ def step_world(
     _act(p, rng, sim, actions, t, directions)
     t += 1
     clock[CLOCK_STEP] = t
-    if _over(p, sim, t):
+    if kernel._over(p, sim.tr, sim.s, t):
         clock[CLOCK_OVER] = 1
         return
-    n_active = 0
-    for i in range(sim.s.pos.shape[0]):
-        if sim.s.active[i]:
-            n_active += 1
-    clock[CLOCK_ROBOT_STEPS] += n_active
     _prelude(p, rng, sim, t)
     _perceive(p, rng, sim, t)
     if not sim.s.active.any():

@@ -235,7 +235,3 @@ class Worlds:
     def steps(self, k: int) -> int:
         """The step world ``k`` is at."""
         return int(self.batch.pc.clock[k, stepping.CLOCK_STEP])
-
-    def robot_steps(self) -> int:
-        """Robot-steps simulated in every world so far."""
-        return int(self.batch.pc.clock[:, stepping.CLOCK_ROBOT_STEPS].sum())
