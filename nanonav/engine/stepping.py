@@ -470,25 +470,44 @@ def step_worlds(
     compiled code at once, where a tuple of many arrays is checked array by array each call.)"""
     p = params[0]
     batch = batches[0]
-    clock = batch.pc.clock
-    for k in range(clock.shape[0]):
+    worlds = batch.pc.clock.shape[0]
+    for k in range(worlds):
         if fresh[k]:
             status = reset_world(p, world_rngs[k], rngs[k], _sim_at(batch, k))
             if status != 0:
                 return status
-        elif clock[k, CLOCK_OVER] == 0:
-            _step_at(p, rngs[k], batch, k, actions, directions)
+    last = worlds - 1
+    for start in range(0, worlds, CHUNK):
+        # CHUNK worlds' generators (the last world's again where the batch runs out)
+        generators = (
+            rngs[min(start, last)], rngs[min(start + 1, last)], rngs[min(start + 2, last)],
+            rngs[min(start + 3, last)], rngs[min(start + 4, last)], rngs[min(start + 5, last)],
+            rngs[min(start + 6, last)], rngs[min(start + 7, last)],
+        )  # fmt: skip
+        _step_chunk(p, generators, batch, start, min(CHUNK, worlds - start), actions, fresh,
+                    directions)  # fmt: skip
     return 0
 
 
+# worlds a call of _step_chunk steps: its arguments (the batch's every array, the parameters)
+# are copied in at each call, thousands of words, so a call takes several worlds
+CHUNK = 8
+
+
 @_uncounted
-def _step_at(
-    p: KernelParams, rng: np.random.Generator, batch: Sim, k: int, actions: NDArray[np.int64],
+def _step_chunk(
+    p: KernelParams, generators: tuple[np.random.Generator, ...], batch: Sim, start: int,
+    count: int, actions: NDArray[np.int64], fresh: NDArray[np.bool_],
     directions: NDArray[np.float64],
 ) -> None:  # fmt: skip
-    """``step_world`` of world ``k`` of the batch, compiled without reference counting
-    (``_nrt=False``). Every view of the world and every member taken from its NamedTuples
-    would otherwise be counted in and out, an atomic call each: measured, those calls were
-    two thirds of a step's time. Nothing here allocates (numba refuses to compile it if
-    anything did), and the batch it views is held by the caller for the whole call."""
-    step_world(p, rng, _sim_at(batch, k), actions[k], directions)
+    """``step_world`` of worlds ``start`` ... ``start + count - 1`` of the batch (world
+    ``start + j`` with ``generators[j]``; one fresh or over is left as it is), compiled without
+    reference counting (``_nrt=False``). Every view of a world and every member taken from its
+    NamedTuples would otherwise be counted in and out, an atomic call each: measured, those
+    calls were two thirds of a step's time. Nothing here allocates (numba refuses to compile it
+    if anything did), and the batch it views is held by the caller for the whole call."""
+    clock = batch.pc.clock
+    for j in range(count):
+        k = start + j
+        if not fresh[k] and clock[k, CLOCK_OVER] == 0:
+            step_world(p, generators[j], _sim_at(batch, k), actions[k], directions)
