@@ -90,19 +90,27 @@ class NanoNavParallelEnv(ParallelEnv[str, NDArray[np.float64], int]):
     ]:  # fmt: skip
         agents = self.agents
         given = np.zeros(len(self.possible_agents), dtype=np.int64)
-        missing = [a for a in agents if a not in actions]
-        if missing:
-            raise ValueError(f"no action for live agent(s) {missing[:5]}")
+        try:
+            chosen = np.fromiter(map(actions.__getitem__, agents), np.int64, len(agents))
+        except KeyError:
+            missing = [a for a in agents if a not in actions]
+            raise ValueError(f"no action for live agent(s) {missing[:5]}") from None
         live = np.flatnonzero(self._live)
-        given[live] = np.fromiter((actions[a] for a in agents), dtype=np.int64, count=len(agents))
+        given[live] = chosen
         obs, rewards, terminated, truncated = self.step_arrays(given)
-        rows = obs[live]
         states = self._worlds.state[0, live].tolist()
+        # most agents are neither terminated nor truncated: those few are set after
+        ended = dict.fromkeys(agents, False)
+        cut = ended.copy()
+        for i in np.flatnonzero(terminated).tolist():
+            ended[self.possible_agents[i]] = True
+        for i in np.flatnonzero(truncated).tolist():
+            cut[self.possible_agents[i]] = True
         return (
-            dict(zip(agents, rows, strict=True)),
+            dict(zip(agents, obs[live], strict=True)),
             dict(zip(agents, rewards[live].tolist(), strict=True)),
-            dict(zip(agents, terminated[live].tolist(), strict=True)),
-            dict(zip(agents, truncated[live].tolist(), strict=True)),
+            ended,
+            cut,
             {a: {"state": s} for a, s in zip(agents, states, strict=True)},
         )
 
