@@ -142,9 +142,9 @@ class NanoNavParallelEnv(ParallelEnv[str, NDArray[np.float64], int]):
         done = terminated | truncated
         if done.any():
             self._live = live & ~done
-            self.agents = [
-                a for a, alive in zip(self.possible_agents, self._live, strict=True) if alive
-            ]
+            self.agents = list(
+                map(self.possible_agents.__getitem__, np.flatnonzero(self._live).tolist())
+            )
         return (
             w.obs[0][:, self._seen.columns],
             np.where(live, w.reward[0], 0.0),
