@@ -86,12 +86,17 @@ CLOCK_STEP = 0  # the step the world is at
 CLOCK_OVER = 1  # 1 once its episode is over
 CLOCK_SLOTS = 2
 
+# worlds a call of _step_chunk steps: its arguments (the batch's every array, the parameters)
+# are copied in at each call, thousands of words, so a call takes several (step_worlds hands
+# it a tuple of exactly this many generators)
+CHUNK = 8
+
 _F = TypeVar("_F", bound=Callable[..., Any])
 
 
 def _uncounted(function: _F) -> _F:
     """``njit`` without reference counting (numba's ``_nrt=False``, which its typed signature
-    does not name): ``_step_at`` says why."""
+    does not name): ``_step_chunk`` says why."""
     options: dict[str, Any] = {"cache": True, "error_model": "numpy", "_nrt": False}
     return cast(_F, njit(**options)(function))
 
@@ -487,11 +492,6 @@ def step_worlds(
         _step_chunk(p, generators, batch, start, min(CHUNK, worlds - start), actions, fresh,
                     directions)  # fmt: skip
     return 0
-
-
-# worlds a call of _step_chunk steps: its arguments (the batch's every array, the parameters)
-# are copied in at each call, thousands of words, so a call takes several worlds
-CHUNK = 8
 
 
 @_uncounted
