@@ -47,7 +47,8 @@ class NanoNavParallelEnv(ParallelEnv[str, NDArray[np.float64], int]):
         self.observation_labels = self._seen.labels
         self.action_labels = action_labels(self.scenario)
         self.state_labels = state_labels(self.scenario)
-        self._live = np.zeros(n, dtype=np.bool_)
+        # the robots of ``agents``, in order: what a step gives back is read at these
+        self._live = np.zeros(0, dtype=np.int64)
         self._actions = np.zeros((1, n), dtype=np.int64)
         self._fresh = np.ones(1, dtype=np.bool_)
         self._stale = np.zeros(1, dtype=np.bool_)
@@ -77,77 +78,113 @@ class NanoNavParallelEnv(ParallelEnv[str, NDArray[np.float64], int]):
     def reset(
         self, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[dict[str, NDArray[np.float64]], dict[str, dict[str, Any]]]:
-        obs, _, _, _ = self.reset_arrays(seed)
-        infos = {
-            a: {"state": s}
-            for a, s in zip(self.agents, self._worlds.state[0].tolist(), strict=True)
-        }
-        return dict(zip(self.agents, obs, strict=True)), infos
+        self._begin(seed)
+        agents = self.agents
+        w = self._worlds
+        observations = dict(zip(agents, w.obs[0][:, self._seen.columns], strict=True))
+        return observations, self._infos(w.state[0].tolist())
 
     def step(self, actions: dict[str, int]) -> tuple[
         dict[str, NDArray[np.float64]], dict[str, float], dict[str, bool], dict[str, bool],
         dict[str, dict[str, Any]],
     ]:  # fmt: skip
-        agents = self.agents
-        given = np.zeros(len(self.possible_agents), dtype=np.int64)
-        try:
-            chosen = np.fromiter(map(actions.__getitem__, agents), np.int64, len(agents))
-        except KeyError:
-            missing = [a for a in agents if a not in actions]
-            raise ValueError(f"no action for live agent(s) {missing[:5]}") from None
-        live = np.flatnonzero(self._live)
-        given[live] = chosen
-        obs, rewards, terminated, truncated = self.step_arrays(given)
-        states = self._worlds.state[0, live].tolist()
+        agents, live = self.agents, self._live
+        self._actions[0, live] = self._chosen(actions, agents)
+        ended, over = self._advance()
+        w = self._worlds
+        observations = dict(zip(agents, w.obs[0, live][:, self._seen.columns], strict=True))
+        rewards = dict(zip(agents, w.reward[0, live].tolist(), strict=True))
+        infos = self._infos(w.state[0, live].tolist())
         # most agents are neither terminated nor truncated: those few are set after
-        ended = dict.fromkeys(agents, False)
-        cut = ended.copy()
-        for i in np.flatnonzero(terminated).tolist():
-            ended[self.possible_agents[i]] = True
-        for i in np.flatnonzero(truncated).tolist():
-            cut[self.possible_agents[i]] = True
-        return (
-            dict(zip(agents, obs[live], strict=True)),
-            dict(zip(agents, rewards[live].tolist(), strict=True)),
-            ended,
-            cut,
-            {a: {"state": s} for a, s in zip(agents, states, strict=True)},
-        )
+        terminated = dict.fromkeys(agents, False)
+        truncated = dict.fromkeys(agents, True) if over else terminated.copy()
+        for i in np.flatnonzero(ended).tolist():
+            terminated[agents[i]] = True
+            truncated[agents[i]] = False
+        self._leave(ended, over)
+        return observations, rewards, terminated, truncated, infos
+
+    def _chosen(self, actions: dict[str, int], agents: list[str]) -> NDArray[np.int64]:
+        """The live agents' actions, in order, as integers of the action set (a missing one,
+        or one that is not such an integer, is refused naming its agent)."""
+        if len(actions) == len(agents) and list(actions) == agents:
+            given = np.array(list(actions.values()))  # the usual dict, keyed as agents are
+        else:
+            try:
+                given = np.array(list(map(actions.__getitem__, agents)))
+            except KeyError:
+                missing = [a for a in agents if a not in actions]
+                raise ValueError(f"no action for live agent(s) {missing[:5]}") from None
+        count = self._worlds.actions
+        if given.dtype.kind not in "iu" or (
+            given.size and (given.min() < 0 or given.max() >= count)
+        ):
+            for agent in agents:
+                action = actions[agent]
+                if not isinstance(action, (int, np.integer)) or not 0 <= action < count:
+                    raise ValueError(
+                        f"{agent}'s action {action!r} is not an integer of 0..{count - 1}"
+                    )
+        return given.astype(np.int64, copy=False)
+
+    def _infos(self, states: list[int]) -> dict[str, dict[str, Any]]:
+        return {agent: {"state": state} for agent, state in zip(self.agents, states, strict=True)}
+
+    def _begin(self, seed: int | None) -> None:
+        if seed is not None:
+            self._worlds.seed([seed])
+        self._worlds.step(None, self._fresh)
+        self._live = np.arange(len(self.possible_agents))
+        self.agents = self.possible_agents[:]
+
+    def _advance(self) -> tuple[NDArray[np.bool_], bool]:
+        """Step the world on ``_actions``; returns which live agents (in ``agents``' order)
+        reached a cell this step, and whether the episode is over."""
+        if not self.agents:
+            raise RuntimeError("every agent is done (or the swarm never began): call reset()")
+        w = self._worlds
+        w.step(self._actions, self._stale, checked=True)
+        ended: NDArray[np.bool_] = ~w.active[0, self._live]
+        return ended, bool(w.over[0])
+
+    def _leave(self, ended: NDArray[np.bool_], over: bool) -> None:
+        """Agents that reached a cell, or all once the episode is over, leave ``agents``."""
+        if over:
+            self._live = self._live[:0]
+            self.agents = []
+        elif ended.any():
+            self._live = self._live[~ended]
+            self.agents = list(map(self.possible_agents.__getitem__, self._live.tolist()))
 
     def reset_arrays(self, seed: int | None = None) -> tuple[NDArray[Any], ...]:
         """``reset`` in arrays indexed by robot: (observations, rewards, terminated,
         truncated), the last three all zero."""
-        if seed is not None:
-            self._worlds.seed([seed])
-        w = self._worlds
-        w.step(None, self._fresh)
-        self._live[:] = True
-        self.agents = self.possible_agents[:]
+        self._begin(seed)
         n = len(self.possible_agents)
         zeros = np.zeros(n, dtype=np.bool_)
-        return w.obs[0][:, self._seen.columns], np.zeros(n), zeros, zeros.copy()
+        return self._worlds.obs[0][:, self._seen.columns], np.zeros(n), zeros, zeros.copy()
 
     def step_arrays(self, actions: NDArray[np.int64]) -> tuple[NDArray[Any], ...]:
         """``step`` in arrays indexed by robot: ``actions[i]`` robot i's (unused for a robot
         that is done); returns (observations, rewards, terminated, truncated) of every robot,
         of which those live before the step count."""
-        if not self.agents:
-            raise RuntimeError("every agent is done (or the swarm never began): call reset()")
-        self._actions[0] = actions
-        w = self._worlds
-        w.step(self._actions, self._stale)
+        given = np.asarray(actions)
+        n = len(self.possible_agents)
+        if given.shape != (n,):
+            raise ValueError(f"actions of shape {given.shape}, not ({n},)")
+        count = self._worlds.actions
+        if given.dtype.kind not in "iu" or (n and (given.min() < 0 or given.max() >= count)):
+            raise ValueError(f"actions must be integers of 0..{count - 1}")
+        self._actions[0] = given
         live = self._live
-        terminated = live & ~w.active[0]
-        truncated = live & w.active[0] & w.over[0]
-        done = terminated | truncated
-        if done.any():
-            self._live = live & ~done
-            self.agents = list(
-                map(self.possible_agents.__getitem__, np.flatnonzero(self._live).tolist())
-            )
-        return (
-            w.obs[0][:, self._seen.columns],
-            np.where(live, w.reward[0], 0.0),
-            terminated,
-            truncated,
-        )
+        ended, over = self._advance()
+        w = self._worlds
+        terminated = np.zeros(n, dtype=np.bool_)
+        terminated[live[ended]] = True
+        truncated = np.zeros(n, dtype=np.bool_)
+        if over:
+            truncated[live[~ended]] = True
+        rewards = np.zeros(n)
+        rewards[live] = w.reward[0, live]
+        self._leave(ended, over)
+        return w.obs[0][:, self._seen.columns], rewards, terminated, truncated

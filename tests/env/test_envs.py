@@ -195,6 +195,37 @@ def test_the_swarm_env_driven_by_a_greedy_table_reproduces_simulates_evaluation(
         assert mean == pytest.approx(world["mean_return"], rel=1e-12, abs=1e-12), k
 
 
+@pytest.mark.parametrize(
+    "scenario", [LATTICE_SWARM, BROWNIAN_SWARM], ids=["lattice", "active_brownian"]
+)
+def test_the_swarms_dicts_and_arrays_are_the_same_steps(scenario: dict[str, Any]) -> None:
+    by_dicts, by_arrays = NanoNavParallelEnv(scenario), NanoNavParallelEnv(scenario)
+    obs, _ = by_dicts.reset(seed=5)
+    all_obs, *_ = by_arrays.reset_arrays(seed=5)
+    rng = np.random.default_rng(5)
+    count = len(by_dicts.possible_agents)
+    left = 0
+    while by_dicts.agents:
+        live = [by_dicts.possible_agents.index(a) for a in by_dicts.agents]
+        assert live == [by_arrays.possible_agents.index(a) for a in by_arrays.agents]
+        for agent, i in zip(by_dicts.agents, live, strict=True):
+            np.testing.assert_array_equal(obs[agent], all_obs[i])
+        chosen = rng.integers(0, len(by_dicts.action_labels), count)
+        obs, rewards, terminated, truncated, _ = by_dicts.step(
+            {a: int(chosen[i]) for a, i in zip(by_dicts.agents, live, strict=True)}
+        )
+        all_obs, all_rewards, all_terminated, all_truncated = by_arrays.step_arrays(chosen)
+        assert set(rewards) == {by_dicts.possible_agents[i] for i in live}
+        for agent, i in zip(rewards, live, strict=True):
+            assert rewards[agent] == all_rewards[i]
+            assert (terminated[agent], truncated[agent]) == (all_terminated[i], all_truncated[i])
+            assert not (terminated[agent] and truncated[agent])
+        done = np.flatnonzero(all_terminated | all_truncated)
+        assert not (set(done.tolist()) - set(live)), "only live robots end"
+        left += len(done)
+    assert left == count, "every robot ended once, and the swarm with them"
+
+
 def test_gymnasium_makes_it_by_module_too_with_its_own_spec() -> None:
     env = gymnasium.make("nanonav.env:NanoNav-v0", scenario=LATTICE)
     assert env.spec is not None and env.spec.id == ENV_ID
@@ -217,6 +248,12 @@ def test_what_a_user_can_get_wrong_is_refused_by_name() -> None:
     swarm.reset(seed=1)
     with pytest.raises(ValueError, match="robot_3"):
         swarm.step({a: 0 for a in swarm.agents if a != "robot_3"})
+    with pytest.raises(ValueError, match=r"robot_2's action 1\.5"):
+        swarm.step({a: 1.5 if a == "robot_2" else 0 for a in swarm.agents})
+    with pytest.raises(ValueError, match="robot_0's action -1"):
+        swarm.step(dict.fromkeys(swarm.agents, -1))
+    with pytest.raises(ValueError, match="shape"):
+        swarm.step_arrays(np.zeros(3, dtype=np.int64))
     with pytest.raises(KeyError, match="robot_99"):
         swarm.observation_space("robot_99")
     vector = NanoNavVectorEnv(2, LATTICE)
