@@ -31,6 +31,7 @@ from nanonav.store import JobStore
 from nanonav.store.migrate import upgrade
 from service.app import create_app
 from service.server import server_config
+from tests.compile_ahead import compile_all
 from tests.processes import ApiServer, Worker
 
 # What a script sends so that a body-less POST (a cancel) is not taken for a cross-site form.
@@ -45,9 +46,17 @@ POSTGRES_URL = os.environ.get(
 
 def pytest_configure(config: pytest.Config) -> None:
     """A suite started in the background (``make test &``) inherits Ctrl-C ignored, and so would
-    every process it starts: the tests that press Ctrl-C need it to reach them."""
+    every process it starts: the tests that press Ctrl-C need it to reach them. A suite spread
+    over test processes (``-n 2``) first compiles the engine's kernels once, side by side
+    (``tests.compile_ahead``), rather than in every test process."""
     if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
         signal.signal(signal.SIGINT, signal.default_int_handler)
+    spread = (config.getoption("numprocesses", None) or 0) > 0
+    if spread and not hasattr(config, "workerinput"):
+        report = config.pluginmanager.get_plugin("terminalreporter")
+        for line in compile_all():
+            if report is not None:
+                report.write_line(f"compiled ahead: {line}")
 
 
 def in_ci() -> bool:

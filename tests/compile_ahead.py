@@ -1,0 +1,74 @@
+"""Compile the engine's two large kernels into numba's on-disk cache before the tests start.
+
+Each compiles for a minute and a half from a cold cache: ``simulate``'s episode loop, and the
+world step the environments drive from outside. Left to the tests, every test process compiles
+the first for itself and one of them the second, while the other waits or works alone. Compiled
+here side by side, one process each, the test processes then load both from the cache.
+
+    python -m tests.compile_ahead kernel|env
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+
+PARTS = ("kernel", "env")
+SMALL = {"preset": "paper-single", "learning": {"episodes": 1, "max_steps": 5},
+         "evaluation": {"worlds": 1}}  # fmt: skip
+
+
+def compile_part(part: str) -> None:
+    """Run the smallest work that compiles ``part``'s kernel (or loads it from the cache)."""
+    if part == "kernel":
+        from nanonav.engine import simulate
+        from nanonav.scenario import Scenario
+
+        simulate(Scenario.model_validate(SMALL))
+    elif part == "env":
+        from nanonav.env import NanoNavEnv
+
+        env = NanoNavEnv(SMALL)
+        env.reset(seed=0)
+        env.step(0)
+    else:
+        raise ValueError(f"no part {part!r}: one of {', '.join(PARTS)}")
+
+
+def compile_all(timeout_s: float = 600.0) -> list[str]:
+    """Compile every part, each in a process of its own, all at once; returns a line per part
+    (how long it took, or how it failed: the tests that use it will then fail in their own
+    words)."""
+    started = time.perf_counter()
+    running = {
+        part: subprocess.Popen(
+            [sys.executable, "-m", "tests.compile_ahead", part],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        for part in PARTS
+    }
+    lines = []
+    for part, process in running.items():
+        try:
+            _, err = process.communicate(
+                timeout=max(1.0, timeout_s - (time.perf_counter() - started))
+            )
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.communicate()
+            lines.append(f"{part}: not compiled within {timeout_s:.0f} s")
+            continue
+        took = time.perf_counter() - started
+        if process.returncode == 0:
+            lines.append(f"{part}: ready after {took:.0f} s")
+        else:
+            last = err.strip().splitlines()[-1:] or ["(no output)"]
+            lines.append(f"{part}: failed ({last[0]})")
+    return lines
+
+
+if __name__ == "__main__":
+    compile_part(sys.argv[1])
