@@ -650,20 +650,25 @@ class Client:
         values: NDArray[Any] | Sequence[Any] | None = None,
         greedy: Sequence[Mapping[str, Any]] | None = None,
         name: str | None = None,
+        idempotency_key: str | None = None,
     ) -> Policy:
         """Send a Q-table made elsewhere: ``states`` and ``actions`` label its rows and columns
         (an environment's ``state_labels`` and ``action_labels``), and the table is ``values``
         (states x actions, or robots x states x actions) or ``greedy`` (``{"state", "action"}``
         items, as ``qtable(job_id)["greedy"]`` has them), one of the two. A scenario evaluates
-        it with ``policy_from`` set to the answer's ``policy_from``."""
+        it with ``policy_from`` set to the answer's ``policy_from``. The same
+        ``idempotency_key`` again answers with the policy it kept the first time."""
         body: dict[str, Any] = {"states": list(states), "actions": list(actions)}
         if values is not None:
-            body["values"] = np.asarray(values, dtype=np.float64).tolist()
+            try:
+                body["values"] = np.asarray(values, dtype=np.float64).tolist()
+            except (TypeError, ValueError):
+                body["values"] = values  # not a table of numbers: the server says where
         if greedy is not None:
             body["greedy"] = [dict(choice) for choice in greedy]
         if name is not None:
             body["name"] = name
-        return Policy.of(self._json("POST", "/policies", json=body))
+        return Policy.of(self._json("POST", "/policies", json=body, key=idempotency_key))
 
     def policy(self, policy_id: int) -> dict[str, Any]:
         """A policy with its table: ``states``, ``actions``, ``values`` and ``greedy``."""
@@ -676,8 +681,8 @@ class Client:
         yield from _capped((Policy.of(item) for item in pages), limit)
 
     def delete_policy(self, policy_id: int) -> None:
-        """Delete a policy (404 if there is no such policy, or no more); a queued job that
-        names it fails when it is claimed."""
+        """Delete a policy (404 if there is no such policy, or no more; 409 while queued or
+        running jobs evaluate it)."""
         self._request("DELETE", f"/policies/{policy_id}")
 
     # ------------------------------------------------------------ HTTP

@@ -306,8 +306,8 @@ class Settings(BaseSettings):
         le=30 * 86400,
         validation_alias=_aliases("idempotency_ttl_s"),
         description="How long an Idempotency-Key names its first request: within it the same "
-        "request gets the same job or study back and another request is refused; after it the "
-        "key is free for a new one.",
+        "request gets the same job, study or policy back and another request is refused; after "
+        "it the key is free for a new one.",
     )
 
     api_keys: Annotated[tuple[SecretStr, ...], NoDecode] = Field(
@@ -349,6 +349,14 @@ class Settings(BaseSettings):
         description="Most robot-steps (the budget's measure) one key or client address may have "
         "queued and running, by default ten full-budget jobs; a submit past it gets 429, one "
         "that alone is larger gets 422. 0: no limit.",
+    )
+    quota_policies: int = Field(
+        1000,
+        ge=0,
+        validation_alias=_aliases("quota_policies"),
+        description="Most policies (POST /policies) one key may keep, or without keys the "
+        "whole server; one more gets 409 until one is deleted. Each is at most max_body_bytes "
+        "as sent. 0: no limit.",
     )
     allowed_hosts: Annotated[tuple[str, ...], NoDecode] = Field(
         ("localhost", "127.0.0.1", "::1"),

@@ -49,8 +49,8 @@ async def _idempotency(
         Header(
             max_length=4 * KEY_MAX_CHARS,
             description=f"Makes retries safe: the same key with the same request gives the same "
-            f"job (or study) back for `NANONAV_IDEMPOTENCY_TTL_S` (a day by default); the same "
-            f"key with another request is refused with 422. UTF-8, 1 to {KEY_MAX_CHARS} "
+            f"job, study or policy back for `NANONAV_IDEMPOTENCY_TTL_S` (a day by default); the "
+            f"same key with another request is refused with 422. UTF-8, 1 to {KEY_MAX_CHARS} "
             f"characters, not blank.",
         ),
     ] = None,

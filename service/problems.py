@@ -29,7 +29,7 @@ from nanonav.store import (
     StudyNotFinished,
     StudyNotFound,
 )
-from nanonav.store.errors import QuotaExceeded
+from nanonav.store.errors import PolicyInUse, PolicyLimitReached, QuotaExceeded
 from service.methods import allowed_methods
 
 PROBLEM_JSON = "application/problem+json"
@@ -213,6 +213,8 @@ STORE_ERRORS: dict[type[Exception], tuple[int, str, str]] = {
     JobNotFinished: (409, "job-not-finished", "Job not finished"),
     JobInStudy: (409, "job-in-study", "Job belongs to a study"),
     StudyNotFinished: (409, "study-not-finished", "Study not finished"),
+    PolicyInUse: (409, "policy-in-use", "Policy in use"),
+    PolicyLimitReached: (409, "policy-limit", "Policy limit reached"),
 }
 
 

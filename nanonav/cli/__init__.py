@@ -3,9 +3,10 @@
 Each subcommand is one ``add_<name>`` function that declares its arguments and sets ``handler``
 to the function that runs it: ``run`` in ``run.py`` runs a scenario here; ``api``, ``worker`` and
 ``migrate`` in ``service.py`` run the job service; ``submit``, ``study``, ``fetch``, ``jobs`` and
-``delete`` in ``remote.py`` talk to a running API. ``main`` parses, dispatches and turns the
-errors a user can cause into a message on stderr and an exit code. Adding a subcommand means
-adding one such function and one line in ``build_parser``.
+``delete`` in ``remote.py``, and ``policy`` and ``policies`` in ``policies.py``, talk to a running
+API. ``main`` parses, dispatches and turns the errors a user can cause into a message on stderr
+and an exit code. Adding a subcommand means adding one such function and one line in
+``build_parser``.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ import os
 import sys
 from collections.abc import Callable
 
-from nanonav.cli import remote, run, service
+from nanonav.cli import policies, remote, run, service
 from nanonav.cli.common import (
     EXIT_FAILED,
     EXIT_INTERRUPTED,
@@ -50,6 +51,8 @@ def build_parser() -> argparse.ArgumentParser:
     remote.add_fetch(subcommands)
     remote.add_jobs(subcommands)
     remote.add_delete(subcommands)
+    policies.add_policy(subcommands)
+    policies.add_policies(subcommands)
     return parser
 
 

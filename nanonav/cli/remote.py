@@ -1,5 +1,5 @@
 """``nanonav submit``, ``study``, ``fetch``, ``jobs`` and ``delete``: the commands that talk to a
-running API through ``nanonav.client``.
+running API through ``nanonav.client`` (``policies.py`` has those that send and list policies).
 
 Waiting polls the server and draws a progress bar on stderr when it is a terminal. Ctrl-C stops
 the waiting, not the work: the job or study goes on on the server."""
@@ -246,21 +246,32 @@ def add_fetch(subcommands: Subcommands) -> None:
         help="download a job's or a study's results into a directory",
         description="Write a succeeded job's metrics.json, trajectory.npz, qtable.json and "
         "every picture (<name>.png; qtable.png if it learned a Q-table) into DIR; or, with "
-        "--study, a study's results.csv, results.parquet, study.json and its pictures. DIR is "
-        "created if missing.",
+        "--study, a study's results.csv, results.parquet, study.json and its pictures; or, "
+        "with --policy, a policy's policy.json (its table, which `nanonav policy` sends "
+        "again). DIR is created if missing.",
     )
     fetch.add_argument("id", nargs="?", type=_positive, metavar="ID", help="a job's id")
     fetch.add_argument("--study", type=_positive, metavar="ID", help="a study's id instead")
+    fetch.add_argument("--policy", type=_positive, metavar="ID", help="a policy's id instead")
     fetch.add_argument("--out", type=Path, metavar="DIR", required=True, help="where to write")
     _add_url(fetch)
     fetch.set_defaults(handler=_fetch)
 
 
+def _one_of(args: argparse.Namespace) -> None:
+    if sum(ident is not None for ident in (args.id, args.study, args.policy)) != 1:
+        raise UsageError(["give a job ID, or --study ID, or --policy ID (one of them)"])
+
+
 def _fetch(args: argparse.Namespace) -> int:
-    if (args.id is None) == (args.study is None):
-        raise UsageError(["give a job ID, or --study ID (not both)"])
+    _one_of(args)
     with _connect(args) as api:
-        found = _job_files(api, args.id) if args.study is None else _study_files(api, args.study)
+        if args.study is not None:
+            found = _study_files(api, args.study)
+        elif args.policy is not None:
+            found = iter([("policy.json", _document(api.policy(args.policy)))])
+        else:
+            found = _job_files(api, args.id)
         written = _write(args.out, found)
     print(f"Wrote {len(written)} files to {args.out}:")
     for path in written:
@@ -271,27 +282,31 @@ def _fetch(args: argparse.Namespace) -> int:
 def add_delete(subcommands: Subcommands) -> None:
     delete = subcommands.add_parser(
         "delete",
-        help="delete a finished job, or an ended study, with its results",
+        help="delete a finished job, an ended study or a policy",
         description="Delete a finished job (succeeded, failed or cancelled) with its results "
-        "and pictures; or, with --study, an ended study with its jobs. A queued or running one "
-        "is refused (cancel it first), and so is a job of a study (delete the study).",
+        "and pictures; or, with --study, an ended study with its jobs; or, with --policy, a "
+        "policy. A queued or running job or study is refused (cancel it first), and so are a "
+        "job of a study (delete the study) and a policy that queued or running jobs evaluate.",
     )
     delete.add_argument("id", nargs="?", type=_positive, metavar="ID", help="a job's id")
     delete.add_argument("--study", type=_positive, metavar="ID", help="a study's id instead")
+    delete.add_argument("--policy", type=_positive, metavar="ID", help="a policy's id instead")
     _add_url(delete)
     delete.set_defaults(handler=_delete)
 
 
 def _delete(args: argparse.Namespace) -> int:
-    if (args.id is None) == (args.study is None):
-        raise UsageError(["give a job ID, or --study ID (not both)"])
+    _one_of(args)
     with _connect(args) as api:
-        if args.study is None:
-            api.delete(args.id)
-            print(f"Deleted job {args.id}")
-        else:
+        if args.study is not None:
             api.delete_study(args.study)
             print(f"Deleted study {args.study} and its jobs")
+        elif args.policy is not None:
+            api.delete_policy(args.policy)
+            print(f"Deleted policy {args.policy}")
+        else:
+            api.delete(args.id)
+            print(f"Deleted job {args.id}")
     return EXIT_OK
 
 

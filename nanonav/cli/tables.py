@@ -10,7 +10,7 @@ from datetime import datetime
 from typing import Any
 
 from nanonav import table1
-from nanonav.client import Job, Study
+from nanonav.client import Job, Policy, Study
 from nanonav.table1 import number
 
 MAX_ROBOT_ROWS = 20
@@ -203,4 +203,25 @@ def format_jobs(jobs: Sequence[Job]) -> str:
         )
     columns = ("id", "status", "progress", "policy", "robots", "seed", "study", "created")
     right = (True, False, True, False, True, True, True, False)
+    return "\n".join(text_table(columns, rows, align_right=right))
+
+
+def format_policies(policies: Sequence[Policy]) -> str:
+    """A line per policy: id, what a scenario names it by, its name, the action set and
+    communication models it is for, its shape and when it came (local time)."""
+    rows = [
+        (
+            str(policy.id),
+            policy.policy_from,
+            policy.name or "-",
+            policy.action_set,
+            ",".join(policy.communication),
+            f"{policy.state_count}x{policy.action_count}"
+            + (f" x{policy.table_count} robots" if policy.per_robot else ""),
+            _when(policy.created_at),
+        )
+        for policy in policies
+    ]
+    columns = ("id", "policy_from", "name", "actions", "communication", "table", "created")
+    right = (True, False, False, False, False, False, False)
     return "\n".join(text_table(columns, rows, align_right=right))

@@ -110,3 +110,27 @@ class IdempotencyKeyReused(StoreError):
             f"request (it made {kind} {made_id}); send that request again or use a new key"
         )
         self.key = key
+
+
+class PolicyInUse(StoreError):
+    """A policy that queued or running jobs evaluate cannot be deleted under them."""
+
+    def __init__(self, policy_id: int, job_ids: list[int], count: int) -> None:
+        shown = ", ".join(map(str, job_ids)) + (", ..." if count > len(job_ids) else "")
+        super().__init__(
+            f"policy {policy_id} is evaluated by {count} queued or running job(s) ({shown}): "
+            "cancel them, or wait for them to finish, then delete it"
+        )
+        self.policy_id = policy_id
+        self.job_ids = job_ids
+
+
+class PolicyLimitReached(StoreError):
+    """A key already keeps as many policies as it may."""
+
+    def __init__(self, limit: int) -> None:
+        super().__init__(
+            f"this key already keeps {limit:,} policies, the most it may (the quota_policies "
+            "setting): delete one it no longer needs, then send this one again"
+        )
+        self.limit = limit

@@ -18,7 +18,7 @@ from sqlalchemy.orm import Session, sessionmaker
 
 from nanonav.store.db import unit_of_work
 from nanonav.store.errors import IdempotencyKeyReused
-from nanonav.store.models import Job, Study
+from nanonav.store.models import Job, Policy, Study
 
 
 @dataclass(frozen=True)
@@ -30,7 +30,9 @@ class Idempotency:
     ttl_s: float
 
 
-Keyed = TypeVar("Keyed", Job, Study)
+Keyed = TypeVar("Keyed", Job, Study, Policy)
+# What the refusal of a reused key calls the row the key made.
+_KINDS = {Job: "job", Study: "study", Policy: "policy"}
 
 
 def earlier(
@@ -58,8 +60,7 @@ def earlier(
         return None
     # Rows keyed before digests were kept cannot be compared: they replay.
     if row.request_digest is not None and row.request_digest != idempotency.digest:
-        kind = "job" if model is Job else "study"
-        raise IdempotencyKeyReused(idempotency.key, kind, row.id)
+        raise IdempotencyKeyReused(idempotency.key, _KINDS[model], row.id)
     return row
 
 

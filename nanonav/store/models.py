@@ -245,12 +245,21 @@ class Policy(Base):
     """A Q-table made elsewhere and sent, for scenarios to evaluate (``policy_from``)."""
 
     __tablename__ = "policies"
-    __table_args__ = (Index(None, "owner", "id"), {"sqlite_autoincrement": True})
+    __table_args__ = (
+        Index(None, "owner", "id"),
+        # a unique index, not a constraint: SQLite adds it without rebuilding the table (which
+        # would lose AUTOINCREMENT's high-water mark of deleted ids)
+        Index(None, "owner", "idempotency_key", unique=True),
+        {"sqlite_autoincrement": True},
+    )
 
     id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
     name: Mapped[str | None] = mapped_column(String(200))
     # The SHA-256 of the API key that sent it; '' when the API has no keys.
     owner: Mapped[str] = mapped_column(String(64), default="", server_default="")
+    idempotency_key: Mapped[str | None] = mapped_column(String(200))
+    # sha256 of the request that used the key: the same key with another request is refused.
+    request_digest: Mapped[str | None] = mapped_column(String(64))
     created_at: Mapped[datetime] = mapped_column(UTCDateTime())
     action_set: Mapped[str] = mapped_column(String(16))
     # The communication models whose state layout its rows are (several share one).

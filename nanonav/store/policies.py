@@ -7,25 +7,29 @@ is given: the labels and values were checked by whoever sent them (``nanonav.pol
 
 from __future__ import annotations
 
+import zlib
 from dataclasses import dataclass
-from datetime import UTC, datetime
+from datetime import datetime
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from sqlalchemy import Engine, delete, select
+from sqlalchemy import Engine, delete, func, select, text
 from sqlalchemy.orm import Session, defer
 
 from nanonav.store.arrays import pack, unpack
 from nanonav.store.db import make_sessionmaker, unit_of_work
-from nanonav.store.errors import StoreError
-from nanonav.store.models import Policy
+from nanonav.store.errors import PolicyInUse, PolicyLimitReached, StoreError
+from nanonav.store.idempotency import Idempotency, insert_once
+from nanonav.store.models import Job, JobStatus, Policy
 
 # What a scenario's policy_from names: a job's id, or a policy's name, POLICY_PREFIX + its id.
 PolicySource = int | str
 POLICY_PREFIX = "policy-"
 # A record is read without the table, which may be large: only ``table()`` reads it.
 WITHOUT_TABLE = defer(Policy.table)
+# The jobs a refused delete names (it counts them all).
+SHOWN_JOBS = 5
 
 
 def policy_name(policy_id: int) -> str:
@@ -104,32 +108,47 @@ class PolicyStore:
         values: NDArray[np.float64],
         name: str | None = None,
         owner: str = "",
-        now: datetime | None = None,
+        idempotency: Idempotency | None = None,
+        limit: int = 0,
     ) -> PolicyRecord:
-        """Keep a table ``values`` of ``states`` x ``actions``, or one such table per robot."""
+        """Keep a table ``values`` of ``states`` x ``actions``, or one such table per robot;
+        ``owner``'s key still naming an earlier request answers that request's policy instead
+        (``IdempotencyKeyReused`` for another request under it). PolicyLimitReached when
+        ``owner`` already keeps ``limit`` policies (0: no limit)."""
         if values.ndim not in (2, 3) or values.shape[-2:] != (len(states), len(actions)):
             raise ValueError(f"a table of shape {values.shape} is not states x actions")
-        table = {
-            "states": np.array(states, dtype=np.str_),
-            "actions": np.array(actions, dtype=np.str_),
-            "values": np.asarray(values, dtype=np.float64),
-        }
-        row = Policy(
-            name=name,
-            owner=owner,
-            created_at=now or datetime.now(UTC),
-            action_set=action_set,
-            communication=list(communication),
-            states=len(states),
-            actions=len(actions),
-            tables=1 if values.ndim == 2 else int(values.shape[0]),
-            per_robot=values.ndim == 3,
-            table=pack(table),
+        table = pack(
+            {
+                "states": np.array(states, dtype=np.str_),
+                "actions": np.array(actions, dtype=np.str_),
+                "values": np.asarray(values, dtype=np.float64),
+            }
         )
-        with unit_of_work(self._sessions) as session:
+
+        def insert(session: Session, now: datetime) -> Policy:
+            _check_limit(session, owner, limit)
+            row = Policy(
+                name=name,
+                owner=owner,
+                idempotency_key=None if idempotency is None else idempotency.key,
+                request_digest=None if idempotency is None else idempotency.digest,
+                created_at=now,
+                action_set=action_set,
+                communication=list(communication),
+                states=len(states),
+                actions=len(actions),
+                tables=1 if values.ndim == 2 else int(values.shape[0]),
+                per_robot=values.ndim == 3,
+                table=table,
+            )
             session.add(row)
             session.flush()
-            return PolicyRecord.of(row)
+            return row
+
+        row = insert_once(
+            self._sessions, Policy, idempotency, insert, owner=owner, reads_first=limit > 0
+        )
+        return PolicyRecord.of(row)
 
     def get(self, policy_id: int) -> PolicyRecord:
         with unit_of_work(self._sessions) as session:
@@ -165,11 +184,36 @@ class PolicyStore:
         return PolicyPage(policies=rows, next_before_id=rows[-1].id if more else None)
 
     def delete(self, policy_id: int) -> None:
-        """Forget the policy; a queued job that names it fails when a worker claims it."""
+        """Forget the policy; PolicyInUse while queued or running jobs evaluate it (a job
+        queued while it is deleted fails, saying so, when a worker claims it)."""
         with unit_of_work(self._sessions, write=True) as session:
             if session.scalar(select(Policy.id).where(Policy.id == policy_id)) is None:
                 raise PolicyNotFound(policy_id)
+            users = (
+                select(Job.id)
+                .where(
+                    Job.status.in_([JobStatus.QUEUED, JobStatus.RUNNING]),
+                    Job.scenario["policy_from"].as_string() == policy_name(policy_id),
+                )
+                .order_by(Job.id)
+            )
+            job_ids = list(session.scalars(users))
+            if job_ids:
+                raise PolicyInUse(policy_id, job_ids[:SHOWN_JOBS], len(job_ids))
             session.execute(delete(Policy).where(Policy.id == policy_id))
+
+
+def _check_limit(session: Session, owner: str, limit: int) -> None:
+    """Refuse a policy past ``limit`` of ``owner``'s, counted after a lock that serialises
+    adds of one owner (SQLite's write lock; on PostgreSQL an advisory lock on the owner)."""
+    if not limit:
+        return
+    if session.get_bind().dialect.name == "postgresql":
+        lock = zlib.crc32(f"policies:{owner}".encode()) - 2**31
+        session.execute(text("SELECT pg_advisory_xact_lock(:lock)"), {"lock": lock})
+    kept = session.scalar(select(func.count()).where(Policy.owner == owner))
+    if int(kept or 0) >= limit:
+        raise PolicyLimitReached(limit)
 
 
 def _policy(session: Session, policy_id: int) -> Policy:

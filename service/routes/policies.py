@@ -17,7 +17,8 @@ from nanonav.policy import (
     layout_of,
     policy_values,
 )
-from service.deps import JsonBody, StoreDep
+from service.deps import JsonBody, SettingsDep, StoreDep
+from service.idempotency import IdempotencyDep
 from service.ids import PolicyId
 from service.paging import Cursor, decode_cursor, encode_cursor
 from service.problems import (
@@ -46,22 +47,25 @@ router = APIRouter(prefix="/policies", tags=["policies"])
     status_code=201,
     response_model=PolicySummary,
     dependencies=[JsonBody],
-    responses=problems(400, 403, 413, 415, 422),
+    responses=problems(400, 403, 409, 413, 415, 422),
 )
 def send_policy(
     policy: Annotated[NewPolicy, Body(openapi_examples=NEW_POLICY_EXAMPLES)],
     store: StoreDep,
+    settings: SettingsDep,
     caller: CallerDep,
     response: Response,
+    idempotency: IdempotencyDep,
 ) -> PolicySummary:
     """Keep a Q-table made elsewhere; a scenario evaluates it as ``policy_from: "policy-<id>"``.
 
     A body the schema allows may still be refused with 422, each error typed by its rule:
     ``policy_layout`` (``states`` or ``actions`` that are not, in order, the labels of one of
-    the engine's action sets and communication models; the detail says which would be) and
+    the engine's action sets and communication models; the detail says which would be),
     ``policy_table`` (both or neither of ``values`` and ``greedy``; values not shaped states x
     actions or not finite; a greedy state or action the layout does not have, or a state given
-    twice)."""
+    twice), ``idempotency_key`` and ``idempotency_key_reused``. A key that keeps
+    ``NANONAV_QUOTA_POLICIES`` policies already gets 409 ``policy-limit``."""
     try:
         layout = layout_of(policy.states, policy.actions)
         values = _values(policy, layout)
@@ -76,6 +80,8 @@ def send_policy(
         values=values,
         name=policy.name,
         owner=caller.owner,
+        idempotency=idempotency,
+        limit=settings.quota_policies,
     )
     response.headers["Location"] = f"/policies/{record.id}"
     return PolicySummary.of(record)
@@ -133,11 +139,12 @@ def get_policy(policy_id: PolicyId, store: StoreDep) -> Policy:
     "/{policy_id}",
     status_code=204,
     response_class=Response,
-    responses={204: {"description": "Deleted."}, **problems(403, 404, 415, 422)},
+    responses={204: {"description": "Deleted."}, **problems(403, 404, 409, 415, 422)},
     openapi_extra=SCRIPTED_ONLY,
 )
 def delete_policy(policy_id: PolicyId, store: StoreDep) -> Response:
-    """Delete a policy; a queued job that names it fails, saying so, when it is claimed."""
+    """Delete a policy; 409 ``policy-in-use`` while queued or running jobs evaluate it (the
+    detail names them: cancel them or let them finish first)."""
     store.policies.delete(policy_id)
     return Response(status_code=204)
 

@@ -56,7 +56,7 @@ STATED_RULES: dict[str, frozenset[str]] = {
         }
         | IDEMPOTENCY_RULES
     ),
-    "POST /policies": frozenset({"policy_layout", "policy_table"}),
+    "POST /policies": frozenset({"policy_layout", "policy_table"}) | IDEMPOTENCY_RULES,
     "GET /jobs/{job_id}/trajectory": frozenset({"too_large"}),
     "GET /jobs/{job_id}/heatmap.png": frozenset({"out_of_range"}),
 }

@@ -17,7 +17,7 @@ from nanonav.engine import qlearning
 from nanonav.policy import greedy_table
 from nanonav.settings import Settings
 from nanonav.store import JobStatus, Outcome
-from tests.conftest import Api
+from tests.conftest import SCRIPTED, Api
 from tests.service.test_api import assert_problem
 from tests.service.test_security import KEY_A, KEY_B, Served, bearer, served
 from worker.job import run_job
@@ -416,15 +416,96 @@ def test_another_keys_policy_is_not_there_for_reading_deleting_or_naming(keyed: 
     assert record is not None and record.status is JobStatus.SUCCEEDED
 
 
-def test_a_job_whose_policy_was_deleted_before_it_ran_fails_saying_so(
+def test_a_policy_is_not_deleted_under_the_jobs_that_evaluate_it(
     api: Api, api_settings: Settings
 ) -> None:
     policy = behaviors_policy(api)
-    job = api.client.post("/jobs", json={**EVALUATE, "policy_from": policy["policy_from"]})
-    assert job.status_code == 202
-    assert api.client.delete(policy["links"]["self"]).status_code == 204
+    jobs = [
+        api.client.post("/jobs", json={**EVALUATE, "policy_from": policy["policy_from"]}).json()
+        for _ in range(2)
+    ]
+    other = behaviors_policy(api)
+    api.client.post("/jobs", json={**EVALUATE, "policy_from": other["policy_from"]})
+    in_use = assert_problem(api.client.delete(policy["links"]["self"]), 409)
+    assert in_use["type"].endswith("policy-in-use")
+    assert in_use["detail"] == (
+        f"policy {policy['id']} is evaluated by 2 queued or running job(s) "
+        f"({jobs[0]['id']}, {jobs[1]['id']}): cancel them, or wait for them to finish, then "
+        "delete it"
+    )
+    assert api.client.post(f"/jobs/{jobs[0]['id']}/cancel").status_code == 200
     claim = api.store.claim("test", lease_s=30)
-    assert claim is not None and claim.job.id == job.json()["id"]
+    assert claim is not None and claim.job.id == jobs[1]["id"]
+    running = assert_problem(api.client.delete(policy["links"]["self"]), 409)
+    assert f"by 1 queued or running job(s) ({jobs[1]['id']})" in running["detail"]
+    record = run_job(api.store, claim, api_settings, threading.Event())
+    assert record is not None and record.status is JobStatus.SUCCEEDED
+    assert api.client.delete(policy["links"]["self"]).status_code == 204
+    assert api.client.get(f"/jobs/{jobs[1]['id']}/metrics").status_code == 200
+
+
+def test_a_job_queued_for_a_policy_deleted_meanwhile_fails_saying_so(
+    api: Api, api_settings: Settings
+) -> None:
+    """A delete that races a submit naming the policy (the submit checked the table first)."""
+    policy = behaviors_policy(api)
+    assert api.client.delete(policy["links"]["self"]).status_code == 204
+    job = api.store.enqueue(
+        {**EVALUATE, "policy_from": policy["policy_from"]}, robot_steps=1, episodes=0
+    )
+    claim = api.store.claim("test", lease_s=30)
+    assert claim is not None and claim.job.id == job.id
     record = run_job(api.store, claim, api_settings, threading.Event())
     assert record is not None and record.status is JobStatus.FAILED
     assert record.error == f"policy_from: there is no policy {policy['id']}"
+
+
+def test_the_same_idempotency_key_gives_the_same_policy_and_another_body_is_422(
+    api: Api,
+) -> None:
+    states, actions = BEHAVIORS
+    body = {"states": states, "actions": actions, "values": table((72, 4))}
+    key = {"Idempotency-Key": "trained-on-seed-7"}
+    first = api.client.post("/policies", json=body, headers=key)
+    again = api.client.post("/policies", content=json.dumps(body, indent=1), headers={
+        **key, "Content-Type": "application/json"})  # fmt: skip
+    assert first.status_code == again.status_code == 201, again.text
+    assert first.json() == again.json()
+    assert len(api.client.get("/policies").json()["policies"]) == 1
+    changed = {**body, "name": "another"}
+    problem = assert_problem(api.client.post("/policies", json=changed, headers=key), 422)
+    assert problem["errors"][0]["type"] == "idempotency_key_reused"
+    assert f"(it made policy {first.json()['id']})" in problem["detail"]
+    blank = assert_problem(
+        api.client.post("/policies", json=body, headers={"Idempotency-Key": ""}), 422
+    )
+    assert blank["errors"][0]["loc"] == ["header", "idempotency-key"]
+    with Client(api.url) as client:
+        sent = client.send_policy(states, actions, values=body["values"], idempotency_key="k2")
+        assert (
+            client.send_policy(states, actions, values=body["values"], idempotency_key="k2") == sent
+        )
+
+
+@pytest.mark.parametrize("keys", [False, True], ids=["no keys", "per key"])
+def test_a_key_keeps_at_most_quota_policies_and_may_send_again_after_a_delete(
+    sqlite_url: str, keys: bool
+) -> None:
+    settings = Settings(
+        database_url=sqlite_url, quota_policies=2, api_keys=f"{KEY_A},{KEY_B}" if keys else ""
+    )
+    states, actions = BEHAVIORS
+    body = {"states": states, "actions": actions, "values": table((72, 4))}
+    with served(settings) as api:
+        a = bearer(KEY_A) if keys else SCRIPTED
+        sent = [api.client.post("/policies", json=body, headers=a) for _ in range(2)]
+        assert [r.status_code for r in sent] == [201, 201]
+        full = assert_problem(api.client.post("/policies", json=body, headers=a), 409)
+        assert full["type"].endswith("policy-limit")
+        assert full["detail"].startswith("this key already keeps 2 policies")
+        if keys:
+            theirs = api.client.post("/policies", json=body, headers=bearer(KEY_B))
+            assert theirs.status_code == 201, "another key's policies are its own"
+        gone = api.client.delete(f"/policies/{sent[0].json()['id']}", headers=a)
+        assert gone.status_code == 204
+        assert api.client.post("/policies", json=body, headers=a).status_code == 201

@@ -7,7 +7,15 @@ import numpy as np
 import pytest
 
 from nanonav.engine import qlearning
-from nanonav.store import JobStore, PolicyNotFound, policy_name, policy_number
+from nanonav.store import (
+    Idempotency,
+    IdempotencyKeyReused,
+    JobStore,
+    PolicyNotFound,
+    policy_name,
+    policy_number,
+)
+from nanonav.store.errors import PolicyInUse, PolicyLimitReached
 
 
 def add(store: JobStore, owner: str = "", robots: int | None = None, fill: float = 0.25) -> int:
@@ -79,3 +87,60 @@ def test_a_deleted_policy_is_gone_and_its_id_is_never_given_again(store: JobStor
     assert store.policies.owner_of(newest) is None
     assert store.policies.get(older).id == older
     assert add(store) > newest
+
+
+def test_a_key_that_still_holds_gives_back_the_policy_it_kept(store: JobStore) -> None:
+    states, actions = qlearning.labels("behaviors")
+    values = np.zeros((len(states), len(actions)))
+    key = Idempotency(key="run-7", digest="d" * 64, ttl_s=60)
+
+    def send(owner: str, idempotency: Idempotency) -> int:
+        return store.policies.add(
+            action_set="behaviors", communication=("none",), states=states, actions=actions,
+            values=values, owner=owner, idempotency=idempotency,
+        ).id  # fmt: skip
+
+    first = send("o" * 64, key)
+    assert send("o" * 64, key) == first
+    assert send("p" * 64, key) != first, "keys are per owner"
+    with pytest.raises(IdempotencyKeyReused, match=f"it made policy {first}"):
+        send("o" * 64, Idempotency(key="run-7", digest="e" * 64, ttl_s=60))
+    assert len(store.policies.page(limit=10, before_id=None).policies) == 2
+
+
+def test_an_owner_keeps_at_most_its_limit_of_policies(store: JobStore) -> None:
+    states, actions = qlearning.labels("behaviors")
+    values = np.zeros((len(states), len(actions)))
+
+    def send(owner: str) -> int:
+        return store.policies.add(
+            action_set="behaviors", communication=("none",), states=states, actions=actions,
+            values=values, owner=owner, limit=2,
+        ).id  # fmt: skip
+
+    kept = [send("o" * 64), send("o" * 64)]
+    with pytest.raises(PolicyLimitReached, match="already keeps 2 policies"):
+        send("o" * 64)
+    send("p" * 64)
+    store.policies.delete(kept[0])
+    send("o" * 64)
+
+
+def test_a_policy_that_active_jobs_evaluate_is_not_deleted(store: JobStore) -> None:
+    policy_id = add(store)
+    other = add(store)
+    scenario = {"policy_from": policy_name(policy_id)}
+    jobs = [store.enqueue(scenario, robot_steps=1, episodes=1).id for _ in range(7)]
+    store.enqueue({"policy_from": policy_name(other)}, robot_steps=1, episodes=1)
+    store.enqueue({}, robot_steps=1, episodes=1)
+    with pytest.raises(PolicyInUse) as refused:
+        store.policies.delete(policy_id)
+    assert refused.value.job_ids == jobs[:5]
+    assert "by 7 queued or running job(s) (" + ", ".join(map(str, jobs[:5])) + ", ...)" in str(
+        refused.value
+    )
+    for job_id in jobs:
+        store.cancel(job_id)
+    store.policies.delete(policy_id)
+    with pytest.raises(PolicyNotFound):
+        store.policies.get(policy_id)
