@@ -1,13 +1,18 @@
-"""What every subcommand shares: exit codes, the usage error, and reading a JSON file."""
+"""What every subcommand shares: exit codes, the usage error, reading a JSON file, and for those
+that talk to a running API, their options and their client."""
 
 from __future__ import annotations
 
 import argparse
 import json
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, TypeAlias
 
 from pydantic import ValidationError
+
+from nanonav.client import Client
 
 EXIT_OK = 0
 EXIT_FAILED = 1  # the work failed, or a server could not be reached or failed
@@ -61,3 +66,44 @@ def validation_messages(error: ValidationError) -> list[str]:
         where = ".".join(str(part) for part in item["loc"]) or "scenario"
         lines.append(f"{where}: {item['msg']}")
     return lines
+
+
+URL_HELP = "the API's base URL (default: $NANONAV_URL, else http://127.0.0.1:8000)"
+KEY_HELP = (
+    "the API key, for a server with keys (default: $NANONAV_API_KEY, which keeps it out of the "
+    "process list)"
+)
+
+
+def _url(text: str) -> str:
+    if not text.startswith(("http://", "https://")):
+        raise argparse.ArgumentTypeError(f"not an http:// or https:// URL: {text!r}")
+    return text
+
+
+def positive(text: str) -> int:
+    """An id or a count given on the command line: a whole number of at least 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, not {value}")
+    return value
+
+
+def add_url(parser: argparse.ArgumentParser) -> None:
+    """The options of every command that talks to a running API: where, and with which key."""
+    parser.add_argument("--url", type=_url, help=URL_HELP)
+    parser.add_argument("--api-key", metavar="KEY", help=KEY_HELP)
+
+
+@contextmanager
+def connect(args: argparse.Namespace) -> Iterator[Client]:
+    """A client for ``add_url``'s options; a URL or key the client refuses is a UsageError."""
+    try:
+        client = Client(args.url, api_key=args.api_key)
+    except ValidationError as error:
+        raise UsageError(validation_messages(error)) from error
+    with client:
+        yield client

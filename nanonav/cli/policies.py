@@ -16,8 +16,15 @@ from typing import Any
 
 import numpy as np
 
-from nanonav.cli.common import EXIT_OK, Subcommands, UsageError, read_json_object
-from nanonav.cli.remote import _add_url, _connect, _positive
+from nanonav.cli.common import (
+    EXIT_OK,
+    Subcommands,
+    UsageError,
+    add_url,
+    connect,
+    positive,
+    read_json_object,
+)
 from nanonav.cli.tables import format_policies
 
 # What a file's object may carry to the server; the rest (a job's visits, a policy's id and
@@ -42,7 +49,7 @@ def add_policy(subcommands: Subcommands) -> None:
         metavar="KEY",
         help="send again with the same KEY to get the same policy back, not a second one",
     )
-    _add_url(policy)
+    add_url(policy)
     policy.set_defaults(handler=_policy)
 
 
@@ -50,7 +57,7 @@ def _policy(args: argparse.Namespace) -> int:
     table = read_table(args.file)
     if args.name is not None:
         table["name"] = args.name
-    with _connect(args) as api:
+    with connect(args) as api:
         sent = api.send_policy(
             table["states"],
             table["actions"],
@@ -114,14 +121,14 @@ def add_policies(subcommands: Subcommands) -> None:
         "with its table; `nanonav delete --policy ID` deletes one.",
     )
     policies.add_argument(
-        "--limit", type=_positive, default=20, metavar="N", help="at most N (default 20)"
+        "--limit", type=positive, default=20, metavar="N", help="at most N (default 20)"
     )
-    _add_url(policies)
+    add_url(policies)
     policies.set_defaults(handler=_policies)
 
 
 def _policies(args: argparse.Namespace) -> int:
-    with _connect(args) as api:
+    with connect(args) as api:
         found = list(api.policies(limit=args.limit))
     print(format_policies(found) if found else "no policies")
     return EXIT_OK

@@ -14,15 +14,15 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, get_args
 
-from pydantic import ValidationError
-
 from nanonav.cli.common import (
     EXIT_OK,
     Failed,
     Subcommands,
     UsageError,
+    add_url,
+    connect,
+    positive,
     read_json_object,
-    validation_messages,
 )
 from nanonav.cli.tables import format_jobs, format_study, format_table, plural, study_counts
 from nanonav.client import (
@@ -38,46 +38,10 @@ from nanonav.scenario import PRESETS
 
 JOB_POLL_S = 0.25
 STUDY_POLL_S = 0.5
-URL_HELP = "the API's base URL (default: $NANONAV_URL, else http://127.0.0.1:8000)"
-KEY_HELP = (
-    "the API key, for a server with keys (default: $NANONAV_API_KEY, which keeps it out of the "
-    "process list)"
-)
 WAIT_HELP = (
     "show progress until it has finished; Ctrl-C stops waiting (exit 130) and leaves it running "
     "on the server"
 )
-
-
-def _url(text: str) -> str:
-    if not text.startswith(("http://", "https://")):
-        raise argparse.ArgumentTypeError(f"not an http:// or https:// URL: {text!r}")
-    return text
-
-
-def _positive(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be at least 1, not {value}")
-    return value
-
-
-def _add_url(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--url", type=_url, help=URL_HELP)
-    parser.add_argument("--api-key", metavar="KEY", help=KEY_HELP)
-
-
-@contextmanager
-def _connect(args: argparse.Namespace) -> Iterator[Client]:
-    try:
-        client = Client(args.url, api_key=args.api_key)
-    except ValidationError as error:
-        raise UsageError(validation_messages(error)) from error
-    with client:
-        yield client
 
 
 @contextmanager
@@ -132,7 +96,7 @@ def add_submit(subcommands: Subcommands) -> None:
     )
     submit.add_argument("--seed", type=int, metavar="N", help="seed of every random draw")
     submit.add_argument("--wait", action="store_true", help=WAIT_HELP)
-    _add_url(submit)
+    add_url(submit)
     submit.set_defaults(handler=_submit)
 
 
@@ -144,7 +108,7 @@ def _submit(args: argparse.Namespace) -> int:
         scenario["preset"] = args.preset
     if args.seed is not None:
         scenario["seed"] = args.seed
-    with _connect(args) as api:
+    with connect(args) as api:
         job = api.submit(scenario)
         print(f"job {job.id} {job.status} (seed {job.scenario.get('seed')})", flush=True)
         if not args.wait:
@@ -192,16 +156,16 @@ def add_study(subcommands: Subcommands) -> None:
         "unless every job succeeded.",
     )
     study.add_argument("file", nargs="?", type=Path, metavar="FILE", help="the study as JSON")
-    study.add_argument("--id", type=_positive, metavar="ID", help="an existing study's id")
+    study.add_argument("--id", type=positive, metavar="ID", help="an existing study's id")
     study.add_argument("--wait", action="store_true", help=WAIT_HELP)
-    _add_url(study)
+    add_url(study)
     study.set_defaults(handler=_study)
 
 
 def _study(args: argparse.Namespace) -> int:
     if (args.file is None) == (args.id is None):
         raise UsageError(["give a study FILE to submit, or --id ID to show one (not both)"])
-    with _connect(args) as api:
+    with connect(args) as api:
         if args.file is not None:
             created = api.submit_study(read_json_object(args.file, "study"))
             seeds = len(created.spec.get("seeds") or [])
@@ -250,11 +214,11 @@ def add_fetch(subcommands: Subcommands) -> None:
         "with --policy, a policy's policy.json (its table, which `nanonav policy` sends "
         "again). DIR is created if missing.",
     )
-    fetch.add_argument("id", nargs="?", type=_positive, metavar="ID", help="a job's id")
-    fetch.add_argument("--study", type=_positive, metavar="ID", help="a study's id instead")
-    fetch.add_argument("--policy", type=_positive, metavar="ID", help="a policy's id instead")
+    fetch.add_argument("id", nargs="?", type=positive, metavar="ID", help="a job's id")
+    fetch.add_argument("--study", type=positive, metavar="ID", help="a study's id instead")
+    fetch.add_argument("--policy", type=positive, metavar="ID", help="a policy's id instead")
     fetch.add_argument("--out", type=Path, metavar="DIR", required=True, help="where to write")
-    _add_url(fetch)
+    add_url(fetch)
     fetch.set_defaults(handler=_fetch)
 
 
@@ -265,7 +229,7 @@ def _one_of(args: argparse.Namespace) -> None:
 
 def _fetch(args: argparse.Namespace) -> int:
     _one_of(args)
-    with _connect(args) as api:
+    with connect(args) as api:
         if args.study is not None:
             found = _study_files(api, args.study)
         elif args.policy is not None:
@@ -288,16 +252,16 @@ def add_delete(subcommands: Subcommands) -> None:
         "policy. A queued or running job or study is refused (cancel it first), and so are a "
         "job of a study (delete the study) and a policy that queued or running jobs evaluate.",
     )
-    delete.add_argument("id", nargs="?", type=_positive, metavar="ID", help="a job's id")
-    delete.add_argument("--study", type=_positive, metavar="ID", help="a study's id instead")
-    delete.add_argument("--policy", type=_positive, metavar="ID", help="a policy's id instead")
-    _add_url(delete)
+    delete.add_argument("id", nargs="?", type=positive, metavar="ID", help="a job's id")
+    delete.add_argument("--study", type=positive, metavar="ID", help="a study's id instead")
+    delete.add_argument("--policy", type=positive, metavar="ID", help="a policy's id instead")
+    add_url(delete)
     delete.set_defaults(handler=_delete)
 
 
 def _delete(args: argparse.Namespace) -> int:
     _one_of(args)
-    with _connect(args) as api:
+    with connect(args) as api:
         if args.study is not None:
             api.delete_study(args.study)
             print(f"Deleted study {args.study} and its jobs")
@@ -383,16 +347,16 @@ def add_jobs(subcommands: Subcommands) -> None:
         "and when each came (local time).",
     )
     jobs.add_argument("--status", choices=get_args(Status), help="only jobs in this state")
-    jobs.add_argument("--study", type=_positive, metavar="ID", help="only this study's jobs")
+    jobs.add_argument("--study", type=positive, metavar="ID", help="only this study's jobs")
     jobs.add_argument(
-        "--limit", type=_positive, default=20, metavar="N", help="at most N jobs (default 20)"
+        "--limit", type=positive, default=20, metavar="N", help="at most N jobs (default 20)"
     )
-    _add_url(jobs)
+    add_url(jobs)
     jobs.set_defaults(handler=_jobs)
 
 
 def _jobs(args: argparse.Namespace) -> int:
-    with _connect(args) as api:
+    with connect(args) as api:
         found = list(api.jobs(status=args.status, study=args.study, limit=args.limit))
     if not found:
         print("no jobs")
