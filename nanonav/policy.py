@@ -459,3 +459,21 @@ def chemotaxis(
         chance=chance / counted if counted else None,
         strict_chance=strict_chance / counted if counted else None,
     )
+
+
+def evaluation_scenario(
+    policy_from: str, actions: str, communication: Sequence[str], tables: int, per_robot: bool
+) -> dict[str, Any]:
+    """The smallest scenario that evaluates a policy sent as ``policy_from`` without learning:
+    its action set (steering, in active_brownian physics), its first communication model, and
+    with a table per robot, as many robots each with its own; the rest is left to defaults."""
+    learning: dict[str, Any] = {"episodes": 0, "actions": actions}
+    scenario: dict[str, Any] = {"policy_from": policy_from, "learning": learning}
+    if actions == "steering":
+        scenario["physics"] = {"model": "active_brownian"}
+    if communication and communication[0] != "none":
+        scenario["communication"] = {"model": communication[0]}
+    if per_robot:
+        scenario["robots"] = {"count": tables}
+        learning["shared_table"] = False
+    return scenario

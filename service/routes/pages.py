@@ -23,6 +23,7 @@ from fastapi.templating import Jinja2Templates
 from pydantic import BaseModel, ConfigDict, Field
 
 from nanonav import table1
+from nanonav.policy import evaluation_scenario
 from nanonav.scenario import (
     MAX_EXACT_INT,
     PRESETS,
@@ -32,7 +33,14 @@ from nanonav.scenario import (
     Policy,
     Scenario,
 )
-from nanonav.store import JobNotFound, JobStatus, JobStore, StudyNotFound
+from nanonav.store import (
+    JobNotFound,
+    JobStatus,
+    JobStore,
+    PolicyNotFound,
+    PolicyRecord,
+    StudyNotFound,
+)
 from nanonav.store.queue import PRESENCE_WINDOW_S
 from nanonav.studies.spec import GRID_KEYS
 from service.deps import ReportsDep, SettingsDep, StoreDep, StudiesDep
@@ -117,18 +125,56 @@ def index(
     studies: StudiesDep,
     caller: CallerDep,
     from_: Annotated[str, Query(alias="from", max_length=20)] = "",
+    policy: Annotated[str, Query(max_length=20)] = "",
 ) -> HTMLResponse:
-    """The new-job form (filled in from job ``from`` if given); recent studies and lone jobs."""
+    """The new-job form (filled in from job ``from``, or to evaluate ``policy``, if given);
+    recent studies and lone jobs."""
     source = None
     if from_.isdigit() and 0 < int(from_) <= MAX_EXACT_INT:
         source = _visible_job(store, caller, int(from_))
+    evaluated = None
+    if policy.isdigit() and 0 < int(policy) <= MAX_EXACT_INT:
+        evaluated = _visible_policy(store, caller, int(policy))
+    form = source.scenario if source else None
+    if evaluated is not None:
+        form = evaluation_scenario(
+            evaluated.policy_from, evaluated.action_set, evaluated.communication,
+            evaluated.tables, evaluated.per_robot,
+        )  # fmt: skip
     page = store.page(status=None, limit=10, before_id=None, owner=caller.only, standalone=True)
     jobs = [Job.of(j) for j in page.jobs]
     recent = list_studies(studies, caller, limit=5).studies
     return _page(
         request, "index.html", nav="new", jobs=jobs, studies=recent, source=source,
-        headlines=store.headlines([j.id for j in jobs]),
-        form_json=json.dumps(source.scenario, indent=2) if source else "{}", **_form_choices(),
+        evaluated=evaluated, headlines=store.headlines([j.id for j in jobs]),
+        form_json=json.dumps(form, indent=2) if form else "{}", **_form_choices(),
+    )  # fmt: skip
+
+
+def _visible_policy(store: JobStore, caller: Caller, policy_id: int) -> PolicyRecord | None:
+    """The policy, if it exists and the caller may see it."""
+    try:
+        record = store.policies.get(policy_id)
+    except PolicyNotFound:
+        return None
+    if caller.scoped and record.owner != caller.owner:
+        return None
+    return record
+
+
+@router.get("/ui/policies", response_class=HTMLResponse)
+def policies_page(
+    request: Request, store: StoreDep, caller: CallerDep, cursor: Cursor = None
+) -> HTMLResponse:
+    """Policies sent to ``POST /policies``, newest first, each with the form that evaluates it."""
+    before = None if cursor is None else decode_cursor(cursor)
+    page = store.policies.page(limit=25, before_id=before, owner=caller.only)
+    next_url = None
+    if page.next_before_id is not None:
+        next_url = f"/ui/policies?cursor={encode_cursor(page.next_before_id)}"
+    return _page(
+        request, "policies.html", nav="policies", policies=page.policies, next=next_url,
+        first="/ui/policies" if cursor else None,
     )  # fmt: skip
 
 

@@ -1,6 +1,7 @@
 """What a person does at the dashboard, in a real browser: run a job and watch it, read its
 results, turn its paths in 3-D, fix a field the server refused, cancel, launch a study and read
-its table, browse jobs, and read the API page, all with no request leaving the machine."""
+its table, browse jobs, evaluate a policy sent from elsewhere, and read the API page, all with no
+request leaving the machine."""
 
 from __future__ import annotations
 
@@ -9,10 +10,12 @@ import time
 from typing import Any
 
 import httpx
+import numpy as np
 import pytest
 from playwright.sync_api import Error as BrowserError
 from playwright.sync_api import Page, Route, expect
 
+from nanonav.engine import qlearning
 from tests.browser.conftest import Site, screenshot
 
 pytestmark = pytest.mark.timeout(180)
@@ -271,3 +274,28 @@ def test_a_studys_tables_fit_a_1400_pixel_window(page: Page, site: Site) -> None
     )
     assert len(widths) == 2 and all(inside <= room for _, inside, room in widths), widths
     screenshot(page, "study-1400")
+
+
+def test_a_policy_is_evaluated_from_the_policies_page(page: Page, site: Site) -> None:
+    states, actions = qlearning.labels("directions", "none")
+    body = {"name": "trained elsewhere", "states": states, "actions": actions,
+            "values": np.eye(len(states), len(actions)).tolist()}  # fmt: skip
+    sent = httpx.post(f"{site.url}/policies", json=body).json()
+    page.goto(f"{site.url}/ui/policies")
+    expect(page.locator("#policies")).to_contain_text("trained elsewhere")
+    screenshot(page, "policies")
+    page.click(f"a[href='/?policy={sent['id']}']")
+    page.wait_for_url(re.compile(rf"/\?policy={sent['id']}$"), wait_until="domcontentloaded")
+    expect(page.locator("#from-policy")).to_contain_text(sent["policy_from"])
+    expect(page.locator("select[name='learning.actions']")).to_have_value("directions")
+    expect(page.locator("input[name='learning.episodes']")).to_have_value("0")
+    page.fill("input[name=seed]", "4")
+    page.fill("input[name='learning.max_steps']", "60")
+    page.fill("input[name='evaluation.worlds']", "2")
+    page.click("button[type=submit]")
+    page.wait_for_url(re.compile(r"/ui/jobs/\d+$"))
+    job_id = page.url.rsplit("/", 1)[1]
+    scenario = httpx.get(f"{site.url}/jobs/{job_id}").json()["scenario"]
+    assert scenario["policy_from"] == sent["policy_from"] and scenario["seed"] == 4
+    assert scenario["learning"]["episodes"] == 0
+    assert scenario["learning"]["actions"] == "directions"

@@ -7,11 +7,17 @@ import html as markup
 import json
 import re
 import threading
+from typing import Any
 
+import httpx
+import numpy as np
+
+from nanonav.engine import qlearning
 from nanonav.scenario import Scenario
 from nanonav.settings import Settings
 from nanonav.store import JobStatus, StudyJob, StudyStore
 from tests.conftest import Api
+from tests.service.test_security import KEY_A, KEY_B, bearer, served
 from worker.job import run_job
 
 TINY = {"robots": {"count": 2}, "learning": {"episodes": 1, "max_steps": 40},
@@ -45,7 +51,7 @@ def test_a_finished_jobs_page_reads_without_javascript(api: Api, api_settings: S
 def test_pages_load_nothing_from_other_hosts(api: Api, api_settings: Settings) -> None:
     job_id = succeeded(api, api_settings)
     for path in ("/", "/ui/jobs", f"/ui/jobs/{job_id}", "/ui/studies", "/ui/studies/new",
-                 "/docs"):  # fmt: skip
+                 "/ui/policies", "/docs"):  # fmt: skip
         html = api.client.get(path).text
         sources = re.findall(r'(?:src|href)="([^"]+)"', html)
         assert sources, path
@@ -189,3 +195,57 @@ def test_an_active_brownian_jobs_page_says_its_physics_and_units(
     for name in ("trajectory", "concentration", "learning"):
         picture = api.client.get(f"/jobs/{job.id}/plots/{name}.png")
         assert picture.status_code == 200 and picture.content.startswith(b"\x89PNG"), name
+
+
+def send_policy(client: httpx.Client, actions: str, communication: str, robots: int = 0,
+                headers: dict[str, str] | None = None) -> dict[str, Any]:  # fmt: skip
+    states, labels = qlearning.labels(actions, communication)
+    shape = (robots, len(states), len(labels)) if robots else (len(states), len(labels))
+    body = {"name": f"{actions} table", "states": states, "actions": labels,
+            "values": np.zeros(shape).tolist()}  # fmt: skip
+    response = client.post("/policies", json=body, headers=headers)
+    assert response.status_code == 201, response.text
+    answer: dict[str, Any] = response.json()
+    return answer
+
+
+def test_the_policies_page_lists_them_and_the_form_evaluates_one(api: Api) -> None:
+    assert "No policies yet" in api.client.get("/ui/policies").text
+    per_robot = send_policy(api.client, "directions", "none", robots=3)
+    steering = send_policy(api.client, "steering", "broadcast")
+    html = api.client.get("/ui/policies").text
+    rows = re.findall(r'<a href="/policies/(\d+)">#\d+</a>', html)
+    assert rows == [str(steering["id"]), str(per_robot["id"])]
+    assert f'href="/?policy={per_robot["id"]}"' in html
+    assert "one per robot of 3" in html and "broadcast" in html
+    expected = {
+        per_robot["id"]: {"policy_from": per_robot["policy_from"], "robots": {"count": 3},
+                          "learning": {"episodes": 0, "actions": "directions",
+                                       "shared_table": False}},
+        steering["id"]: {"policy_from": steering["policy_from"],
+                         "physics": {"model": "active_brownian"},
+                         "communication": {"model": "broadcast"},
+                         "learning": {"episodes": 0, "actions": "steering"}},
+    }  # fmt: skip
+    for policy_id, scenario in expected.items():
+        form = api.client.get("/", params={"policy": policy_id}).text
+        assert 'id="from-policy"' in form and f"policy-{policy_id}" in form
+        assert form_json(form) == scenario
+        job = api.client.post("/jobs", json=scenario)
+        assert job.status_code == 202, job.text  # the form as filled in is an evaluation
+    for junk in ("999", "x", "-1", "0"):
+        form = api.client.get("/", params={"policy": junk}).text
+        assert 'id="from-policy"' not in form and form_json(form) == {}, junk
+
+
+def test_another_keys_policies_are_neither_listed_nor_filled_in(sqlite_url: str) -> None:
+    settings = Settings(database_url=sqlite_url, api_keys=f"{KEY_A},{KEY_B}")
+    with served(settings) as api:
+        mine = send_policy(api.client, "behaviors", "none", headers=bearer(KEY_A))
+        theirs = api.client.get("/ui/policies", headers=bearer(KEY_B)).text
+        assert "No policies yet" in theirs
+        assert (
+            f"/policies/{mine['id']}" in api.client.get("/ui/policies", headers=bearer(KEY_A)).text
+        )
+        form = api.client.get("/", params={"policy": mine["id"]}, headers=bearer(KEY_B)).text
+        assert form_json(form) == {}
