@@ -20,7 +20,7 @@ from nanonav.engine import qlearning
 from nanonav.scenario import ActionSet, CommunicationModel, Scenario
 from nanonav.store.errors import JobNotFound, ResultsUnavailable
 from nanonav.store.models import JobStatus
-from nanonav.store.policies import PolicyNotFound, PolicySource, policy_number
+from nanonav.store.policies import PolicyNotFound, PolicyRecord, PolicySource, policy_number
 
 UNVISITED = "unvisited"
 ACTION_SETS: tuple[ActionSet, ...] = get_args(ActionSet)
@@ -461,19 +461,17 @@ def chemotaxis(
     )
 
 
-def evaluation_scenario(
-    policy_from: str, actions: str, communication: Sequence[str], tables: int, per_robot: bool
-) -> dict[str, Any]:
-    """The smallest scenario that evaluates a policy sent as ``policy_from`` without learning:
-    its action set (steering, in active_brownian physics), its first communication model, and
-    with a table per robot, as many robots each with its own; the rest is left to defaults."""
-    learning: dict[str, Any] = {"episodes": 0, "actions": actions}
-    scenario: dict[str, Any] = {"policy_from": policy_from, "learning": learning}
-    if actions == "steering":
+def evaluation_scenario(policy: PolicyRecord) -> dict[str, Any]:
+    """The smallest scenario that evaluates ``policy`` without learning: its action set
+    (steering, in active_brownian physics), its first communication model, and with a table per
+    robot, as many robots each with its own; the rest is left to defaults."""
+    learning: dict[str, Any] = {"episodes": 0, "actions": policy.action_set}
+    scenario: dict[str, Any] = {"policy_from": policy.policy_from, "learning": learning}
+    if policy.action_set == "steering":
         scenario["physics"] = {"model": "active_brownian"}
-    if communication and communication[0] != "none":
-        scenario["communication"] = {"model": communication[0]}
-    if per_robot:
-        scenario["robots"] = {"count": tables}
+    if policy.communication[0] != "none":
+        scenario["communication"] = {"model": policy.communication[0]}
+    if policy.per_robot:
+        scenario["robots"] = {"count": policy.tables}
         learning["shared_table"] = False
     return scenario

@@ -214,12 +214,17 @@ def add_fetch(subcommands: Subcommands) -> None:
         "with --policy, a policy's policy.json (its table, which `nanonav policy` sends "
         "again). DIR is created if missing.",
     )
-    fetch.add_argument("id", nargs="?", type=positive, metavar="ID", help="a job's id")
-    fetch.add_argument("--study", type=positive, metavar="ID", help="a study's id instead")
-    fetch.add_argument("--policy", type=positive, metavar="ID", help="a policy's id instead")
+    _add_one_of(fetch)
     fetch.add_argument("--out", type=Path, metavar="DIR", required=True, help="where to write")
     add_url(fetch)
     fetch.set_defaults(handler=_fetch)
+
+
+def _add_one_of(parser: argparse.ArgumentParser) -> None:
+    """What ``fetch`` and ``delete`` act on: a job, a study or a policy (``_one_of`` checks)."""
+    parser.add_argument("id", nargs="?", type=positive, metavar="ID", help="a job's id")
+    parser.add_argument("--study", type=positive, metavar="ID", help="a study's id instead")
+    parser.add_argument("--policy", type=positive, metavar="ID", help="a policy's id instead")
 
 
 def _one_of(args: argparse.Namespace) -> None:
@@ -252,9 +257,7 @@ def add_delete(subcommands: Subcommands) -> None:
         "policy. A queued or running job or study is refused (cancel it first), and so are a "
         "job of a study (delete the study) and a policy that queued or running jobs evaluate.",
     )
-    delete.add_argument("id", nargs="?", type=positive, metavar="ID", help="a job's id")
-    delete.add_argument("--study", type=positive, metavar="ID", help="a study's id instead")
-    delete.add_argument("--policy", type=positive, metavar="ID", help="a policy's id instead")
+    _add_one_of(delete)
     add_url(delete)
     delete.set_defaults(handler=_delete)
 

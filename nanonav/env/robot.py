@@ -152,7 +152,7 @@ class NanoNavVectorEnv(VectorEnv[NDArray[np.float64], NDArray[np.int64], NDArray
     def step(
         self, actions: NDArray[np.int64]
     ) -> tuple[NDArray[np.float64], NDArray[Any], NDArray[Any], NDArray[Any], dict[str, Any]]:
-        given = np.asarray(actions, dtype=np.int64).reshape(self.num_envs, 1)
+        given = np.asarray(actions).reshape(self.num_envs, 1)
         w = self._worlds
         fresh = self._ended.copy()
         w.step(given, fresh)

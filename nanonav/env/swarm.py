@@ -115,10 +115,8 @@ class NanoNavParallelEnv(ParallelEnv[str, NDArray[np.float64], int]):
             except KeyError:
                 missing = [a for a in agents if a not in actions]
                 raise ValueError(f"no action for live agent(s) {missing[:5]}") from None
-        count = self._worlds.actions
-        if given.dtype.kind not in "iu" or (
-            given.size and (given.min() < 0 or given.max() >= count)
-        ):
+        if not self._worlds.in_action_set(given):
+            count = self._worlds.actions
             for agent in agents:
                 action = actions[agent]
                 if not isinstance(action, (int, np.integer)) or not 0 <= action < count:
@@ -170,11 +168,7 @@ class NanoNavParallelEnv(ParallelEnv[str, NDArray[np.float64], int]):
         of which those live before the step count."""
         given = np.asarray(actions)
         n = len(self.possible_agents)
-        if given.shape != (n,):
-            raise ValueError(f"actions of shape {given.shape}, not ({n},)")
-        count = self._worlds.actions
-        if given.dtype.kind not in "iu" or (n and (given.min() < 0 or given.max() >= count)):
-            raise ValueError(f"actions must be integers of 0..{count - 1}")
+        self._worlds.check(given, (n,))
         self._actions[0] = given
         live = self._live
         ended, over = self._advance()

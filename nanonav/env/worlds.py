@@ -203,18 +203,15 @@ class Worlds:
     ) -> None:
         """Step every world on ``actions`` (worlds x robots; an inactive robot's is unused), or
         draw a fresh one where ``fresh``; the outputs are in ``obs``, ``state``, ``reward``,
-        ``active`` and ``over``. An action outside the action set raises ValueError, unless
+        ``active`` and ``over``. An action that is not an integer of the action set raises
+        ValueError, unless
         the caller ``checked`` them already (an action the engine indexes with unchecked would
         read memory that is not its own)."""
         if actions is None:
             actions = self._no_actions
-        elif checked:
-            pass
-        elif actions.shape != (self.count, self.robots):
-            raise ValueError(f"actions of shape {actions.shape}, not {(self.count, self.robots)}")
-        elif actions.size and (actions.min() < 0 or actions.max() >= self.actions):
-            bad = actions[(actions < 0) | (actions >= self.actions)][0]
-            raise ValueError(f"action {bad} is not in the action set 0..{self.actions - 1}")
+        elif not checked:
+            self.check(actions, (self.count, self.robots))
+            actions = actions.astype(np.int64, copy=False)  # one compiled signature
         status = stepping.step_worlds(
             self._params,
             self.world_rngs,
@@ -225,6 +222,22 @@ class Worlds:
             self.directions,
         )
         raise_for_layout(status, self.scenario)
+
+    def in_action_set(self, actions: NDArray[Any]) -> bool:
+        """Whether every one of ``actions`` is an integer of the action set."""
+        return actions.dtype.kind in "iu" and (
+            not actions.size or (actions.min() >= 0 and actions.max() < self.actions)
+        )
+
+    def check(self, actions: NDArray[Any], shape: tuple[int, ...]) -> None:
+        """Refuse ``actions`` not shaped ``shape``, or not all integers of the action set."""
+        if actions.shape != shape:
+            raise ValueError(f"actions of shape {actions.shape}, not {shape}")
+        if actions.dtype.kind not in "iu":
+            raise ValueError(f"actions of {actions.dtype}, not integers")
+        if not self.in_action_set(actions):
+            bad = actions[(actions < 0) | (actions >= self.actions)][0]
+            raise ValueError(f"action {bad} is not in the action set 0..{self.actions - 1}")
 
     @property
     def over(self) -> NDArray[np.bool_]:

@@ -9,13 +9,14 @@ upgrade its lock half-way.
 
 from __future__ import annotations
 
+import zlib
 from collections.abc import Iterator
 from contextlib import contextmanager
 from functools import partial
 from pathlib import Path
 from typing import Any
 
-from sqlalchemy import Engine, create_engine, event, inspect
+from sqlalchemy import Engine, create_engine, event, inspect, text
 from sqlalchemy.engine import Connection, ExceptionContext, make_url
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session, sessionmaker
@@ -119,3 +120,13 @@ def unit_of_work(sessions: sessionmaker[Session], *, write: bool = False) -> Ite
         if write:
             session.connection(execution_options={WRITE_LOCK: True})
         yield session
+
+
+def serialise(session: Session, name: str) -> None:
+    """Hold, until ``session``'s transaction ends, a lock that every transaction serialising on
+    ``name`` takes: a count and the insert it permits then cannot interleave with another's. On
+    SQLite the transaction's write lock (``unit_of_work(write=True)``) already does; on
+    PostgreSQL, a transaction-scoped advisory lock on ``name``'s hash."""
+    if session.get_bind().dialect.name == "postgresql":
+        lock = zlib.crc32(name.encode()) - 2**31
+        session.execute(text("SELECT pg_advisory_xact_lock(:lock)"), {"lock": lock})

@@ -7,18 +7,17 @@ is given: the labels and values were checked by whoever sent them (``nanonav.pol
 
 from __future__ import annotations
 
-import zlib
 from dataclasses import dataclass
 from datetime import datetime
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from sqlalchemy import Engine, delete, func, select, text
+from sqlalchemy import Engine, delete, func, select
 from sqlalchemy.orm import Session, defer
 
 from nanonav.store.arrays import pack, unpack
-from nanonav.store.db import make_sessionmaker, unit_of_work
+from nanonav.store.db import make_sessionmaker, serialise, unit_of_work
 from nanonav.store.errors import PolicyInUse, PolicyLimitReached, StoreError
 from nanonav.store.idempotency import Idempotency, insert_once
 from nanonav.store.models import Job, JobStatus, Policy
@@ -205,12 +204,10 @@ class PolicyStore:
 
 def _check_limit(session: Session, owner: str, limit: int) -> None:
     """Refuse a policy past ``limit`` of ``owner``'s, counted after a lock that serialises
-    adds of one owner (SQLite's write lock; on PostgreSQL an advisory lock on the owner)."""
+    adds of one owner."""
     if not limit:
         return
-    if session.get_bind().dialect.name == "postgresql":
-        lock = zlib.crc32(f"policies:{owner}".encode()) - 2**31
-        session.execute(text("SELECT pg_advisory_xact_lock(:lock)"), {"lock": lock})
+    serialise(session, f"policies:{owner}")
     kept = session.scalar(select(func.count()).where(Policy.owner == owner))
     if int(kept or 0) >= limit:
         raise PolicyLimitReached(limit)

@@ -7,12 +7,12 @@ on the key), so concurrent submits cannot together pass a quota that each alone 
 
 from __future__ import annotations
 
-import zlib
 from dataclasses import dataclass
 
-from sqlalchemy import func, select, text
+from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
+from nanonav.store.db import serialise
 from nanonav.store.errors import QuotaExceeded
 from nanonav.store.models import Job, JobStatus
 
@@ -34,9 +34,7 @@ def check_quota(session: Session, quota: Quota | None, *, jobs: int, robot_steps
     """Refuse adding ``jobs`` jobs costing ``robot_steps`` when the key would pass a limit."""
     if quota is None or quota.unlimited:
         return
-    if session.get_bind().dialect.name == "postgresql":
-        lock = zlib.crc32(quota.key.encode()) - 2**31
-        session.execute(text("SELECT pg_advisory_xact_lock(:lock)"), {"lock": lock})
+    serialise(session, quota.key)
     active = select(func.count(), func.coalesce(func.sum(Job.robot_steps), 0)).where(
         Job.quota_key == quota.key, Job.status.in_([JobStatus.QUEUED, JobStatus.RUNNING])
     )

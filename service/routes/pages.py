@@ -135,12 +135,7 @@ def index(
     evaluated = None
     if policy.isdigit() and 0 < int(policy) <= MAX_EXACT_INT:
         evaluated = _visible_policy(store, caller, int(policy))
-    form = source.scenario if source else None
-    if evaluated is not None:
-        form = evaluation_scenario(
-            evaluated.policy_from, evaluated.action_set, evaluated.communication,
-            evaluated.tables, evaluated.per_robot,
-        )  # fmt: skip
+    form = evaluation_scenario(evaluated) if evaluated else source.scenario if source else None
     page = store.page(status=None, limit=10, before_id=None, owner=caller.only, standalone=True)
     jobs = [Job.of(j) for j in page.jobs]
     recent = list_studies(studies, caller, limit=5).studies

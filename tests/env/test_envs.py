@@ -260,3 +260,5 @@ def test_what_a_user_can_get_wrong_is_refused_by_name() -> None:
     vector.reset(seed=0)
     with pytest.raises(ValueError, match="action -1"):
         vector.step(np.array([0, -1]))
+    with pytest.raises(ValueError, match="float64, not integers"):
+        vector.step(np.array([0.0, 1.5]))
