@@ -3,13 +3,15 @@ before it is queued, alone or in a study."""
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from typing import Any, cast
 
 from numpy.typing import NDArray
 
 from nanonav.policy import TableReader, UnusablePolicy, learned_table
 from nanonav.scenario import Scenario
+from nanonav.store import PolicyNotFound
 from service.problems import InvalidInput, field_error
 
 # ``security.owned_tables`` declares a job's id, and reads a policy's name as well: it passes
@@ -27,6 +29,21 @@ def check_policy_from(
     try:
         learned_table(scenario, cast(TableReader, read))
     except UnusablePolicy as error:
-        reason = f"{where}{error}"
-        problem = field_error(loc, reason, "policy_unusable")
-        raise InvalidInput(f"{problem.pointer}: {problem.detail}", [problem]) from None
+        raise _unusable(loc, f"{where}{error}") from None
+
+
+@contextmanager
+def policies_kept(blame: Callable[[int], tuple[Sequence[str | int], str]]) -> Iterator[None]:
+    """Refuse, as the check does, jobs whose policy was deleted after the check and before
+    they were queued (the store queues none then); ``blame`` says where a policy's id was
+    named, and which grid point it is."""
+    try:
+        yield
+    except PolicyNotFound as error:
+        loc, where = blame(error.policy_id)
+        raise _unusable(loc, f"{where}{error}") from None
+
+
+def _unusable(loc: Sequence[str | int], reason: str) -> InvalidInput:
+    problem = field_error(loc, reason, "policy_unusable")
+    return InvalidInput(f"{problem.pointer}: {problem.detail}", [problem])

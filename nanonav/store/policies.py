@@ -7,6 +7,7 @@ is given: the labels and values were checked by whoever sent them (``nanonav.pol
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
 from datetime import datetime
 from typing import Any
@@ -39,7 +40,7 @@ def policy_name(policy_id: int) -> str:
 def policy_number(name: str) -> int:
     """The id of the policy ``name`` (``policy-<id>``) names; ValueError for another string."""
     digits = name.removeprefix(POLICY_PREFIX)
-    if digits == name or not digits.isdigit():
+    if digits == name or not (digits.isascii() and digits.isdigit()):
         raise ValueError(f"{name!r} is not a policy's name, {POLICY_PREFIX}<id>")
     return int(digits)
 
@@ -186,7 +187,11 @@ class PolicyStore:
         """Forget the policy; PolicyInUse while queued or running jobs evaluate it (a job
         queued while it is deleted fails, saying so, when a worker claims it)."""
         with unit_of_work(self._sessions, write=True) as session:
-            if session.scalar(select(Policy.id).where(Policy.id == policy_id)) is None:
+            # Locked before the jobs are counted: a transaction queueing a job for this policy
+            # (``hold_policies``) either commits first, and its job is counted, or waits and then
+            # finds the policy gone.
+            found = select(Policy.id).where(Policy.id == policy_id).with_for_update()
+            if session.scalar(found) is None:
                 raise PolicyNotFound(policy_id)
             users = (
                 select(Job.id)
@@ -200,6 +205,27 @@ class PolicyStore:
             if job_ids:
                 raise PolicyInUse(policy_id, job_ids[:SHOWN_JOBS], len(job_ids))
             session.execute(delete(Policy).where(Policy.id == policy_id))
+
+
+def evaluated_policies(sources: Iterable[object]) -> list[int]:
+    """The ids of the policies among jobs' ``policy_from`` values (a job's id is no policy)."""
+    names = {s for s in sources if isinstance(s, str) and s.startswith(POLICY_PREFIX)}
+    return sorted(policy_number(name) for name in names)
+
+
+def hold_policies(session: Session, policy_ids: list[int]) -> None:
+    """Keep, until ``session``'s transaction ends, the policies that the jobs it queues
+    evaluate; PolicyNotFound for one that is gone. A delete then waits for those jobs and
+    counts them. On PostgreSQL, a shared row lock that the delete's exclusive one waits for; on
+    SQLite, the transaction's write lock (``unit_of_work(write=True)``) keeps every other
+    writer out."""
+    if not policy_ids:
+        return
+    held = select(Policy.id).where(Policy.id.in_(policy_ids)).with_for_update(read=True)
+    found = set(session.scalars(held))
+    for policy_id in policy_ids:
+        if policy_id not in found:
+            raise PolicyNotFound(policy_id)
 
 
 def _check_limit(session: Session, owner: str, limit: int) -> None:

@@ -31,7 +31,13 @@ from nanonav.store.deliveries import add_waiting
 from nanonav.store.errors import JobAlreadyFinished, JobNotFound, LeaseLost, ResultsUnavailable
 from nanonav.store.idempotency import Idempotency, insert_once
 from nanonav.store.models import Job, JobPlot, JobResult, JobStatus, UTCDateTime, Worker
-from nanonav.store.policies import PolicySource, PolicyStore, policy_number
+from nanonav.store.policies import (
+    PolicySource,
+    PolicyStore,
+    evaluated_policies,
+    hold_policies,
+    policy_number,
+)
 from nanonav.store.quotas import Quota, check_quota
 from nanonav.store.retention import delete_job
 from nanonav.store.wakeups import announce
@@ -163,9 +169,11 @@ class JobStore:
         """A new queued job of ``owner`` (with the webhook its end sends to ``callback_url``);
         with a key of ``owner`` that still holds, the job that key made instead
         (``IdempotencyKeyReused`` if that was made by another request). Past ``quota``,
-        ``QuotaExceeded``."""
+        ``QuotaExceeded``; ``PolicyNotFound`` if the policy it evaluates is gone."""
+        policies = evaluated_policies([scenario.get("policy_from")])
 
         def make(session: Session, now: datetime) -> Job:
+            hold_policies(session, policies)
             check_quota(session, quota, jobs=1, robot_steps=robot_steps)
             row = Job(
                 status=JobStatus.QUEUED,
@@ -189,8 +197,10 @@ class JobStore:
             announce(session)
             return row
 
-        limited = not (quota is None or quota.unlimited)
-        row = insert_once(self._sessions, Job, idempotency, make, owner=owner, reads_first=limited)
+        reads_first = not (quota is None or quota.unlimited) or bool(policies)
+        row = insert_once(
+            self._sessions, Job, idempotency, make, owner=owner, reads_first=reads_first
+        )
         return JobRecord.of(row)
 
     def get(self, job_id: int) -> JobRecord:

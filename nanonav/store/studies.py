@@ -22,6 +22,7 @@ from nanonav.store.deliveries import add_waiting
 from nanonav.store.errors import StudyNotFound
 from nanonav.store.idempotency import Idempotency, insert_once
 from nanonav.store.models import Job, JobResult, JobStatus, Study, StudyPlot
+from nanonav.store.policies import evaluated_policies, hold_policies
 from nanonav.store.queue import aware, utcnow
 from nanonav.store.quotas import Quota, check_quota
 from nanonav.store.retention import delete_study
@@ -118,10 +119,13 @@ class StudyStore:
         """The study of ``owner`` and every one of its jobs, queued in one transaction; with a
         key of ``owner`` that still holds, the study that key made instead
         (``IdempotencyKeyReused`` if that was made by another request). Past ``quota`` (which
-        counts every job of the study), ``QuotaExceeded``."""
+        counts every job of the study), ``QuotaExceeded``; ``PolicyNotFound`` if a policy
+        that a job evaluates is gone."""
         quota_key = owner if quota is None else quota.key
+        policies = evaluated_policies(job.scenario.get("policy_from") for job in jobs)
 
         def make(session: Session, now: datetime) -> Study:
+            hold_policies(session, policies)
             steps = sum(job.robot_steps for job in jobs)
             check_quota(session, quota, jobs=len(jobs), robot_steps=steps)
             study = Study(
@@ -163,9 +167,9 @@ class StudyStore:
             announce(session)
             return study
 
-        limited = not (quota is None or quota.unlimited)
+        reads_first = not (quota is None or quota.unlimited) or bool(policies)
         study = insert_once(
-            self._sessions, Study, idempotency, make, owner=owner, reads_first=limited
+            self._sessions, Study, idempotency, make, owner=owner, reads_first=reads_first
         )
         return StudyRecord.of(study)
 

@@ -29,7 +29,7 @@ from service.drawing import Drawer, kept_name
 from service.idempotency import IdempotencyDep
 from service.ids import JobId
 from service.paging import Cursor, decode_cursor, encode_cursor
-from service.policy_from import check_policy_from
+from service.policy_from import check_policy_from, policies_kept
 from service.problems import (
     InvalidInput,
     NoCallback,
@@ -95,15 +95,16 @@ def submit_job(
     check_policy_from(scenario, owned_tables(store, caller), ("body", "policy_from"))
     quota = quota_of(caller, settings)
     check_quota_fits(quota, jobs=1, robot_steps=scenario.robot_steps_budget, blame=[["body"]])
-    job = store.enqueue(
-        scenario.model_dump(mode="json"),
-        robot_steps=scenario.robot_steps_budget,
-        episodes=scenario.episodes,
-        idempotency=idempotency,
-        callback_url=callback_url,
-        owner=caller.owner,
-        quota=quota,
-    )
+    with policies_kept(lambda _: (("body", "policy_from"), "")):
+        job = store.enqueue(
+            scenario.model_dump(mode="json"),
+            robot_steps=scenario.robot_steps_budget,
+            episodes=scenario.episodes,
+            idempotency=idempotency,
+            callback_url=callback_url,
+            owner=caller.owner,
+            quota=quota,
+        )
     response.headers["Location"] = f"/jobs/{job.id}"
     return Job.of(job)
 

@@ -12,7 +12,14 @@ from fastapi.concurrency import run_in_threadpool
 from pydantic import ValidationError
 
 from nanonav.pictures import study as pictures
-from nanonav.store import StudyJob, StudyJobState, StudyNotFound, StudyRecord, StudyStore
+from nanonav.store import (
+    StudyJob,
+    StudyJobState,
+    StudyNotFound,
+    StudyRecord,
+    StudyStore,
+    policy_name,
+)
 from nanonav.studies import export
 from nanonav.studies.report import (
     JobOutcome,
@@ -40,7 +47,7 @@ from service.drawing import Drawer, kept_name
 from service.idempotency import IdempotencyDep
 from service.ids import StudyId
 from service.paging import Cursor, decode_cursor, encode_cursor
-from service.policy_from import check_policy_from
+from service.policy_from import check_policy_from, policies_kept
 from service.problems import (
     InvalidInput,
     NoCallback,
@@ -144,15 +151,21 @@ def submit_study(
         for point in grid
     ]
     stored = spec.model_copy(update={"seeds": seeds, "replicates": None})
-    record = studies.create(
-        name=spec.name,
-        spec=stored.model_dump(mode="json"),
-        jobs=jobs,
-        idempotency=idempotency,
-        callback_url=callback_url,
-        owner=caller.owner,
-        quota=quota,
-    )
+
+    def naming(policy_id: int) -> tuple[tuple[str | int, ...], str]:
+        named = next(p for p in grid if p.scenario.policy_from == policy_name(policy_id))
+        return _policy_blame(spec, named.values)
+
+    with policies_kept(naming):
+        record = studies.create(
+            name=spec.name,
+            spec=stored.model_dump(mode="json"),
+            jobs=jobs,
+            idempotency=idempotency,
+            callback_url=callback_url,
+            owner=caller.owner,
+            quota=quota,
+        )
     response.headers["Location"] = f"/studies/{record.id}"
     return study_answer(studies, reports, record)
 
