@@ -25,7 +25,15 @@ $(VENV)/.installed-test: $(VENV)/.installed
 	$(BIN)/python -m pip install --quiet -e '.[test]'
 	touch $@
 
-run: $(VENV)/.installed
+# A PostgreSQL DATABASE_URL needs the driver of the `postgres` extra.
+RUN_DATABASE_URL := $(or $(NANONAV_DATABASE_URL),$(DATABASE_URL))
+RUN_NEEDS := $(VENV)/.installed $(if $(filter postgres%,$(RUN_DATABASE_URL)),$(VENV)/.installed-postgres)
+
+$(VENV)/.installed-postgres: $(VENV)/.installed
+	$(BIN)/python -m pip install --quiet -e '.[postgres]'
+	touch $@
+
+run: $(RUN_NEEDS)
 	$(BIN)/python -m nanonav.run_local
 
 test: $(VENV)/.installed-test lint typecheck pytest

@@ -18,8 +18,10 @@ import urllib.request
 from pathlib import Path
 from types import FrameType
 
+from pydantic import ValidationError
 from sqlalchemy.engine import make_url
 
+from nanonav.cli.common import validation_messages
 from nanonav.settings import Settings
 from nanonav.store.migrate import upgrade
 
@@ -63,7 +65,12 @@ def _stop(children: list[subprocess.Popen[bytes]]) -> None:
 
 
 def main() -> int:
-    settings = Settings()
+    try:
+        settings = Settings()
+    except ValidationError as error:
+        for line in validation_messages(error):
+            print(f"nanonav: {line}", file=sys.stderr)
+        return 2
     shown = make_url(settings.database_url).render_as_string(hide_password=True)
     print(f"nanonav: migrating {shown}", flush=True)
     upgrade(settings.database_url)

@@ -472,6 +472,14 @@ class Settings(BaseSettings):
             url = url.set(drivername="postgresql+psycopg")
         if url.get_backend_name() not in {"sqlite", "postgresql"}:
             raise ValueError("only sqlite:// and postgresql:// databases are supported")
+        try:
+            url.get_dialect().import_dbapi()
+        except ImportError as error:
+            raise ValueError(
+                f"a {url.get_backend_name()} database needs the {url.get_driver_name()} driver, "
+                f"which is not installed ({error}): install NanoNav's 'postgres' extra, "
+                "pip install -e '.[postgres]' (make run does when DATABASE_URL is postgresql://)"
+            ) from None
         return url.render_as_string(hide_password=False)
 
 

@@ -154,3 +154,58 @@ def test_the_nanonav_migrate_api_and_worker_commands(
     text = (tmp_path / "api.log").read_text()
     assert len(set(re.findall(r"Started server process \[(\d+)\]", text))) == 2, text
     assert text.count("Application shutdown complete") == 2, text
+
+
+def test_run_local_on_postgresql_migrates_and_serves(postgres_url: str, tmp_path: Path) -> None:
+    """The README's ``DATABASE_URL=postgresql://... make run``, on the real server."""
+    port = free_port()
+    log = tmp_path / "run.log"
+    command = [sys.executable, "-m", "nanonav.run_local"]
+    env = clean_environment(PORT=str(port), DATABASE_URL=postgres_url)
+    with running(command, log, env, cwd=tmp_path) as process:
+        deadline = time.monotonic() + 120
+        while "the API is at" not in log.read_text():
+            assert process.poll() is None, log.read_text()
+            assert time.monotonic() < deadline, log.read_text()
+            time.sleep(0.1)
+        with httpx.Client(base_url=f"http://127.0.0.1:{port}", timeout=10) as client:
+            health = client.get("/healthz").json()
+            assert health["status"] == "ok" and health["database"] is True
+            job_id = client.post("/jobs", json=TINY).json()["id"]
+        store = JobStore.from_url(postgres_url)
+        assert store.get(job_id).scenario["robots"]["count"] == 2
+        store.close()
+        process.send_signal(signal.SIGINT)
+        assert process.wait(timeout=30) == 0
+    assert not (tmp_path / "var").exists(), "nothing went to a SQLite file"
+    assert "Traceback" not in log.read_text()
+
+
+def test_a_database_whose_driver_is_missing_is_one_line_naming_the_extra() -> None:
+    """Without psycopg (the ``postgres`` extra), a PostgreSQL URL is refused in one line."""
+    blocked = (
+        "import runpy, sys; sys.modules['psycopg'] = None; "
+        "runpy.run_module('nanonav.run_local', run_name='__main__')"
+    )
+    env = clean_environment(DATABASE_URL="postgresql://user:secret@127.0.0.1:1/nanonav")
+    done = subprocess.run(
+        [sys.executable, "-c", blocked], env=env, capture_output=True, text=True, timeout=60
+    )
+    assert done.returncode == 2 and done.stdout == ""
+    [line] = done.stderr.splitlines()
+    assert "needs the psycopg driver" in line and "pip install -e '.[postgres]'" in line
+    assert "secret" not in line
+
+
+@pytest.mark.parametrize(
+    ("url", "extra"),
+    [("postgresql://u@h/d", True), ("postgresql+psycopg://u@h/d", True), ("", False)],
+)
+def test_make_run_installs_the_driver_its_database_url_needs(url: str, extra: bool) -> None:
+    root = Path(__file__).resolve().parents[2]
+    env = clean_environment(DATABASE_URL=url) if url else clean_environment()
+    planned = subprocess.run(
+        ["make", "-n", "run"], cwd=root, env=env, capture_output=True, text=True, check=True
+    ).stdout
+    assert ("'.[postgres]'" in planned) is extra, planned
+    assert planned.rstrip().endswith("-m nanonav.run_local")
