@@ -16,6 +16,7 @@ from collections.abc import Collection
 from urllib.parse import urlsplit
 
 from nanonav.settings import Settings
+from service.numerals import positive_int
 
 SESSION_COOKIE = "nanonav_session"
 VERSION = "v1"
@@ -44,10 +45,13 @@ def issue(owner: str, secret: bytes, *, now: float, ttl_s: float) -> str:
 def owner_of_token(token: str, secret: bytes, owners: Collection[str], *, now: float) -> str | None:
     """The owner a token names if it is genuine, unexpired and its key still configured."""
     parts = token.split(".")
-    if len(parts) != 4 or parts[0] != VERSION or not parts[2].isdigit():
+    if len(parts) != 4 or parts[0] != VERSION:
         return None
     _, owner, expires_text, given = parts
-    expires = int(expires_text)
+    # Only the spelling the token was issued with: "0123" would verify under the MAC of 123.
+    expires = positive_int(expires_text)
+    if expires is None or not given.isascii():  # compare_digest refuses other text
+        return None
     if not hmac.compare_digest(_mac(secret, owner, expires), given):
         return None
     if expires <= now or owner not in owners:

@@ -28,8 +28,10 @@ def logged_in(api: Served, key: str) -> str:
     return match.group(1)
 
 
-def with_cookie(api: Served, token: str) -> httpx.Response:
-    return httpx.get(f"{api.url}/jobs", headers={"Cookie": f"{SESSION_COOKIE}={token}"})
+def with_cookie(api: Served, token: str | bytes) -> httpx.Response:
+    """GET /jobs with ``token`` as the session cookie; bytes are sent as they are."""
+    raw = token if isinstance(token, bytes) else token.encode()
+    return httpx.get(f"{api.url}/jobs", headers={"Cookie": SESSION_COOKIE.encode() + b"=" + raw})
 
 
 def test_the_login_cookie_holds_a_signed_token_not_the_key(sqlite_url: str) -> None:
@@ -64,6 +66,37 @@ def test_a_token_expires_after_the_session_ttl() -> None:
     assert owner_of_token(token, secret, owners, now=1059.0) == owner_of(KEY_A)
     assert owner_of_token(token, secret, owners, now=1060.0) is None
     assert owner_of_token(token, b"j" * 32, owners, now=1010.0) is None
+
+
+@pytest.mark.parametrize(
+    "token",
+    [
+        b"v1.a.\xb2.b",  # a superscript two as latin-1, which str.isdigit takes and int refuses
+        "v1.a.\u0661\u0662\u0663.b".encode(),  # Arabic-Indic digits, which int reads as 123
+        b"v1.a.99999999999999999999999999999999999999999999.b",
+        b"v1.a.123.\xb2",  # a MAC that is not ASCII
+        b"v1.\xff\xfe.123.b",
+    ],
+)
+def test_a_cookie_that_is_no_token_gets_401_before_any_key_is_checked(
+    sqlite_url: str, token: bytes
+) -> None:
+    with served(Settings(database_url=sqlite_url, api_keys=KEY_A)) as api:
+        body = assert_problem(with_cookie(api, token), 401)
+        assert "not one this API accepts" in body["detail"]
+
+
+def test_a_token_is_accepted_only_as_it_was_issued() -> None:
+    secret = b"k" * 32
+    owner = owner_of(KEY_A)
+    token = issue(owner, secret, now=1000.0, ttl_s=3600)
+    assert owner_of_token(token, secret, {owner}, now=1000.0) == owner
+    version, _, expires, mac = token.split(".")
+    arabic = "".join(chr(0x660 + int(digit)) for digit in expires)  # int() reads it as expires
+    for spelling in (f"0{expires}", f"00{expires}", f"+{expires}", f" {expires}", f"{expires} ",
+                     arabic, f"{expires}.0", f"{expires}_"):  # fmt: skip
+        respelled = f"{version}.{owner}.{spelling}.{mac}"
+        assert owner_of_token(respelled, secret, {owner}, now=1000.0) is None, spelling
 
 
 def test_rotating_the_session_secret_or_removing_the_key_logs_the_browser_out(
