@@ -44,6 +44,7 @@ from nanonav.store import (
 from nanonav.store.queue import PRESENCE_WINDOW_S
 from nanonav.studies.spec import GRID_KEYS
 from service.deps import ReportsDep, SettingsDep, StoreDep, StudiesDep
+from service.numerals import positive_int
 from service.paging import Cursor, decode_cursor, encode_cursor
 from service.problems import Unauthorized
 from service.reports import Reports
@@ -129,12 +130,9 @@ def index(
 ) -> HTMLResponse:
     """The new-job form (filled in from job ``from``, or to evaluate ``policy``, if given);
     recent studies and lone jobs."""
-    source = None
-    if from_.isdigit() and 0 < int(from_) <= MAX_EXACT_INT:
-        source = _visible_job(store, caller, int(from_))
-    evaluated = None
-    if policy.isdigit() and 0 < int(policy) <= MAX_EXACT_INT:
-        evaluated = _visible_policy(store, caller, int(policy))
+    source_id, policy_id = positive_int(from_), positive_int(policy)
+    source = None if source_id is None else _visible_job(store, caller, source_id)
+    evaluated = None if policy_id is None else _visible_policy(store, caller, policy_id)
     form = evaluation_scenario(evaluated) if evaluated else source.scenario if source else None
     page = store.page(status=None, limit=10, before_id=None, owner=caller.only, standalone=True)
     jobs = [Job.of(j) for j in page.jobs]
@@ -186,7 +184,7 @@ def jobs_page(
     """Jobs, newest first, filtered by status, policy and study (unknown values are ignored)."""
     wanted_status = JobStatus(status) if status in {s.value for s in JobStatus} else None
     wanted_policy = policy if policy in get_args(Policy) else None
-    wanted_study = int(study) if study.isdigit() and 0 < int(study) <= MAX_EXACT_INT else None
+    wanted_study = positive_int(study)
     before = None if cursor is None else decode_cursor(cursor)
     page = store.page(
         status=wanted_status, limit=25, before_id=before, study_id=wanted_study,

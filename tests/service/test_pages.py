@@ -249,3 +249,18 @@ def test_another_keys_policies_are_neither_listed_nor_filled_in(sqlite_url: str)
         )
         form = api.client.get("/", params={"policy": mine["id"]}, headers=bearer(KEY_B)).text
         assert form_json(form) == {}
+
+
+def test_ids_in_a_pages_query_are_ascii_digits_or_ignored(api: Api) -> None:
+    job = api.client.post("/jobs", json=TINY).json()["id"]
+    api.client.post("/jobs", json=TINY)
+    policy = send_policy(api.client, "directions", "none")["id"]
+    assert job == policy == 1
+    # superscript 2 and circled 1 pass str.isdigit and make int() fail; int() reads the
+    # Arabic-Indic and the fullwidth 1 as 1
+    for junk in ("%C2%B2", "%E2%91%A0", "%D9%A1", "%EF%BC%91", "01", "+1"):
+        for name in ("from", "policy"):
+            answer = api.client.get(f"/?{name}={junk}")
+            assert answer.status_code == 200 and form_json(answer.text) == {}, (name, junk)
+        listed = api.client.get(f"/ui/jobs?study={junk}")
+        assert listed.status_code == 200 and listed.text.count("<tr>") == 1 + 2, junk
