@@ -5,6 +5,7 @@ from __future__ import annotations
 from starlette.datastructures import Headers
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
+from service.numerals import positive_int
 from service.problems import PROBLEM_BASE, BodyTooLarge, Problem, problem_response
 
 
@@ -20,8 +21,8 @@ class BodySizeLimit:
             await self.app(scope, receive, send)
             return
         declared = Headers(scope=scope).get("content-length")
-        if declared is not None and (not declared.isdigit() or int(declared) > self.max_bytes):
-            status = 413 if declared.isdigit() else 400
+        status = None if declared is None else self._refusal(declared)
+        if status is not None:
             problem = Problem(
                 type=PROBLEM_BASE + ("body-too-large" if status == 413 else "bad-request"),
                 title="Content too large" if status == 413 else "Bad request",
@@ -45,3 +46,13 @@ class BodySizeLimit:
             return message
 
         await self.app(scope, limited, send)
+
+    def _refusal(self, declared: str) -> int | None:
+        """400 for a Content-Length that is not ASCII digits, 413 for one over the limit; the
+        leading zeros HTTP allows count for nothing (``int`` refuses over 4300 digits)."""
+        if not (declared.isascii() and declared.isdigit()):
+            return 400
+        digits = declared.lstrip("0")
+        if digits and positive_int(digits, maximum=self.max_bytes) is None:
+            return 413
+        return None
