@@ -7,8 +7,9 @@ compared in constant time with every configured key, and only its SHA-256 digest
 names the request's owner.
 ``refuse_cross_site``, a dependency of the whole app, makes a request that changes state (POST,
 PUT, PATCH, DELETE) be JSON or carry a custom header, which an HTML form on another site cannot
-send, and an ``Origin`` it names be this API's own or an allowed one. ``service.ids`` makes a
-job or study another key made answer 404, as one that does not exist.
+send, and an ``Origin`` it names be this API's own (the same scheme, host and port) or an
+allowed one. ``service.ids`` makes a job or study another key made answer 404, as one that does
+not exist.
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Annotated, Any
-from urllib.parse import quote, urlsplit
+from urllib.parse import quote
 
 from fastapi import Depends, Request
 from fastapi.security import HTTPBearer
@@ -31,6 +32,7 @@ from starlette.types import ASGIApp, Receive, Scope, Send
 from nanonav.settings import Settings
 from nanonav.store import JobNotFound, JobStore
 from nanonav.store.quotas import Quota
+from service.numerals import positive_int
 from service.problems import (
     PROBLEM_BASE,
     ForbiddenOrigin,
@@ -51,6 +53,8 @@ OPEN_PATHS = frozenset(
         "/static/login.js",
     }
 )
+# The port of a URL that names none, for the schemes the API is served over.
+DEFAULT_PORTS = {"http": 80, "https": 443}
 # Only documents the scheme in OpenAPI: ``Guard`` has already checked the key.
 BEARER = HTTPBearer(auto_error=False, description="One of the API's keys (NANONAV_API_KEYS).")
 UNSAFE_METHODS = frozenset({"POST", "PUT", "PATCH", "DELETE"})
@@ -250,11 +254,35 @@ async def refuse_cross_site(request: Request) -> None:
 
 
 def _own_origin(origin: str, headers: Headers, request: Request) -> bool:
+    """Whether ``origin`` (lower case) is an allowed one, or this API's own: the scheme the
+    request came by (``X-Forwarded-Proto`` of a proxy uvicorn trusts), the host and the port
+    of its ``Host``, a port left out being the scheme's default."""
     settings: Settings = request.app.state.settings
     if origin in settings.allowed_origins:
         return True
-    parts = urlsplit(origin)
-    return bool(parts.netloc) and parts.netloc == headers.get("host", "").lower()
+    scheme, separator, authority = origin.partition("://")
+    own = request.url.scheme.lower()
+    if not separator or scheme != own:
+        return False
+    site = site_of(authority, scheme)
+    return site is not None and site == site_of(headers.get("host", "").lower(), own)
+
+
+def site_of(authority: str, scheme: str) -> tuple[str, int] | None:
+    """The host and port an Origin's or a ``Host``'s ``authority`` names (``host``,
+    ``host:8000``, ``[::1]:8000``), the port defaulting to the scheme's; None if it names no
+    host, or a port that is not one written plainly."""
+    if authority.startswith("["):
+        inside, closed, after = authority[1:].partition("]")
+        if not closed or after[:1] not in {"", ":"}:
+            return None
+        host, port = f"[{inside}]", after[1:]
+    else:
+        host, _, port = authority.partition(":")
+    number = positive_int(port, maximum=65535) if port else DEFAULT_PORTS.get(scheme)
+    if not host or number is None:
+        return None
+    return host, number
 
 
 def caller_of(request: Request) -> Caller:

@@ -388,6 +388,44 @@ def test_an_html_form_from_another_site_cannot_cancel_a_job(sqlite_url: str) -> 
         )
 
 
+def test_only_an_origin_of_the_same_scheme_host_and_port_is_the_apis_own(
+    sqlite_url: str,
+) -> None:
+    https = {"X-Forwarded-Proto": "https"}  # uvicorn takes it from a proxy on this machine
+    hosts = "localhost,127.0.0.1,::1"
+    with served(Settings(database_url=sqlite_url, allowed_hosts=hosts)) as api:
+
+        def write(origin: str, host: str | None = None, **headers: str) -> int:
+            sent = {**SCRIPTED, "Origin": origin, **headers, **({"Host": host} if host else {})}
+            status: int = api.client.post("/jobs", json={}, headers=sent).status_code
+            assert status in {202, 403}, (origin, host, headers)
+            return status
+
+        port = api.url.rpartition(":")[2]
+        assert write(f"http://127.0.0.1:{port}") == 202
+        for other in ("https", "ftp", "ws", "file"):
+            assert write(f"{other}://127.0.0.1:{port}") == 403, other
+        assert write(f"https://127.0.0.1:{port}", **https) == 202
+        assert write(f"http://127.0.0.1:{port}", **https) == 403
+        # a port left out is the scheme's own, in the Origin or the Host
+        plain = [("http://localhost", "localhost"), ("http://localhost:80", "localhost"),
+                 ("http://localhost", "localhost:80"), ("http://[::1]", "[::1]:80"),
+                 ("http://[::1]:8000", "[::1]:8000")]  # fmt: skip
+        for origin, host in plain:
+            assert write(origin, host) == 202, (origin, host)
+            assert write(origin.replace("http:", "https:"), host) == 403, (origin, host)
+        secure = [("https://localhost", "localhost"), ("https://localhost:443", "localhost"),
+                  ("https://localhost", "localhost:443")]  # fmt: skip
+        for origin, host in secure:
+            assert write(origin, host, **https) == 202, (origin, host)
+            assert write(origin.replace("https:", "http:"), host, **https) == 403, (origin, host)
+        for origin in ("http://localhost:443", "http://localhost:8080", "http://localhost:080",
+                       "http://localhost:x", "http://localhost:99999", "http://user@localhost",
+                       "http://localhost/", "null", "localhost"):  # fmt: skip
+            assert write(origin, "localhost") == 403, origin
+        assert write("https://localhost:80", "localhost", **https) == 403
+
+
 def test_allowed_origins_may_send_writes(sqlite_url: str) -> None:
     settings = Settings(database_url=sqlite_url, allowed_origins="https://lab.example.org")
     with served(settings) as api:
