@@ -45,8 +45,14 @@ METADATA_ADDRESSES = frozenset(
     for a in ("169.254.169.254", "169.254.170.2", "169.254.170.23", "fd00:ec2::254",
               "fd00:ec2::23", "100.100.100.200", "192.0.0.192")
 )  # fmt: skip
-# NAT64's well-known prefix (RFC 6052): 64:ff9b::a.b.c.d reaches the IPv4 address a.b.c.d.
-NAT64 = ipaddress.ip_network("64:ff9b::/96")
+# IPv6 addresses that carry an IPv4 address in their low 32 bits. A connection to an
+# IPv4-mapped one, or to one of NAT64's well-known prefix (RFC 6052), reaches the IPv4 address
+# alone; the IPv4-compatible (RFC 4291, deprecated; not :: and ::1) and IPv4-translated
+# (RFC 2765) forms are IPv6 addresses of their own as well.
+MAPPED = ipaddress.IPv6Network("::ffff:0:0/96")
+NAT64 = ipaddress.IPv6Network("64:ff9b::/96")
+COMPATIBLE = ipaddress.IPv6Network("::/96")
+TRANSLATED = ipaddress.IPv6Network("::ffff:0:0:0/96")
 
 
 class SignatureMismatch(ValueError):
@@ -189,35 +195,42 @@ def _matches(host: str, port: int | None, pattern: str) -> bool:
 def address_refusal(address: str | Address, allowed: Sequence[Network]) -> str | None:
     """Why this server will not connect to ``address``, or None if it may.
 
-    A public address may be called. Any other (loopback, private, link-local, unspecified,
-    multicast, reserved, shared, and what IPv4-mapped, 6to4, Teredo or NAT64 forms carry
-    of those) only if a network in ``allowed`` holds it; a cloud metadata address only if an
-    entry of ``allowed`` is that address alone."""
+    A public address may be called. Any other (loopback, private, link-local, site-local,
+    unspecified, multicast, reserved, shared) only if a network in ``allowed`` holds it; a cloud
+    metadata address only if an entry of ``allowed`` is that address alone. An IPv6 address
+    that carries an IPv4 one (IPv4-mapped, -compatible or -translated, NAT64, 6to4, Teredo's
+    server and client) passes only if the IPv4 address does too: ``::/0`` opens none of them."""
     ip = ipaddress.ip_address(address) if isinstance(address, str) else address
     reached = _reached(ip)
-    if reached in METADATA_ADDRESSES:
-        if any(net.num_addresses == 1 and reached in net for net in allowed):
-            return None
-        return _refused("a cloud metadata address")
-    if any(ip in net or reached in net for net in allowed):
-        return None
-    kind = _kind(reached)
-    if kind is None and isinstance(reached, ipaddress.IPv6Address):
-        carried = reached.sixtofour or (reached.teredo[1] if reached.teredo else None)
-        if carried is not None:
-            kind = _kind(carried)
-    return None if kind is None else _refused(kind)
+    for each in reached:
+        if each in METADATA_ADDRESSES and not any(
+            net.num_addresses == 1 and each in net for net in allowed
+        ):
+            return _refused("a cloud metadata address")
+    for each in reached:
+        kind = _kind(each)
+        if kind is not None and not any(each in net for net in allowed):
+            return _refused(kind)
+    return None
 
 
-def _reached(ip: Address) -> Address:
-    """The address a connection to ``ip`` reaches: the IPv4 address an IPv4-mapped or NAT64
-    address stands for, else ``ip``."""
-    if isinstance(ip, ipaddress.IPv6Address):
-        if ip.ipv4_mapped is not None:
-            return ip.ipv4_mapped
-        if ip in NAT64:
-            return ipaddress.IPv4Address(int(ip) & 0xFFFFFFFF)
-    return ip
+def _reached(ip: Address) -> tuple[Address, ...]:
+    """The addresses a connection to ``ip`` reaches: the IPv4 address an IPv4-mapped or NAT64
+    address stands for; the IPv4 address it carries and ``ip`` for an IPv4-compatible or
+    -translated one, a 6to4 one (its router's) and a Teredo one (its server's and client's);
+    else ``ip``."""
+    if isinstance(ip, ipaddress.IPv4Address):
+        return (ip,)
+    carried = ipaddress.IPv4Address(int(ip) & 0xFFFFFFFF)
+    if ip in MAPPED or ip in NAT64:
+        return (carried,)
+    if (ip in COMPATIBLE and int(ip) > 1) or ip in TRANSLATED:
+        return (carried, ip)
+    if ip.sixtofour is not None:
+        return (ip.sixtofour, ip)
+    if ip.teredo is not None:
+        return (*ip.teredo, ip)
+    return (ip,)
 
 
 def _kind(ip: Address) -> str | None:
@@ -228,6 +241,7 @@ def _kind(ip: Address) -> str | None:
         (ip.is_loopback, "a loopback address"),
         (ip.is_unspecified, "the unspecified address"),
         (ip.is_link_local, "a link-local address"),
+        (isinstance(ip, ipaddress.IPv6Address) and ip.is_site_local, "a site-local address"),
         (ip.is_multicast, "a multicast address"),
         (ip.is_reserved, "a reserved address"),
         (ip.is_private, "a private address"),

@@ -152,6 +152,9 @@ def test_a_url_that_grows_past_the_limit_when_normalised_is_refused() -> None:
         ("100.64.0.1", "not a public address"),
         ("2002:7f00:1::", "a loopback address"),  # 6to4 of 127.0.0.1
         ("64:ff9b::a01:203", "a private address"),  # NAT64 of 10.1.2.3
+        ("fec0::1", "a site-local address"),  # deprecated (RFC 3879), never public
+        ("feff:ffff::1", "a site-local address"),
+        ("::10.1.2.3", "a private address"),  # IPv4-compatible
     ],
 )
 def test_an_address_that_is_not_public_is_refused_saying_what_it_is(address: str, why: str) -> None:
@@ -159,7 +162,9 @@ def test_an_address_that_is_not_public_is_refused_saying_what_it_is(address: str
     assert refused is not None and why in refused and "NANONAV_WEBHOOK_ADDRESSES" in refused
 
 
-@pytest.mark.parametrize("address", ["93.184.215.14", "2606:4700::1111", "64:ff9b::808:808"])
+@pytest.mark.parametrize(
+    "address", ["93.184.215.14", "2606:4700::1111", "64:ff9b::808:808", "2002:808:808::1"]
+)
 def test_a_public_address_may_be_called(address: str) -> None:
     assert address_refusal(address, ()) is None
 
@@ -183,3 +188,50 @@ def test_no_allowed_hosts_means_no_webhooks() -> None:
 def test_retries_wait_twice_as_long_each_time_up_to_an_hour() -> None:
     assert [retry_delay_s(n, 10.0) for n in (1, 2, 3, 4)] == [10.0, 20.0, 40.0, 80.0]
     assert retry_delay_s(30, 10.0) == 3600.0
+
+
+# Every IPv6 form of 169.254.169.254: each carries it in its low 32 bits, but 6to4 (in bits
+# 16-47) and Teredo (its server in bits 32-63, its client inverted in the low 32 bits).
+METADATA_FORMS = [
+    "::ffff:169.254.169.254",  # IPv4-mapped
+    "::169.254.169.254",  # IPv4-compatible, written as ::a9fe:a9fe too
+    "::ffff:0:169.254.169.254",  # IPv4-translated (RFC 2765)
+    "64:ff9b::169.254.169.254",  # NAT64
+    "2002:a9fe:a9fe::",  # 6to4
+    "2002:a9fe:a9fe:1:2:3:4:5",
+    "2001:0:a9fe:a9fe:8000:63bf:3fff:fdd2",  # Teredo, the metadata address as its server
+    "2001:0:4136:e378:8000:63bf:5601:5601",  # Teredo, the metadata address as its client
+]
+
+
+@pytest.mark.parametrize("address", METADATA_FORMS)
+def test_no_network_however_wide_opens_an_ipv6_form_of_a_metadata_address(address: str) -> None:
+    everything = (ip_network("::/0"), ip_network("0.0.0.0/0"))
+    for allowed in ((), (ip_network("::/0"),), everything):
+        refused = address_refusal(address, allowed)
+        assert refused is not None and "a cloud metadata address" in refused, allowed
+    listed = (*everything, ip_network("169.254.169.254/32"))
+    assert address_refusal(address, listed) is None
+
+
+def test_an_ipv6_network_does_not_open_the_ipv4_addresses_its_addresses_carry() -> None:
+    ipv6 = (ip_network("::/0"),)
+    assert address_refusal("fd12::1", ipv6) is None
+    assert address_refusal("2001:0:4136:e378:8000:63bf:f7f7:f7f7", ipv6) is None  # Teredo, 8.8.8.8
+    for carried, why in (
+        ("2002:7f00:1::", "a loopback address"),
+        ("2002:a01:203::", "a private address"),
+        ("::ffff:10.1.2.3", "a private address"),
+        ("::10.1.2.3", "a private address"),
+        ("64:ff9b::a01:203", "a private address"),
+        ("2001:0:a01:203:8000:63bf:f7f7:f7f7", "a private address"),  # Teredo server
+        ("2001:0:4136:e378:8000:63bf:f5fe:fdfc", "a private address"),  # Teredo client 10.1.2.3
+    ):
+        assert why in str(address_refusal(carried, ipv6)), carried
+        with_ipv4 = (*ipv6, ip_network("10.0.0.0/8"), ip_network("127.0.0.0/8"))
+        assert address_refusal(carried, with_ipv4) is None, carried
+
+
+def test_allowed_networks_open_site_local_addresses_and_the_ipv6_loopback_as_any_other() -> None:
+    assert address_refusal("fec0::1", (ip_network("fec0::/10"),)) is None
+    assert address_refusal("::1", (ip_network("::1/128"),)) is None  # not IPv4-compatible 0.0.0.1
