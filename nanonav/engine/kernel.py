@@ -223,7 +223,9 @@ def _evaluated(
         out[i, EV_SWEPT] = 1.0 if s.swept[i] else 0.0
 
 
-@njit(cache=True, error_model="numpy")
+# nogil: while a run computes, the worker's other threads (the lease's heartbeat) go on, and a
+# transaction one of them opened is never held open by the run.
+@njit(cache=True, error_model="numpy", nogil=True)
 def run(
     p: KernelParams,
     epsilons: NDArray[np.float64],

@@ -488,19 +488,19 @@ class JobStore:
         values: dict[str, Any] = {"status": status, "finished_at": now, **_lease_cleared()}
         if outcome.completed:
             values.update(fraction=1.0, episode=Job.episodes)
+        # Compressed before the write lock is taken, which is held for the writes alone.
+        result = JobResult(
+            job_id=claim.job.id,
+            completed=outcome.completed,
+            metrics=outcome.metrics,
+            trajectory=None if outcome.trajectory is None else pack(outcome.trajectory),
+            qtable=None if outcome.qtable is None else pack(outcome.qtable),
+            study_metrics=outcome.study_metrics,
+            curve=outcome.curve,
+        )
         with unit_of_work(self._sessions, write=True) as session:
             row = _write_fenced(session, claim, values)
-            session.add(
-                JobResult(
-                    job_id=claim.job.id,
-                    completed=outcome.completed,
-                    metrics=outcome.metrics,
-                    trajectory=None if outcome.trajectory is None else pack(outcome.trajectory),
-                    qtable=None if outcome.qtable is None else pack(outcome.qtable),
-                    study_metrics=outcome.study_metrics,
-                    curve=outcome.curve,
-                )
-            )
+            session.add(result)
             return JobRecord.of(row)
 
     def fail(self, claim: Claim, error: str, *, now: datetime | None = None) -> JobRecord:
