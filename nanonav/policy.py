@@ -27,6 +27,15 @@ ACTION_SETS: tuple[ActionSet, ...] = get_args(ActionSet)
 COMMUNICATION_MODELS: tuple[CommunicationModel, ...] = get_args(CommunicationModel)
 # A policy holds one table every robot starts from, or one per robot, at most this many.
 MAX_TABLES = 1000
+# The largest |Q| a sent table may hold. An update of eq. 2.7 moves Q(s, a) toward
+# r + gamma max Q(s', .) by alpha, both at most 1, so it raises the table's largest |Q| by at
+# most the largest |r| of a step: reach, collision and step rewards of at most 1e6 each, and
+# 1e6 per length unit closed toward a cell, of which a step closes far under 2000 (a robot
+# moves at most 100, a cell's random walk has at most 10 per axis, the cube's side is at most
+# 1000), so under 2e9. A job makes at most robots x max_steps x episodes <= 1e16 updates: a
+# table it learns from zeros stays under 2e25, one it learns from a sent table moves at most
+# that far from it. The bound keeps means over robots and pictures' colour scales finite.
+MAX_Q = 1e30
 # The rules a sent table may break, as a 422 types them: labels that are no layout's, and
 # values or greedy choices that do not fill the layout's table.
 LAYOUT_RULE = "policy_layout"
@@ -115,14 +124,19 @@ def swarm_table(
     """One ``(states, actions)`` table: a shared one as it is; per-robot tables ``(robots,
     states, actions)`` as the mean over robots weighted by each pair's visits (a robot's value
     for a pair it never chose is its starting value, not something learned), the plain mean
-    for a pair no robot chose, and visits summed."""
+    for a pair no robot chose, and visits summed.
+
+    Each value is scaled by its weight before the sum, and the mean kept within the robots'
+    least and largest value, as a mean is: values of any finite size give a finite mean."""
     values = np.asarray(values, dtype=np.float64)
     visits = np.asarray(visits, dtype=np.int64)
     if values.ndim == 2:
         return values, visits
     total = visits.sum(axis=0)
-    weighted = (values * visits).sum(axis=0) / np.maximum(total, 1)
-    return np.where(total > 0, weighted, values.mean(axis=0)), total
+    weighted = (values * (visits / np.maximum(total, 1))).sum(axis=0)
+    plain = (values / values.shape[0]).sum(axis=0)
+    mean = np.where(total > 0, weighted, plain)
+    return np.clip(mean, values.min(axis=0), values.max(axis=0)), total
 
 
 def greedy_table(
@@ -332,7 +346,7 @@ def policy_values(layout: Layout, values: Sequence[Any]) -> NDArray[np.float64]:
     """``values``, nested lists shaped states x actions (or robots x states x actions, one
     table per robot) of ``layout``, as an array; ``InvalidPolicy`` at ``values`` when a row
     or a table has the wrong length, there are over ``MAX_TABLES`` tables, or a value is not
-    a finite number."""
+    a finite number within +-``MAX_Q``."""
     states, actions = len(layout.state_labels), len(layout.action_labels)
     per_robot = len(values) > 0 and len(values[0]) > 0 and np.ndim(values[0][0]) > 0
     tables = values if per_robot else [values]
@@ -352,12 +366,16 @@ def policy_values(layout: Layout, values: Sequence[Any]) -> NDArray[np.float64]:
                 detail = f"{where}[{i}] is not a row of {actions} values, one per action"
                 raise InvalidPolicy(("values",), detail, TABLE_RULE)
     array = np.asarray(values, dtype=np.float64)
-    wrong = np.argwhere(~np.isfinite(array))
+    wrong = np.argwhere(~(np.abs(array) <= MAX_Q))
     if wrong.size:
         index = tuple(int(i) for i in wrong[0])
+        where = "values" + "".join(f"[{i}]" for i in index)
+        value = float(array[index])
         detail = (
-            "values" + "".join(f"[{i}]" for i in index) + f" is {array[index]}: every value must "
-            "be a finite number"
+            f"{where} is {value}: every value must be a finite number"
+            if not np.isfinite(value)
+            else f"{where} is {value:g}: every value must be within +-{MAX_Q:g}, beyond what "
+            "any job learns"
         )
         raise InvalidPolicy(("values",), detail, TABLE_RULE)
     return array

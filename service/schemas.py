@@ -19,7 +19,7 @@ from pydantic_core import ErrorDetails, PydanticCustomError
 
 from nanonav.engine import qlearning
 from nanonav.pictures import job as job_pictures
-from nanonav.policy import MAX_ACTIONS, MAX_STATES, MAX_TABLES, UNVISITED
+from nanonav.policy import MAX_ACTIONS, MAX_Q, MAX_STATES, MAX_TABLES, UNVISITED
 from nanonav.scenario import ActionSet, CommunicationModel
 from nanonav.store import JobRecord, JobStatus, PolicyRecord
 from service.paging import CURSOR_PATTERN
@@ -741,7 +741,8 @@ class NewPolicy(BaseModel):
     values: Table | Tables | None = Field(
         None,
         description="Action values, [state][action] for a table every robot starts from, or "
-        f"[robot][state][action] for one per robot (at most {MAX_TABLES}); finite numbers.",
+        f"[robot][state][action] for one per robot (at most {MAX_TABLES}); finite numbers "
+        f"within +-{MAX_Q:g}, far beyond what any job learns.",
     )
     greedy: list[GreedyChoice] | None = Field(
         None,

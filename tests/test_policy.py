@@ -8,9 +8,11 @@ from typing import Any
 import numpy as np
 import pytest
 from numpy.typing import NDArray
+from pydantic import BaseModel
 
 from nanonav.engine import qlearning
 from nanonav.policy import (
+    MAX_Q,
     UNVISITED,
     GreedyState,
     UnusablePolicy,
@@ -20,7 +22,7 @@ from nanonav.policy import (
     learned_table,
     swarm_table,
 )
-from nanonav.scenario import Scenario
+from nanonav.scenario import Cells, Learning, Rewards, Robots, Scenario
 from nanonav.store import JobNotFound, JobStatus, ResultsUnavailable
 
 STATES = ["s0", "s1", "s2"]
@@ -120,6 +122,38 @@ def test_per_robot_tables_evaluated_unvisited_keep_their_plain_mean() -> None:
         "a",
         "b",
     ]
+
+
+def test_per_robot_tables_of_any_finite_size_have_a_finite_mean() -> None:
+    biggest = np.finfo(np.float64).max
+    values = np.array([[[biggest, -biggest, 1.0]], [[biggest, -biggest, 3.0]]])
+    for visits in (np.zeros((2, 1, 3), dtype=np.int64), np.full((2, 1, 3), 2**40)):
+        mean, _ = swarm_table(values, visits)
+        np.testing.assert_array_equal(mean, [[biggest, -biggest, 2.0]])
+    weighted, _ = swarm_table(values, np.array([[[0, 0, 3]], [[0, 0, 1]]]))
+    assert weighted[0, 2] == 1.5
+    assert greedy_table(["s0"], ACTIONS, values, np.ones((2, 1, 3), dtype=np.int64))[0] == (
+        GreedyState("s0", "a", float(biggest), 6, True, [])
+    )
+
+
+def _bound(model: type[BaseModel], name: str) -> float:
+    """The largest magnitude the field ``name`` of ``model`` takes."""
+    metadata = model.model_fields[name].metadata
+    return max(
+        abs(float(getattr(m, attr))) for m in metadata for attr in ("ge", "le") if hasattr(m, attr)
+    )
+
+
+def test_the_bound_on_sent_values_is_far_beyond_what_any_job_learns() -> None:
+    # each update raises the largest |Q| by at most the largest reward of one step (MAX_Q):
+    # the distance a step closes is a robot's move and a cell's (ten sd of its walk per axis)
+    closed = 2000.0
+    assert _bound(Robots, "speed") + 10 * np.sqrt(3) * _bound(Cells, "motion_std") < closed
+    reward = sum(_bound(Rewards, name) for name in ("reach", "collision", "step"))
+    reward += _bound(Rewards, "approach") * closed
+    updates = _bound(Robots, "count") * _bound(Learning, "max_steps") * _bound(Learning, "episodes")
+    assert reward * updates < MAX_Q / 1e4
 
 
 # ---------------------------------------------------------------- which tables fit

@@ -12,7 +12,7 @@ from typing import Annotated, Any, Literal
 import numpy as np
 from fastapi import APIRouter, Body, Query, Response
 from fastapi.concurrency import run_in_threadpool
-from fastapi.responses import JSONResponse, StreamingResponse
+from fastapi.responses import StreamingResponse
 from numpy.typing import NDArray
 
 from nanonav.engine import SimulationResult
@@ -38,6 +38,7 @@ from service.problems import (
     field_error,
     problems,
 )
+from service.responses import FiniteJSONResponse
 from service.schemas import Callback, GreedyState, Job, JobPage, Metrics, QTable, Trajectory
 from service.security import SCRIPTED_ONLY, CallerDep, owned_tables, quota_of
 
@@ -249,7 +250,7 @@ def get_trajectory(
             f"JSON answer may hold: {_fitting_stride(arrays, limit)}"
         )
         raise InvalidInput(detail, [field_error(["query", "stride"], detail, "too_large")])
-    return JSONResponse(
+    return FiniteJSONResponse(
         Trajectory(
             stride=stride,
             length=int(arrays["step"][-1]),
@@ -319,7 +320,7 @@ def get_qtable(
         visits=arrays["visits"].tolist(),
         greedy=[GreedyState.model_validate(g.to_dict()) for g in greedy],
     )
-    return JSONResponse(table.model_dump(), headers=IMMUTABLE)
+    return FiniteJSONResponse(table.model_dump(), headers=IMMUTABLE)
 
 
 @router.get(

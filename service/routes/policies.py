@@ -63,9 +63,9 @@ def send_policy(
     ``policy_layout`` (``states`` or ``actions`` that are not, in order, the labels of one of
     the engine's action sets and communication models; the detail says which would be),
     ``policy_table`` (both or neither of ``values`` and ``greedy``; values not shaped states x
-    actions or not finite; a greedy state or action the layout does not have, or a state given
-    twice), ``idempotency_key`` and ``idempotency_key_reused``. A key that keeps
-    ``NANONAV_QUOTA_POLICIES`` policies already gets 409 ``policy-limit``."""
+    actions, or not finite numbers within +-1e30; a greedy state or action the layout does not
+    have, or a state given twice), ``idempotency_key`` and ``idempotency_key_reused``. A key
+    that keeps ``NANONAV_QUOTA_POLICIES`` policies already gets 409 ``policy-limit``."""
     try:
         layout = layout_of(policy.states, policy.actions)
         values = _values(policy, layout)

@@ -14,7 +14,7 @@ import pytest
 
 from nanonav.client import Client
 from nanonav.engine import qlearning
-from nanonav.policy import greedy_table
+from nanonav.policy import MAX_Q, greedy_table
 from nanonav.settings import Settings
 from nanonav.store import JobStatus, Outcome
 from tests.conftest import SCRIPTED, Api
@@ -181,6 +181,28 @@ def test_a_value_that_is_not_finite_is_422_naming_where(api: Api) -> None:
     assert problem["errors"][0]["detail"] == (
         "values[9][2] is nan: every value must be a finite number"
     )
+
+
+def test_a_value_beyond_the_bound_is_422_and_a_table_a_job_learned_is_taken_back(
+    api: Api, trained: int
+) -> None:
+    states, actions = BEHAVIORS
+    for huge in (1.7e308, -1.0000001e30):
+        values = np.asarray(table((2, 72, 4)))
+        values[1, 4, 3] = huge
+        body = {"states": states, "actions": actions, "values": values.tolist()}
+        assert refused(api, body) == (
+            "#/values",
+            "policy_table",
+            f"values[1][4][3] is {huge:g}: every value must be within +-1e+30, beyond what any "
+            "job learns",
+        )
+    values[1, 4, 3] = -MAX_Q
+    assert send(api, {**body, "values": values.tolist()})["table_count"] == 2
+    learned = api.client.get(f"/jobs/{trained}/qtable").json()
+    assert np.abs(learned["values"]).max() > 0
+    sent = send(api, {k: learned[k] for k in ("states", "actions", "values")})
+    assert api.client.get(sent["links"]["self"]).json()["values"] == learned["values"]
 
 
 def test_greedy_choices_that_do_not_fit_are_422_at_their_own_item(api: Api) -> None:

@@ -9,8 +9,10 @@ import io
 import numpy as np
 from matplotlib.image import imread
 
+from nanonav.engine import qlearning
 from nanonav.policy import greedy_table
 from nanonav.settings import Settings
+from nanonav.store import JobStatus
 from tests.conftest import Api
 from tests.service.conftest import TINY, ran
 from tests.service.test_api import assert_problem
@@ -54,6 +56,33 @@ def test_a_job_without_a_qtable_answers_an_empty_greedy_table(
     baseline = ran(api.store, api_settings, {**TINY, "robots": {"count": 1, "policy": "gradient"}})
     answer = api.client.get(f"/jobs/{baseline}/qtable").json()
     assert answer == {"states": [], "actions": [], "values": [], "visits": [], "greedy": []}
+
+
+def test_per_robot_tables_of_values_near_the_float_limit_answer_a_finite_greedy_table(
+    api: Api, api_settings: Settings
+) -> None:
+    # a policy kept before values were bounded (MAX_Q): their sum over robots overflowed
+    states, actions = qlearning.labels("behaviors")
+    values = np.tile([1.7e308, -1.7e308, 1.6e308, 1.5e308], (2, len(states), 1))
+    policy = api.store.policies.add(
+        action_set="behaviors",
+        communication=("none",),
+        states=states,
+        actions=actions,
+        values=values,
+    )
+    learning = {"episodes": 0, "max_steps": 60, "shared_table": False}
+    scenario = {"robots": {"count": 2}, "learning": learning, "policy_from": policy.policy_from}
+    job_id = ran(api.store, api_settings, scenario)
+    assert api.store.get(job_id).status is JobStatus.SUCCEEDED
+    response = api.client.get(f"/jobs/{job_id}/qtable")
+    assert response.status_code == 200, response.text
+    answer = response.json()
+    assert np.array_equal(np.asarray(answer["values"]), values)
+    assert {(g["action"], g["value"]) for g in answer["greedy"]} == {("follow_gradient", 1.7e308)}
+    for format in ("csv", "npz"):
+        assert api.client.get(f"/jobs/{job_id}/qtable?format={format}").status_code == 200
+    assert api.client.get(f"/jobs/{job_id}/plots/qtable.png").status_code == 200
 
 
 # ---------------------------------------------------------------- downloads

@@ -14,7 +14,7 @@ from numpy.typing import NDArray
 
 from nanonav.engine import SimulationResult
 from nanonav.pictures.figure import new_figure, png
-from nanonav.policy import greedy_table, swarm_table
+from nanonav.policy import MAX_Q, greedy_table, swarm_table
 
 # Inches per table row and per column (narrow columns when there are many actions), and per
 # character of a state label at QTABLE_FONT points: the figure grows with the table, so that
@@ -57,8 +57,14 @@ def qtable_figure(
     learned = np.array([g.learned for g in greedy], dtype=bool)
     fig = new_figure(*qtable_figsize(states, actions))
     ax = fig.add_subplot()
-    shown = np.ma.masked_array(table, mask=np.repeat(~learned[:, None], len(actions), axis=1))
     reach = float(np.abs(table[learned]).max()) if learned.any() else 0.0
+    # a table kept before a policy's values were bounded may hold more than MAX_Q, near the
+    # largest float: the colour scale and its ticks stop at MAX_Q, and such values are drawn as
+    # at it
+    reach = min(reach, MAX_Q)
+    shown = np.ma.masked_array(
+        np.clip(table, -reach, reach), mask=np.repeat(~learned[:, None], len(actions), axis=1)
+    )
     cmap = matplotlib.colormaps[_QTABLE_CMAP].with_extremes(bad=_UNVISITED_GREY)
     image = ax.imshow(
         shown,
