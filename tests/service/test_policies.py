@@ -11,12 +11,14 @@ from typing import Any
 
 import numpy as np
 import pytest
+from sqlalchemy import delete
 
 from nanonav.client import Client
 from nanonav.engine import qlearning
 from nanonav.policy import MAX_Q, greedy_table
 from nanonav.settings import Settings
 from nanonav.store import JobStatus, Outcome
+from nanonav.store.models import Policy as PolicyRow
 from tests.conftest import SCRIPTED, Api
 from tests.service.test_api import assert_problem
 from tests.service.test_security import KEY_A, KEY_B, Served, bearer, served
@@ -466,15 +468,18 @@ def test_a_policy_is_not_deleted_under_the_jobs_that_evaluate_it(
     assert api.client.get(f"/jobs/{jobs[1]['id']}/metrics").status_code == 200
 
 
-def test_a_job_queued_for_a_policy_deleted_meanwhile_fails_saying_so(
+def test_a_job_whose_policy_is_gone_when_it_runs_fails_saying_so(
     api: Api, api_settings: Settings
 ) -> None:
-    """A delete that races a submit naming the policy (the submit checked the table first)."""
+    """A job that a worker claims after its policy's row went some other way than through a
+    refused delete (a database restored from an older backup, say) fails with the reason; a
+    delete itself never leaves such a job (tests/store/test_policy_in_use.py)."""
     policy = behaviors_policy(api)
-    assert api.client.delete(policy["links"]["self"]).status_code == 204
     job = api.store.enqueue(
         {**EVALUATE, "policy_from": policy["policy_from"]}, robot_steps=1, episodes=0
     )
+    with api.store.engine.begin() as connection:
+        connection.execute(delete(PolicyRow).where(PolicyRow.id == policy["id"]))
     claim = api.store.claim("test", lease_s=30)
     assert claim is not None and claim.job.id == job.id
     record = run_job(api.store, claim, api_settings, threading.Event())
