@@ -425,7 +425,7 @@ class Settings(BaseSettings):
             if not name or "*" in (name[2:] if wild else name) or "/" in host:
                 raise ValueError(f"a webhook host looks like 'hooks.example.org', "
                                  f"'*.example.org' or 'localhost:9000', not {host!r}")  # fmt: skip
-            if colon and not (port.isdigit() and 0 < int(port) < 65536):
+            if colon and not (port.isascii() and port.isdigit() and 0 < int(port) < 65536):
                 raise ValueError(f"not a port in webhook host {host!r}")
         return tuple(host.lower() for host in hosts)
 

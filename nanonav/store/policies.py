@@ -40,7 +40,7 @@ def policy_name(policy_id: int) -> str:
 def policy_number(name: str) -> int:
     """The id of the policy ``name`` (``policy-<id>``) names; ValueError for another string."""
     digits = name.removeprefix(POLICY_PREFIX)
-    if digits == name or not (digits.isascii() and digits.isdigit()):
+    if digits == name or not (digits.isascii() and digits.isdigit()) or digits[0] == "0":
         raise ValueError(f"{name!r} is not a policy's name, {POLICY_PREFIX}<id>")
     return int(digits)
 

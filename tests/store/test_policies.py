@@ -62,8 +62,9 @@ def test_the_job_store_reads_a_policy_by_the_name_a_scenario_gives_it(store: Job
     assert store.owner_of(policy_name(policy_id + 1)) is None
     with pytest.raises(PolicyNotFound, match=f"^there is no policy {policy_id + 1}$"):
         store.qtable(policy_name(policy_id + 1))
-    with pytest.raises(ValueError, match="not a policy's name"):
-        policy_number("job-3")
+    for name in ("job-3", "policy-01", "policy-\u0661", "policy-\u00b2"):
+        with pytest.raises(ValueError, match="not a policy's name"):
+            policy_number(name)
 
 
 def test_policies_are_listed_newest_first_per_owner_a_page_at_a_time(store: JobStore) -> None:

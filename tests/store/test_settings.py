@@ -89,6 +89,8 @@ def test_webhook_hosts_are_read_comma_separated_with_their_secret(
         ("https://hooks.example.org/x", WEBHOOK_SECRET, "a webhook host looks like"),
         ("hooks.*.org", WEBHOOK_SECRET, "a webhook host looks like"),
         ("localhost:0", WEBHOOK_SECRET, "not a port"),
+        ("localhost:\u0661", WEBHOOK_SECRET, "not a port"),
+        ("localhost:\u00b2", WEBHOOK_SECRET, "not a port"),
     ],
 )
 def test_bad_webhook_settings_stop_the_process_saying_why_without_the_secret(
