@@ -12,6 +12,7 @@ quantities only it has carry their unit in their name (``physics``).
 from __future__ import annotations
 
 import math
+import operator
 from typing import Annotated, Any, Literal, get_args
 
 from pydantic import (
@@ -68,6 +69,7 @@ BROWNIAN_SIGNAL = ("diffusion_um2_s", "decay_rate_s", "release_molecules_s")
 # The largest seed or id: every integer up to it is exact in a JSON number whatever the client
 # (a double, as I-JSON, RFC 7493, advises), so what a client sends is what is stored.
 MAX_EXACT_INT = 2**53 - 1
+MAX_STEPS = 1_000_000  # learning.max_steps: the longest episode
 
 # What the engine's operations cost, in work units: nanoseconds of one core of the machine they
 # were fitted on (``python benchmarks/cost.py`` measures how well they track run time). Another
@@ -178,11 +180,11 @@ class Space(_Part):
 
     size: float = Field(
         50.0,
-        gt=0.0,
+        ge=1.0,
         le=1000.0,
         description="Side of the cube, in length units (um in physics.model active_brownian; "
         "paper 2.4: 50). The cube spans "
-        "[-size/2, size/2] on every axis.",
+        "[-size/2, size/2] on every axis. At least 1 (in um: less than a cell).",
     )
     walls: bool = Field(
         True,
@@ -251,9 +253,10 @@ class Biomarker(_Part):
     )
     spread: float = Field(
         10.0,
-        gt=0.0,
+        ge=0.01,
         le=1000.0,
-        description="sigma of eq. 2.1, length units: how far the Gaussian field reaches.",
+        description="sigma of eq. 2.1, length units: how far the Gaussian field reaches. At "
+        "least 0.01, the smallest robot's radius: a narrower field is a point.",
     )
     emitters_per_cell: int = Field(
         50,
@@ -272,17 +275,19 @@ class Biomarker(_Part):
     )
     decay_length: float = Field(
         10.0,
-        gt=0.0,
+        ge=0.01,
         le=1e4,
         description="lambda of the diffusion model, length units: sqrt(D/k) for diffusivity D "
-        "and decay rate k. Larger values reach farther.",
+        "and decay rate k. Larger values reach farther. At least 0.01, the smallest robot's "
+        "radius: a shorter field is a point.",
     )
     softening: float = Field(
         0.5,
-        gt=0.0,
+        ge=1e-6,
         le=100.0,
         description="Length, in units, that softens the inverse-square and diffusion fields near "
-        "their sources so that nothing divides by zero.",
+        "their sources so that nothing divides by zero; at least 1e-6, so that the field at a "
+        "source stays finite.",
     )
     sensor_noise: float = Field(
         0.0,
@@ -368,10 +373,11 @@ class Robots(_Part):
     )
     sensor_baseline: float = Field(
         0.5,
-        gt=0.0,
+        ge=0.01,
         le=100.0,
         description="Spacing, length units, of the concentration readings whose differences "
-        "give the sensed gradient (the robot's size): see biomarker.noise_floor.",
+        "give the sensed gradient (the robot's size, so at least 0.01 as its radius): see "
+        "biomarker.noise_floor.",
     )
     policy: Policy = Field(
         "q_learning",
@@ -397,10 +403,10 @@ class Robots(_Part):
     )
     radius: float = Field(
         0.25,
-        gt=0.0,
+        ge=0.01,
         le=100.0,
         description="Radius of a robot, length units, for exclusion (in active_brownian: "
-        "physics.robot_radius_um).",
+        "physics.robot_radius_um); at least 0.01, as physics.robot_radius_um (10 nm).",
     )
 
 
@@ -416,7 +422,7 @@ class Learning(_Part):
         "evaluation (evaluation.worlds episodes) follows them. Baseline policies run the same "
         "episodes as trials.",
     )
-    max_steps: int = Field(1000, ge=1, le=1_000_000, description="Step limit of every episode.")
+    max_steps: int = Field(1000, ge=1, le=MAX_STEPS, description="Step limit of every episode.")
     alpha: float = Field(
         0.5,
         gt=0.0,
@@ -518,6 +524,7 @@ class Evaluation(_Part):
 
 
 LARGEST_AUTOMATIC_DT_S = 0.01
+DT_FLOOR_S = 1e-9  # the finest time step: within the bounds no motion needs a finer one
 
 
 def _time_step_bounds(
@@ -536,34 +543,61 @@ def _time_step_bounds(
     ]  # fmt: skip
 
 
+def automatic_dt_s(d_t: float, d_r: float, speed: float, radius: float) -> float:
+    """The time step that validation fills in: the largest that keeps every bound, at most
+    0.01 s, two significant figures rounded down."""
+    fine = min(b[2] for b in _time_step_bounds(d_t, d_r, speed, radius, 0.0))
+    return min(LARGEST_AUTOMATIC_DT_S, float(_round_down(fine)))
+
+
+def time_limit_steps(time_limit_s: float, dt_s: float) -> int:
+    """learning.max_steps of a time limit: ceil(time_limit_s / dt_s), and at least one step."""
+    return max(1, math.ceil(time_limit_s / dt_s - 1e-9))
+
+
+# The bounds a field's metadata may hold (annotated_types' Gt, Ge, Lt and Le), by attribute.
+_BOUNDS = (("gt", operator.gt), ("ge", operator.ge), ("lt", operator.lt), ("le", operator.le))
+
+
+def _admits(model: type[BaseModel], name: str, value: Any) -> bool:
+    """Whether ``value`` is a number that the field ``name`` of ``model`` takes: finite and
+    within its bounds, so that what is derived from it is too."""
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        return False
+    return all(
+        holds(value, getattr(bound, kind))
+        for bound in model.model_fields[name].metadata
+        for kind, holds in _BOUNDS
+        if getattr(bound, kind, None) is not None
+    )
+
+
 def fill_physics(data: Any) -> Any:
     """An active Brownian physics section with what it leaves out filled in: D_T and D_R from
-    Stokes-Einstein(-Debye), dt_s the largest step that keeps every bound (at most 0.01 s, two
-    significant figures rounded down). Anything else is returned as it came, for validation to
-    refuse."""
+    Stokes-Einstein(-Debye), dt_s the largest step that keeps every bound (``automatic_dt_s``).
+    Only what is derived from values within their fields' bounds is filled in (the bounds keep
+    it finite and within its own); anything else is returned as it came, for validation to
+    refuse. Never raises."""
     if not isinstance(data, dict) or data.get("model") != "active_brownian":
         return data
     fields = Physics.model_fields
-    got = {k: data.get(k, fields[k].default) for k in fields}
-    try:
-        t, eta, r, v = (float(got[k]) for k in ("temperature_k", "viscosity_mpa_s",
-                                                 "robot_radius_um", "swim_speed_um_s"))  # fmt: skip
-    except (TypeError, ValueError):
+    stokes = ("temperature_k", "viscosity_mpa_s", "robot_radius_um", "swim_speed_um_s")
+    got = {k: data.get(k, fields[k].default) for k in stokes}
+    if not all(_admits(Physics, k, got[k]) for k in stokes):
         return data  # the fields' own validation says what is wrong
-    if not (t > 0 and eta > 0 and r > 0 and v >= 0):
-        return data
+    t, eta, r, v = (float(got[k]) for k in stokes)
     filled = dict(data)
     if filled.get("diffusion_um2_s") is None:
         filled["diffusion_um2_s"] = stokes_einstein_um2_s(t, eta, r)
     if filled.get("rotational_diffusion_s") is None:
         filled["rotational_diffusion_s"] = stokes_einstein_debye_s(t, eta, r)
-    if filled.get("dt_s") is None:
-        try:
-            d_t, d_r = float(filled["diffusion_um2_s"]), float(filled["rotational_diffusion_s"])
-        except (TypeError, ValueError):
-            return filled
-        fine = min(b[2] for b in _time_step_bounds(d_t, d_r, v, r, 0.0))
-        filled["dt_s"] = min(LARGEST_AUTOMATIC_DT_S, float(_round_down(fine)))
+    d_t, d_r = filled["diffusion_um2_s"], filled["rotational_diffusion_s"]
+    if (
+        filled.get("dt_s") is None
+        and _admits(Physics, "diffusion_um2_s", d_t)
+        and _admits(Physics, "rotational_diffusion_s", d_r)
+    ):
+        filled["dt_s"] = automatic_dt_s(float(d_t), float(d_r), v, r)
     return filled
 
 
@@ -582,7 +616,8 @@ class Physics(_Part):
     with translational diffusion, and can only steer (at most max_turn_rate_rad_s); the field is
     the steady state of what each cell secretes, read at the Berg-Purcell limit. Every quantity
     below belongs to 'active_brownian' (and is refused with 'lattice'); the README gives each
-    default's source."""
+    default's source. The bounds are physical, and hold what is derived from them (D_T, D_R,
+    dt_s, the step limit) finite and within its own: each says why in its description."""
 
     model: PhysicsModel = Field(
         "lattice",
@@ -591,33 +626,41 @@ class Physics(_Part):
     )
     dt_s: float | None = Field(
         None,
-        gt=0.0,
+        ge=DT_FLOOR_S,
         le=10.0,
         description="Time step, s. It must resolve the motion: the heading may turn by "
         "D_R dt <= 0.05 per step, and a step (swimming or jiggling) may cover at most half of "
         "robot_radius_um; a coarser step is refused with the dt_s that would do. null: the "
         "largest such step, at most 0.01 s, filled in in the resolved scenario (so a study "
-        "over robot_radius_um gets a fitting step at every radius).",
+        "over robot_radius_um gets a fitting step at every radius). At least 1e-9 s: within "
+        "the other fields' bounds no motion needs a finer step (the finest, 1.2e-9 s, is for "
+        "a 10 nm robot whose D_T is 1e4 um^2/s).",
     )
     time_limit_s: float | None = Field(
         None,
-        gt=0.0,
+        ge=DT_FLOOR_S,
         le=1e6,
         description="The episode's time limit, s: learning.max_steps becomes ceil(time_limit_s "
-        "/ dt_s), filled in. null: learning.max_steps steps of dt_s.",
+        "/ dt_s) (at least 1, at most 1,000,000: a longer limit is refused), filled in. null: "
+        "learning.max_steps steps of dt_s. At least 1e-9 s, dt_s's floor.",
     )
     temperature_k: float = Field(
         310.15, ge=250.0, le=400.0, description="Temperature, K (37 degrees C: the body's)."
     )
     viscosity_mpa_s: float = Field(
         0.69,
-        gt=0.0,
+        ge=0.01,
         le=1e5,
         description="Viscosity of the fluid, mPa s (water at 37 degrees C: 0.69; interstitial "
-        "fluid is close to water, a mucus or matrix far more).",
+        "fluid is close to water, a mucus or matrix far more). From 0.01, a gas's (air: "
+        "0.018), to 1e5 (100 Pa s, a thick mucus).",
     )
     robot_radius_um: float = Field(
-        1.0, ge=0.01, le=50.0, description="Radius of a (spherical) robot, um."
+        1.0,
+        ge=0.01,
+        le=50.0,
+        description="Radius of a (spherical) robot, um: from 10 nm, a small nanoparticle, to "
+        "50 um.",
     )
     swim_speed_um_s: float = Field(
         10.0,
@@ -638,22 +681,24 @@ class Physics(_Part):
         ge=0.0,
         le=1e4,
         description="Translational diffusion D_T, um^2/s. null: Stokes-Einstein, "
-        "k_B T / (6 pi eta R), filled in in the resolved scenario.",
+        "k_B T / (6 pi eta R), filled in in the resolved scenario. At most 1e4, above any "
+        "Stokes-Einstein value the other bounds allow (2,930: 10 nm, 0.01 mPa s, 400 K).",
     )
     rotational_diffusion_s: float | None = Field(
         None,
         ge=0.0,
-        le=1e6,
+        le=2.5e7,
         description="Rotational diffusion D_R, 1/s: the heading correlation decays as "
         "exp(-2 D_R t). null: Stokes-Einstein-Debye, k_B T / (8 pi eta R^3), filled in in the "
-        "resolved scenario.",
+        "resolved scenario. At most 2.5e7, above any Stokes-Einstein-Debye value the other "
+        "bounds allow (2.2e7: 10 nm, 0.01 mPa s, 400 K) and resolved by a step of 2e-9 s.",
     )
     cell_radius_um: float = Field(
         7.5,
-        gt=0.0,
+        ge=0.5,
         le=100.0,
         description="Radius of a cancer cell, um; a robot reaches a cell when its surface "
-        "touches the cell's.",
+        "touches the cell's. At least 0.5 um, a bacterium's: no cell is smaller.",
     )
     cell_diffusion_um2_s: float = Field(
         0.005,
@@ -664,23 +709,26 @@ class Physics(_Part):
     )
     secretion_molecules_s: float = Field(
         100.0,
-        gt=0.0,
+        ge=1.0,
         le=1e9,
-        description="Biomarker molecules a cell secretes per second.",
+        description="Biomarker molecules a cell secretes per second, at least one (a cell "
+        "secretes a cytokine at tens to thousands a second).",
     )
     molecule_diffusion_um2_s: float = Field(
         100.0,
-        gt=0.0,
+        ge=0.01,
         le=1e4,
         description="Diffusion coefficient of the biomarker molecule, um^2/s (about 100 for a "
-        "small protein, 60 for an antibody).",
+        "small protein, 60 for an antibody). At least 0.01, a 30 um bead's in water: every "
+        "molecule diffuses faster.",
     )
     decay_rate_s: float = Field(
         0.01,
-        gt=0.0,
+        ge=1e-6,
         le=1e3,
         description="Rate at which the biomarker is cleared or decays, 1/s. The field of a cell "
-        "is Q exp(-r/lambda) / (4 pi D_m r) with lambda = sqrt(D_m / decay_rate_s).",
+        "is Q exp(-r/lambda) / (4 pi D_m r) with lambda = sqrt(D_m / decay_rate_s). At least "
+        "1e-6, a lifetime of 1e6 s (the longest time_limit_s): slower is no decay in a run.",
     )
     tumble_rate_s: float = Field(
         1.0,
@@ -740,7 +788,34 @@ class Physics(_Part):
                     f"dt_s {dt:g} s is too coarse: " + message.format(value=value)
                     + f"; dt_s <= {_round_down(fine)} s would do",
                 )  # fmt: skip
-        return self
+        return self._time_limit_fits()
+
+    def _time_limit_fits(self) -> Physics:
+        """A time limit is at most as many steps of dt_s as learning.max_steps takes: refused
+        at dt_s when it was given (it is not the one filled in), else at time_limit_s."""
+        limit, dt = self.time_limit_s, self.step_s
+        if limit is None or not dt:
+            return self
+        steps = time_limit_steps(limit, dt)
+        if steps <= MAX_STEPS:
+            return self
+        filled = automatic_dt_s(
+            self.diffusion_um2_s or 0.0, self.rotational_diffusion_s or 0.0,
+            self.swim_speed_um_s, self.robot_radius_um,
+        )  # fmt: skip
+        if dt != filled:
+            raise _field_error(
+                "Physics", ("dt_s",), dt,
+                f"dt_s {dt:g} s makes time_limit_s {limit:g} s {steps:,} steps, more than the "
+                f"{MAX_STEPS:,} learning.max_steps takes: a longer dt_s or a shorter "
+                "time_limit_s would do",
+            )  # fmt: skip
+        raise _field_error(
+            "Physics", ("time_limit_s",), limit,
+            f"{limit:g} s is {steps:,} steps of dt_s {dt:g} s (the largest that resolves the "
+            f"motion), more than the {MAX_STEPS:,} learning.max_steps takes: time_limit_s <= "
+            f"{_round_down(MAX_STEPS * dt)} s would do",
+        )  # fmt: skip
 
 
 class Communication(_Part):
@@ -762,9 +837,10 @@ class Communication(_Part):
     )
     diffusion: float = Field(
         0.5,
-        gt=0.0,
+        ge=1e-6,
         le=100.0,
-        description="Lattice: the signal's diffusion coefficient, length units^2 per step.",
+        description="Lattice: the signal's diffusion coefficient, length units^2 per step. At "
+        "least 1e-6: a slower signal spreads under 2.5 units in the longest episode.",
     )
     decay_rate: float = Field(
         0.01,
@@ -780,19 +856,20 @@ class Communication(_Part):
     )
     diffusion_um2_s: float = Field(
         100.0,
-        gt=0.0,
+        ge=0.01,
         le=1e4,
         description="Active Brownian: the signal's diffusion coefficient, um^2/s (a small "
-        "protein in tissue: about 100).",
+        "protein in tissue: about 100). At least 0.01, a 30 um bead's in water: every molecule "
+        "diffuses faster.",
     )
     decay_rate_s: float = Field(
         0.1, ge=0.0, le=1e3, description="Active Brownian: the signal's decay rate, 1/s."
     )
     release_molecules_s: float = Field(
         1e4,
-        gt=0.0,
+        ge=1.0,
         le=1e9,
-        description="Active Brownian: molecules one bound robot releases per second.",
+        description="Active Brownian: molecules one bound robot releases per second, at least one.",
     )
     threshold: float = Field(
         1e-3,
@@ -823,8 +900,9 @@ class Scenario(_Part):
     Besides each field's type and bounds, rules relate fields to one another (each field's
     description states its own; a 422 of type ``scenario_rule`` names the field to change):
     epsilon_end at most epsilon_start; obstacles.radius under a quarter and reach_distance under
-    half of space.size; obstacles filling at most 30% of the cube; and with policy_from,
-    learning.episodes 0 and robots.policy q_learning."""
+    half of space.size; obstacles filling at most 30% of the cube; physics.time_limit_s at most
+    learning.max_steps' 1,000,000 steps of dt_s; and with policy_from, learning.episodes 0 and
+    robots.policy q_learning."""
 
     preset: PresetName | None = Field(
         None,
@@ -929,7 +1007,7 @@ class Scenario(_Part):
                 f"physics.model '{self.physics.model}' takes the action set {wanted}",
             )  # fmt: skip
         if brownian and self.physics.time_limit_s is not None and self.physics.dt_s:
-            steps = math.ceil(self.physics.time_limit_s / self.physics.dt_s - 1e-9)
+            steps = time_limit_steps(self.physics.time_limit_s, self.physics.dt_s)
             if self.learning.max_steps != steps:
                 raise _field_error(
                     "Scenario", ("learning", "max_steps"), self.learning.max_steps,
@@ -1116,9 +1194,12 @@ class Scenario(_Part):
         ``MAX_SIGNAL_EVERY``), or one engine step split into the fewest such solver steps."""
         diffusion, decay, _ = self.signal_rates
         spacing = self.space.size / self.communication.nodes_per_axis
-        stable = 0.5 / (6.0 * diffusion / spacing**2 + decay)
+        rate = 6.0 * diffusion / spacing**2 + decay
+        stable = 0.5 / rate if rate > 0 else math.inf
+        if stable >= MAX_SIGNAL_EVERY:
+            return MAX_SIGNAL_EVERY, 1
         if stable >= 1.0:
-            return min(MAX_SIGNAL_EVERY, math.floor(stable)), 1
+            return math.floor(stable), 1
         return 1, math.ceil(1.0 / stable)
 
     @property
@@ -1287,9 +1368,12 @@ def _steering_by_default(data: Any) -> Any:
         learning = {**learning, "actions": "steering"}
     physics = fill_physics(physics)
     limit, dt = physics.get("time_limit_s"), physics.get("dt_s")
-    if isinstance(limit, int | float) and isinstance(dt, int | float) and limit > 0 and dt > 0:
-        # both given and at odds: kept, for _one_physics to say so
-        learning = {"max_steps": math.ceil(limit / dt - 1e-9), **learning}
+    if _admits(Physics, "time_limit_s", limit) and _admits(Physics, "dt_s", dt):
+        steps = time_limit_steps(limit, dt)
+        # more than learning takes: left out, for Physics to name time_limit_s or dt_s; both
+        # given and at odds: kept, for _one_physics to say so
+        if _admits(Learning, "max_steps", steps):
+            learning = {"max_steps": steps, **learning}
     return {**data, "physics": physics, "learning": learning}
 
 
