@@ -42,7 +42,8 @@ A dashboard for people is at `/`. `POST /jobs` queues a scenario (`{}` is all de
 processes run it. `POST /studies` queues a grid of scenarios x seeds and answers with means,
 confidence intervals and paired comparisons as its jobs finish. `POST /policies` keeps a Q-table
 trained elsewhere, for scenarios to evaluate as `policy_from: "policy-<id>"`. Errors are
-`application/problem+json` (RFC 9457); a 422 names the offending fields.
+`application/problem+json` (RFC 9457); a 422 names the offending fields. Text sent to be kept
+may hold any character but U+0000 (NUL), refused with a 422 `nul_character` naming where.
 """
 
 

@@ -17,6 +17,7 @@ from service.drawing import Drawer
 from service.events import Channel
 from service.problems import UnsupportedMediaType
 from service.reports import Reports
+from service.text import refuse_nul
 
 
 async def _store(request: Request) -> JobStore:
@@ -60,15 +61,16 @@ async def _study_events(request: Request) -> Channel:
 
 
 async def require_json(request: Request) -> None:
-    """A request body, if there is one, must be declared as JSON."""
-    if not await request.body():
-        return
-    media = request.headers.get("content-type", "").split(";")[0].strip().lower()
-    kind, _, subtype = media.partition("/")
-    if kind != "application" or not (subtype == "json" or subtype.endswith("+json")):
-        raise UnsupportedMediaType(
-            f"the body must be application/json, not {media or 'undeclared'}"
-        )
+    """A request body, if there is one, must be declared as JSON; and as the route may store
+    what the request holds, no text in it may hold NUL (``service.text``)."""
+    if await request.body():
+        media = request.headers.get("content-type", "").split(";")[0].strip().lower()
+        kind, _, subtype = media.partition("/")
+        if kind != "application" or not (subtype == "json" or subtype.endswith("+json")):
+            raise UnsupportedMediaType(
+                f"the body must be application/json, not {media or 'undeclared'}"
+            )
+    await refuse_nul(request)
 
 
 StoreDep = Annotated[JobStore, Depends(_store)]

@@ -87,7 +87,9 @@ def submit_job(
     ``budget_exceeded`` (more work than the server's budget), ``policy_unusable`` (a
     ``policy_from`` naming no table this scenario can evaluate), ``refused`` (a
     ``callback_url`` the server will not call), ``idempotency_key`` (a blank, non-UTF-8 or
-    over-long key) and ``idempotency_key_reused`` (a key already used for another request)."""
+    over-long key), ``idempotency_key_reused`` (a key already used for another request) and
+    ``nul_character`` (U+0000 in any string of the body, key or value, in ``callback_url`` or
+    in the key: the store cannot keep it)."""
     check_callback(callback_url, settings)
     if "seed" not in scenario.model_fields_set:
         # each submit without a seed is a new sample; the seed drawn is stored, to repeat it

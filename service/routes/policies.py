@@ -64,8 +64,10 @@ def send_policy(
     the engine's action sets and communication models; the detail says which would be),
     ``policy_table`` (both or neither of ``values`` and ``greedy``; values not shaped states x
     actions, or not finite numbers within +-1e30; a greedy state or action the layout does not
-    have, or a state given twice), ``idempotency_key`` and ``idempotency_key_reused``. A key
-    that keeps ``NANONAV_QUOTA_POLICIES`` policies already gets 409 ``policy-limit``."""
+    have, or a state given twice), ``idempotency_key``, ``idempotency_key_reused`` and
+    ``nul_character`` (U+0000 in any string of the body, key or value, or in the key: the
+    store cannot keep it). A key that keeps ``NANONAV_QUOTA_POLICIES`` policies already gets
+    409 ``policy-limit``."""
     try:
         layout = layout_of(policy.states, policy.actions)
         values = _values(policy, layout)

@@ -111,8 +111,9 @@ def submit_study(
     ``study_rule`` (a base or grid point that is not a valid scenario, or ``compare`` not a
     grid key with two values), ``too_many_jobs`` (more grid points x seeds than the server
     takes), and as in POST /jobs ``budget_exceeded``, ``policy_unusable``, ``refused``,
-    ``idempotency_key``, ``idempotency_key_reused`` and ``quota_never_fits`` (more jobs or
-    robot-steps than the caller's quota allows even with nothing else active)."""
+    ``idempotency_key``, ``idempotency_key_reused``, ``nul_character`` and
+    ``quota_never_fits`` (more jobs or robot-steps than the caller's quota allows even with
+    nothing else active)."""
     check_callback(callback_url, settings)
     if spec.job_count > settings.study_max_jobs:
         detail = (

@@ -32,8 +32,10 @@ _URL = f"sqlite:///{Path(_DIRECTORY.name) / 'nanonav.db'}"
 # another (epsilon_end to epsilon_start, an obstacle's radius to the cube), to the server's
 # settings (the work budget, the hosts a callback may reach), to what is stored (the job a
 # policy_from names, the size of a job's trajectory or cube) or to the engine (the labels and
-# shape of a policy's table), which JSON Schema cannot say.
-IDEMPOTENCY_RULES = frozenset({"idempotency_key", "idempotency_key_reused"})
+# shape of a policy's table), which JSON Schema cannot say. Every route that stores what it is
+# sent has the rules of its Idempotency-Key, and refuses U+0000 in any of its text, which
+# PostgreSQL cannot keep (service.text).
+WRITE_RULES = frozenset({"idempotency_key", "idempotency_key_reused", "nul_character"})
 STATED_RULES: dict[str, frozenset[str]] = {
     "POST /jobs": frozenset(
         {
@@ -42,7 +44,7 @@ STATED_RULES: dict[str, frozenset[str]] = {
             "policy_unusable",
             "refused",
             "quota_never_fits",
-            *IDEMPOTENCY_RULES,
+            *WRITE_RULES,
         }
     ),
     "POST /studies": frozenset(
@@ -54,9 +56,9 @@ STATED_RULES: dict[str, frozenset[str]] = {
             "too_many_jobs",
             "quota_never_fits",
         }
-        | IDEMPOTENCY_RULES
+        | WRITE_RULES
     ),
-    "POST /policies": frozenset({"policy_layout", "policy_table"}) | IDEMPOTENCY_RULES,
+    "POST /policies": frozenset({"policy_layout", "policy_table"}) | WRITE_RULES,
     "GET /jobs/{job_id}/trajectory": frozenset({"too_large"}),
     "GET /jobs/{job_id}/heatmap.png": frozenset({"out_of_range"}),
 }
