@@ -4,7 +4,7 @@ PostgreSQL keeps no U+0000 (NUL) in a text column, nor anywhere in a JSON docume
 value); SQLite keeps it. So a request that may store text (``JsonBody``'s routes) is refused with
 422 ``nul_character`` when a string holds NUL anywhere in it: its JSON body (a key or a value, at
 any depth), a query parameter (``callback_url``) or the Idempotency-Key header. The check comes
-before anything else reads the request, so both stores answer it alike. Any other character is
+before the route reads anything, so both stores answer it alike. Any other character is
 kept as sent. Query parameters of the routes that only read are typed (ids, states, cursors,
 formats) and never reach a query as text.
 """
@@ -20,7 +20,8 @@ from service.problems import FieldError, InvalidInput, field_error
 NUL = "\x00"
 NUL_RULE = "nul_character"
 # How NUL is written in a JSON text: it cannot be there raw (json.loads refuses a control
-# character in a string), so a body without this escape holds none.
+# character in a string). A body with neither this escape nor a zero byte (which UTF-16 and
+# UTF-32, that json.loads also reads, are full of) holds none.
 ESCAPED_NUL = b"\\u0000"
 
 Path = tuple[str | int, ...]
@@ -62,7 +63,7 @@ async def refuse_nul(request: Request) -> None:
     if key is not None and NUL in key:
         errors.append(_error(("header", "idempotency-key"), "the key"))
     body = await request.body()
-    if ESCAPED_NUL in body:
+    if ESCAPED_NUL in body or b"\x00" in body:
         try:
             found = nul_in(await request.json())
         except ValueError:

@@ -5,6 +5,7 @@ U+0000 (NUL), which PostgreSQL keeps nowhere (text or JSON, key or value), is 42
 from __future__ import annotations
 
 import asyncio
+import json
 from typing import Any
 
 import httpx
@@ -27,6 +28,7 @@ STUDY: dict[str, Any] = {
     "seeds": [0],
 }
 HOOK = "https://hooks.example.org/done"
+JSON = {"content-type": "application/json"}
 # Names in other scripts, directions and planes, with marks, controls and noncharacters.
 NAMES = [
     "café crème",
@@ -75,6 +77,11 @@ def test_a_name_holding_nul_is_422_and_nothing_is_stored(api: Api) -> None:
         ]
         assert problem["detail"] == f"#/name: {problem['errors'][0]['detail']}"
         assert refused_at(api, "/studies", {**STUDY, "name": name}) == [("#/name", "nul_character")]
+    # JSON may come in UTF-16 or UTF-32 as well
+    for encoding in ("utf-16", "utf-32-le"):
+        content = json.dumps({**STUDY, "name": "a\u0000"}).encode(encoding)
+        response = api.client.post("/studies", content=content, headers=JSON)
+        assert assert_problem(response, 422)["errors"][0]["type"] == "nul_character"
     nothing_stored(api)
 
 
