@@ -1,9 +1,12 @@
 """The API keeps the contract its OpenAPI document states, for whatever a client sends: requests
 generated from the document (its examples, the coverage of every keyword's edges, and fuzzing,
-valid and invalid alike) against every route, over a real SQLite file that holds a succeeded job
-and a study, so that ids such as 1 reach the routes' real work. Every check schemathesis has runs:
-no 5xx, documented statuses, content types, headers and bodies, valid data accepted and invalid
-data refused, 405 with a true ``Allow`` for methods a path does not take."""
+valid and invalid alike) against every route of an API with keys, sent with one, over a real
+SQLite file that holds that key's succeeded jobs (one evaluated a per-robot policy whose values
+are at the bound a policy may hold, so its table views average the largest values there are),
+the policy and a study, so that ids such as 1 and 2 reach the routes' real work. Every check
+schemathesis has runs: no 5xx, documented statuses, content types, headers and bodies, valid
+data accepted and invalid data refused, 405 with a true ``Allow`` for methods a path does not
+take, and a key demanded wherever the document says so."""
 
 from __future__ import annotations
 
@@ -12,15 +15,20 @@ import threading
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 import schemathesis
 from hypothesis import HealthCheck, settings
 from schemathesis.specs.openapi.checks import positive_data_acceptance
 
+from nanonav.engine import qlearning
+from nanonav.policy import MAX_Q
 from nanonav.settings import Settings
-from nanonav.store import JobStore, StudyJob, StudyStore
+from nanonav.store import JobStatus, JobStore, StudyJob, StudyStore, policy_name
 from nanonav.store.migrate import upgrade
 from service.app import create_app
+from service.security import owner_of
+from tests.service.test_security import KEY_A, bearer
 from worker.job import run_job
 
 # Schemathesis reads the schema when the module is collected, so the database is made then.
@@ -69,18 +77,41 @@ ACCEPTED = {401, 403, 404, 409, 429}
 pytestmark = pytest.mark.timeout(120)
 
 
+def _extreme_policy(store: JobStore, owner: str, robots: int) -> str:
+    """A per-robot policy of values at the bound, of both signs: their mean over the robots is
+    what overflowed before the bound."""
+    states, actions = qlearning.labels("behaviors")
+    values = np.full((robots, len(states), len(actions)), MAX_Q)
+    values[:, :, 1::2] = -MAX_Q
+    record = store.policies.add(
+        action_set="behaviors", communication=("none",), states=states, actions=actions,
+        values=values, name="at the bound", owner=owner,
+    )  # fmt: skip
+    return policy_name(record.id)
+
+
 def _seeded_settings() -> Settings:
+    """Job 1 evaluated policy 1 (per robot, at the bound), job 2 learned a table; study 1."""
     upgrade(_URL)
-    settings = Settings(database_url=_URL)
+    settings = Settings(database_url=_URL, api_keys=KEY_A)
+    owner = owner_of(KEY_A)
     store = JobStore.from_url(_URL)
-    store.enqueue({"learning": {"episodes": 1, "max_steps": 30}}, robot_steps=1, episodes=2)
-    claim = store.claim("fuzz", lease_s=30)
-    assert claim is not None
-    run_job(store, claim, settings, threading.Event())
+    evaluated: dict[str, Any] = {
+        "robots": {"count": 2},
+        "learning": {"episodes": 0, "max_steps": 30, "shared_table": False},
+    }
+    evaluated["policy_from"] = _extreme_policy(store, owner, robots=2)
+    for scenario in (evaluated, {"learning": {"episodes": 1, "max_steps": 30}}):
+        store.enqueue(scenario, robot_steps=1, episodes=2, owner=owner)
+        claim = store.claim("fuzz", lease_s=30)
+        assert claim is not None
+        record = run_job(store, claim, settings, threading.Event())
+        assert record is not None and record.status is JobStatus.SUCCEEDED, record
     StudyStore(store.engine).create(
         name="fuzz",
         spec={"grid": {"robots.count": [1, 2]}, "seeds": [0], "base": {}, "name": "fuzz"},
         jobs=[StudyJob({"robots": {"count": n}}, 1, 1, point, 0) for point, n in ((0, 1), (1, 2))],
+        owner=owner,
     )
     store.close()
     return settings
@@ -89,6 +120,9 @@ def _seeded_settings() -> Settings:
 CONFIG = schemathesis.Config.from_dict(
     {
         "seed": 20261201,
+        # every request carries the key (the check that a request without one is refused runs
+        # as schemathesis's own ignored_auth)
+        "auth": {"openapi": {"HTTPBearer": {"bearer": KEY_A}}},
         # the first picture a process draws loads matplotlib, slow on a busy machine
         "request-timeout": 60,
         # the same requests every run: no examples replayed from earlier runs' database
@@ -113,7 +147,9 @@ CONFIG = schemathesis.Config.from_dict(
 # left out; tests/service/test_event_streams.py pins their 404 and 422 answers. Deletes run in
 # tests/service/test_fuzz_deletes.py, so that the job and study every route here reads stay.
 schema = (
-    schemathesis.openapi.from_asgi("/openapi.json", create_app(_seeded_settings()), config=CONFIG)
+    schemathesis.openapi.from_asgi(
+        "/openapi.json", create_app(_seeded_settings()), config=CONFIG, headers=bearer(KEY_A)
+    )
     .exclude(tag="events")
     .exclude(method="DELETE")
 )
