@@ -11,10 +11,11 @@ cannot overflow): this is the backstop, and it logs what it replaced.
 from __future__ import annotations
 
 import logging
-import math
 from typing import Any
 
 from fastapi.responses import JSONResponse
+
+from nanonav.finite import finite
 
 logger = logging.getLogger(__name__)
 
@@ -27,7 +28,7 @@ class FiniteJSONResponse(JSONResponse):
             return super().render(content)
         except ValueError:
             found: list[str] = []
-            finite = _finite(content, "#", found)
+            written = finite(content, found)
             if not found:
                 raise
             logger.error(
@@ -35,22 +36,4 @@ class FiniteJSONResponse(JSONResponse):
                 len(found),
                 found[0],
             )
-            return super().render(finite)
-
-
-def _finite(value: Any, pointer: str, found: list[str]) -> Any:
-    """``value`` with every non-finite float as None; ``found`` gets the JSON pointer of each."""
-    if isinstance(value, float):
-        if math.isfinite(value):
-            return value
-        found.append(pointer)
-        return None
-    if isinstance(value, dict):
-        return {k: _finite(v, f"{pointer}/{_token(k)}", found) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_finite(v, f"{pointer}/{i}", found) for i, v in enumerate(value)]
-    return value
-
-
-def _token(key: Any) -> str:
-    return str(key).replace("~", "~0").replace("/", "~1")
+            return super().render(written)

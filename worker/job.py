@@ -20,6 +20,7 @@ from pydantic import ValidationError
 from sqlalchemy.exc import SQLAlchemyError
 
 from nanonav.engine import Progress, SimulationResult, simulate
+from nanonav.finite import finite
 from nanonav.policy import UnusablePolicy, learned_table
 from nanonav.scenario import Scenario
 from nanonav.settings import Settings
@@ -192,17 +193,6 @@ def outcome(result: SimulationResult) -> Outcome:
         study_metrics=study_metrics(metrics) if result.completed else None,
         curve=learning_curve(metrics) if result.completed else None,
     )
-
-
-def finite(document: Any) -> Any:
-    """``document`` with NaN and infinities as None: JSON has no such numbers."""
-    if isinstance(document, dict):
-        return {k: finite(v) for k, v in document.items()}
-    if isinstance(document, list | tuple):
-        return [finite(v) for v in document]
-    if isinstance(document, float) and not math.isfinite(document):
-        return None
-    return document
 
 
 def _fail(store: JobStore, claim: Claim, error: str) -> JobRecord | None:
