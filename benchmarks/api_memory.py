@@ -15,10 +15,10 @@ last line the growth over the second half of the rounds next to that over the fi
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import json
 import os
 import random
-import socket
 import subprocess
 import sys
 import tempfile
@@ -29,6 +29,15 @@ from pathlib import Path
 from typing import Any
 
 import httpx
+
+# The service benchmark's helpers: loaded from its path (``service`` is the API package).
+_SPEC = importlib.util.spec_from_file_location(
+    "service_benchmark", Path(__file__).resolve().parent / "service.py"
+)
+assert _SPEC is not None and _SPEC.loader is not None
+service_benchmark = importlib.util.module_from_spec(_SPEC)
+sys.modules["service_benchmark"] = service_benchmark
+_SPEC.loader.exec_module(service_benchmark)
 
 TINY: dict[str, Any] = {"robots": {"count": 3}, "learning": {"episodes": 3, "max_steps": 80}}
 PLOTS = ("trajectory", "concentration", "learning", "qtable")
@@ -44,22 +53,18 @@ def rss_mb(pid: int) -> float:
     raise RuntimeError(f"no VmRSS for process {pid}")
 
 
-def free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        port: int = sock.getsockname()[1]
-        return port
-
-
 @contextmanager
-def api_and_worker() -> Iterator[tuple[subprocess.Popen[bytes], subprocess.Popen[bytes], str]]:
-    """An API and a worker over a fresh SQLite file: both processes and the API's URL."""
+def api_and_worker() -> Iterator[
+    tuple[subprocess.Popen[bytes], subprocess.Popen[bytes], str, Path]
+]:
+    """An API and a worker over a fresh SQLite file: both processes, the API's URL and the
+    folder of the file and their logs."""
     from nanonav.store.migrate import upgrade
 
     workdir = Path(tempfile.mkdtemp(prefix="nanonav-memory-"))
     url = f"sqlite:///{workdir / 'nanonav.db'}"
     upgrade(url)
-    port = free_port()
+    port = service_benchmark.free_port()
     env = {
         **{k: v for k, v in os.environ.items() if not k.startswith("NANONAV_")},
         "NANONAV_DATABASE_URL": url,
@@ -75,7 +80,7 @@ def api_and_worker() -> Iterator[tuple[subprocess.Popen[bytes], subprocess.Popen
         [sys.executable, "-m", "worker"], env=env, stdout=logs[1], stderr=subprocess.STDOUT
     )
     try:
-        yield api, worker, f"http://127.0.0.1:{port}"
+        yield api, worker, f"http://127.0.0.1:{port}", workdir
     finally:
         for process in (api, worker):
             stop(process)
@@ -161,19 +166,10 @@ def main(argv: list[str] | None = None) -> int:
     drawings, fuzzed = (2, 40) if args.quick else (12, 400)
     rng = random.Random(20261203)
     with (
-        api_and_worker() as (api, worker, url),
+        api_and_worker() as (api, worker, url, workdir),
         httpx.Client(base_url=url, timeout=120) as client,
     ):
-        deadline = time.monotonic() + 120
-        while True:
-            try:
-                if client.get("/healthz").status_code == 200:
-                    break
-            except httpx.TransportError:
-                pass
-            if time.monotonic() > deadline:
-                raise TimeoutError("the API did not start")
-            time.sleep(0.1)
+        service_benchmark.wait_healthy(client, time.monotonic() + 120, workdir)
         job_ids = [client.post("/jobs", json={**TINY, "seed": s}).json()["id"] for s in range(3)]
         study = client.post(
             "/studies", json={"base": TINY, "grid": {"robots.count": [2, 3]}, "seeds": [1, 2]}

@@ -71,6 +71,19 @@ def free_port() -> int:
         return port
 
 
+def wait_healthy(client: httpx.Client, deadline: float, workdir: Path) -> None:
+    """Until the API's ``/healthz`` answers 200; TimeoutError past ``deadline``."""
+    while True:
+        try:
+            if client.get("/healthz").status_code == 200:
+                return
+        except httpx.TransportError:
+            pass
+        if time.monotonic() > deadline:
+            raise TimeoutError(f"the API did not start; see {workdir}")
+        time.sleep(0.1)
+
+
 @dataclass
 class Service:
     client: httpx.Client
@@ -112,15 +125,7 @@ def service(workers: int = 2) -> Iterator[Service]:
                 raise TimeoutError(f"the workers did not start; see {workdir}")
             time.sleep(0.1)
         with httpx.Client(base_url=f"http://127.0.0.1:{port}", timeout=60) as client:
-            while True:
-                try:
-                    if client.get("/healthz").status_code == 200:
-                        break
-                except httpx.TransportError:
-                    pass
-                if time.monotonic() > deadline:
-                    raise TimeoutError(f"the API did not start; see {workdir}")
-                time.sleep(0.1)
+            wait_healthy(client, deadline, workdir)
             yield Service(client, database)
     finally:
         for child in children:

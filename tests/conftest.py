@@ -197,9 +197,9 @@ class LiveApi:
 
 
 @contextmanager
-def api_with_worker(directory: Path, **api_env: str) -> Iterator[tuple[ApiServer, str]]:
+def api_and_worker(directory: Path, **api_env: str) -> Iterator[tuple[ApiServer, Worker, str]]:
     """An API process and a worker process over a migrated SQLite file in ``directory``, both
-    ready; yields the API and the database URL, and stops both afterwards."""
+    ready; yields both and the database URL, and stops both afterwards."""
     url = sqlite_url_in(directory)
     upgrade(url)
     api = ApiServer(url, directory / "api.log", **api_env)
@@ -207,10 +207,17 @@ def api_with_worker(directory: Path, **api_env: str) -> Iterator[tuple[ApiServer
     try:
         api.wait_ready()
         worker.wait_ready()
-        yield api, url
+        yield api, worker, url
     finally:
         api.terminate()
         worker.terminate()
+
+
+@contextmanager
+def api_with_worker(directory: Path, **api_env: str) -> Iterator[tuple[ApiServer, str]]:
+    """``api_and_worker``'s API and database URL."""
+    with api_and_worker(directory, **api_env) as (api, _, url):
+        yield api, url
 
 
 @pytest.fixture(scope="session")

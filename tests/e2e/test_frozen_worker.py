@@ -17,9 +17,8 @@ from typing import Any
 import httpx
 import pytest
 
-from nanonav.store.migrate import upgrade
-from tests.conftest import SCRIPTED, sqlite_url_in
-from tests.processes import ApiServer, Worker
+from tests.conftest import SCRIPTED, api_and_worker
+from tests.processes import Worker
 
 pytestmark = pytest.mark.timeout(240)
 # Far below the 30 s that a write waits for SQLite's lock before it gives up with 503.
@@ -31,21 +30,6 @@ LONG: dict[str, Any] = {
     "robots": {"count": 20},
     "learning": {"episodes": 40},
 }
-
-
-@contextmanager
-def api_and_worker(directory: Path) -> Iterator[tuple[ApiServer, Worker]]:
-    url = sqlite_url_in(directory)
-    upgrade(url)
-    api = ApiServer(url, directory / "api.log")
-    worker = Worker(url, directory / "worker.log")
-    try:
-        api.wait_ready()
-        worker.wait_ready()
-        yield api, worker
-    finally:
-        api.terminate()
-        worker.terminate()
 
 
 @contextmanager
@@ -81,7 +65,7 @@ def wait_for(read: Callable[[], bool], what: str, timeout_s: float = 120.0) -> N
 
 def test_a_worker_frozen_in_any_phase_never_stalls_the_api_s_writes(tmp_path: Path) -> None:
     with (
-        api_and_worker(tmp_path) as (api, worker),
+        api_and_worker(tmp_path) as (api, worker, _),
         httpx.Client(base_url=api.url, timeout=30, headers=SCRIPTED) as client,
     ):
         phases = []

@@ -38,24 +38,26 @@ def running(
                 process.wait()
 
 
+def until_logged(process: subprocess.Popen[bytes], log: Path, text: str, deadline: float) -> None:
+    """Wait until ``process`` writes ``text`` to ``log``, while it lives and before ``deadline``."""
+    while text not in log.read_text():
+        assert process.poll() is None, log.read_text()
+        assert time.monotonic() < deadline, log.read_text()
+        time.sleep(0.1)
+
+
 def test_run_local_migrates_serves_runs_a_job_and_stops_on_ctrl_c(tmp_path: Path) -> None:
     port = free_port()
     log = tmp_path / "run.log"
     command = [sys.executable, "-m", "nanonav.run_local"]
     with running(command, log, clean_environment(PORT=str(port)), cwd=tmp_path) as process:
         deadline = time.monotonic() + 120
-        while "the API is at" not in log.read_text():
-            assert process.poll() is None, log.read_text()
-            assert time.monotonic() < deadline, log.read_text()
-            time.sleep(0.1)
+        until_logged(process, log, "the API is at", deadline)
         assert f"http://127.0.0.1:{port}" in log.read_text()
         assert (tmp_path / "var" / "nanonav.db").exists()
         shown = re.search(r"the command line is (\S+)", log.read_text())
         assert shown is not None and Path(shown.group(1)).is_file()
-        while "a worker is ready" not in log.read_text():
-            assert process.poll() is None, log.read_text()
-            assert time.monotonic() < deadline, log.read_text()
-            time.sleep(0.1)
+        until_logged(process, log, "a worker is ready", deadline)
         with httpx.Client(base_url=f"http://127.0.0.1:{port}", timeout=10) as client:
             health = client.get("/healthz").json()
             assert health["workers"]["seen"] == 1 and health["note"] is None
@@ -164,10 +166,7 @@ def test_run_local_on_postgresql_migrates_and_serves(postgres_url: str, tmp_path
     env = clean_environment(PORT=str(port), DATABASE_URL=postgres_url)
     with running(command, log, env, cwd=tmp_path) as process:
         deadline = time.monotonic() + 120
-        while "the API is at" not in log.read_text():
-            assert process.poll() is None, log.read_text()
-            assert time.monotonic() < deadline, log.read_text()
-            time.sleep(0.1)
+        until_logged(process, log, "the API is at", deadline)
         with httpx.Client(base_url=f"http://127.0.0.1:{port}", timeout=10) as client:
             health = client.get("/healthz").json()
             assert health["status"] == "ok" and health["database"] is True
