@@ -99,6 +99,8 @@ class JobRecord:
 RECORD_COLUMNS = tuple(Job.__table__.c[name] for name in JobRecord.__dataclass_fields__)
 _RECORDS = select(*RECORD_COLUMNS)
 _RECORD_BY_ID = _RECORDS.where(Job.id == bindparam("job_id"))
+# Whether anything waits: read without a lock before a claim takes one.
+_ANY_QUEUED = select(Job.id).where(Job.status == JobStatus.QUEUED).limit(1)
 
 
 @dataclass(frozen=True)
@@ -410,6 +412,11 @@ class JobStore:
 
     def claim(self, owner: str, *, lease_s: float, now: datetime | None = None) -> Claim | None:
         """The oldest queued job, now running under a new lease, or None if nothing waits."""
+        # An idle worker polls often: it looks first, so that it takes SQLite's write lock only
+        # when there is a job to claim (a worker frozen while it holds it stalls every write).
+        with self.engine.connect() as connection:
+            if connection.execute(_ANY_QUEUED).first() is None:
+                return None
         now = now or utcnow()
         token = secrets.token_hex(16)
         oldest = (

@@ -203,8 +203,11 @@ def test_a_database_whose_driver_is_missing_is_one_line_naming_the_extra() -> No
 def test_make_run_installs_the_driver_its_database_url_needs(url: str, extra: bool) -> None:
     root = Path(__file__).resolve().parents[2]
     env = clean_environment(DATABASE_URL=url) if url else clean_environment()
+    for inherited in ("MAKEFLAGS", "MFLAGS", "MAKELEVEL"):  # when `make test` runs this test
+        env.pop(inherited, None)
     planned = subprocess.run(
-        ["make", "-n", "run"], cwd=root, env=env, capture_output=True, text=True, check=True
-    ).stdout
+        ["make", "--no-print-directory", "-n", "run"],
+        cwd=root, env=env, capture_output=True, text=True, check=True,
+    ).stdout  # fmt: skip
     assert ("'.[postgres]'" in planned) is extra, planned
     assert planned.rstrip().endswith("-m nanonav.run_local")
