@@ -985,7 +985,7 @@ class Scenario(_Part):
         if isinstance(data, dict) and isinstance(data.get("preset"), str):
             base = PRESETS.get(data["preset"])
             if base is not None:
-                data = _deep_merge(base, data)
+                data = deep_merge(base, data)
         return _steering_by_default(data)
 
     @model_validator(mode="after")
@@ -1377,11 +1377,12 @@ def _steering_by_default(data: Any) -> Any:
     return {**data, "physics": physics, "learning": learning}
 
 
-def _deep_merge(base: dict[str, Any], override: dict[str, Any]) -> dict[str, Any]:
+def deep_merge(base: dict[str, Any], override: dict[str, Any]) -> dict[str, Any]:
+    """``base`` with ``override`` laid over it, section by section (a preset under a request)."""
     merged = dict(base)
     for key, value in override.items():
         if isinstance(value, dict) and isinstance(merged.get(key), dict):
-            merged[key] = _deep_merge(merged[key], value)
+            merged[key] = deep_merge(merged[key], value)
         else:
             merged[key] = value
     return merged
@@ -1410,8 +1411,8 @@ PRESETS["diffuse-tumour"] = DIFFUSE_TUMOUR
 PRESETS.update(
     {
         "tumour-microswimmers": TUMOUR,
-        "tumour-nanorobots": _deep_merge(TUMOUR, {"physics": {"robot_radius_um": 0.2}}),
-        "tumour-passive": _deep_merge(
+        "tumour-nanorobots": deep_merge(TUMOUR, {"physics": {"robot_radius_um": 0.2}}),
+        "tumour-passive": deep_merge(
             TUMOUR, {"physics": {"swim_speed_um_s": 0.0}, "robots": {"policy": "uncontrolled"}}
         ),
     }

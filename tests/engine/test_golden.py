@@ -13,6 +13,7 @@ and per-robot tables.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import sys
@@ -23,12 +24,10 @@ import numpy as np
 import pytest
 
 from nanonav.engine import simulate
-from nanonav.engine.result import SimulationResult
-from nanonav.scenario import BROWNIAN_POLICIES, LATTICE_POLICIES, PRESETS, Scenario
+from nanonav.engine.result import SimulationResult, without_timings
+from nanonav.scenario import BROWNIAN_POLICIES, LATTICE_POLICIES, PRESETS, Scenario, deep_merge
 
 GOLDEN = Path(__file__).with_name("golden_digests.json")
-# Wall-clock figures: they differ from run to run.
-CLOCKED = frozenset({"duration_s", "engine_s"})
 
 SHORT: dict[str, Any] = {"learning": {"episodes": 2, "max_steps": 60}, "evaluation": {"worlds": 3}}
 SHORT_SI: dict[str, Any] = {
@@ -50,14 +49,7 @@ TREATED: dict[str, Any] = {"cells": {"capacity": 1}}
 
 
 def _merge(*parts: dict[str, Any]) -> dict[str, Any]:
-    merged: dict[str, Any] = {}
-    for part in parts:
-        for key, value in part.items():
-            if isinstance(value, dict) and isinstance(merged.get(key), dict):
-                merged[key] = _merge(merged[key], value)
-            else:
-                merged[key] = value
-    return merged
+    return functools.reduce(deep_merge, parts, {})
 
 
 def _cases() -> dict[str, dict[str, Any]]:
@@ -104,25 +96,6 @@ def _cases() -> dict[str, dict[str, Any]]:
 CASES = _cases()
 
 
-def _clockless(document: Any) -> Any:
-    if isinstance(document, dict):
-        return {k: _clockless(v) for k, v in document.items() if k not in CLOCKED}
-    if isinstance(document, list):
-        return [_clockless(v) for v in document]
-    return document
-
-
-def _arrays(result: SimulationResult) -> dict[str, Any]:
-    arrays: dict[str, Any] = {}
-    if result.trajectory is not None:
-        for name, value in vars(result.trajectory).items():
-            arrays[f"trajectory.{name}"] = value
-    if result.qtable is not None:
-        arrays["qtable.values"] = result.qtable.values
-        arrays["qtable.visits"] = result.qtable.visits
-    return arrays
-
-
 def digest(result: SimulationResult) -> str:
     """SHA-256 of a result's metrics (without wall-clock times) and arrays, bit for bit."""
     hashed = hashlib.sha256()
@@ -132,21 +105,17 @@ def digest(result: SimulationResult) -> str:
         "robots": result.robots,
         "episodes": result.episodes,
     }
-    hashed.update(json.dumps(_clockless(metrics), sort_keys=True).encode())
-    for name, value in sorted(_arrays(result).items()):
-        hashed.update(name.encode())
-        if isinstance(value, np.ndarray):
-            contiguous = np.ascontiguousarray(value)
-            hashed.update(f"{contiguous.dtype.str}{contiguous.shape}".encode())
-            hashed.update(contiguous.tobytes())
-        else:
-            hashed.update(repr(value).encode())
+    hashed.update(json.dumps(without_timings(metrics), sort_keys=True).encode())
+    for name, value in sorted(result.arrays().items()):
+        contiguous = np.ascontiguousarray(value)
+        hashed.update(f"{name}{contiguous.dtype.str}{contiguous.shape}".encode())
+        hashed.update(contiguous.tobytes())
     return hashed.hexdigest()
 
 
 def run(case: str) -> dict[str, Any]:
     result = simulate(Scenario.model_validate(CASES[case]))
-    return {"summary": _clockless(result.summary), "digest": digest(result)}
+    return {"summary": without_timings(result.summary), "digest": digest(result)}
 
 
 def _stored() -> dict[str, Any]:
