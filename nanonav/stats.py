@@ -118,6 +118,12 @@ def _finite_array(values: Sequence[float], name: str) -> NDArray[np.float64]:
     return np.asarray(values, dtype=np.float64).reshape(-1)
 
 
+def exact_mean(values: NDArray[np.float64]) -> float:
+    """The correctly rounded mean (``math.fsum``): the same bits on every machine, where
+    numpy's sums take their order from the processor's vector width."""
+    return math.fsum(values.tolist()) / len(values)
+
+
 def _describe(
     values: NDArray[np.float64], confidence: float, bounds: tuple[float, float] | None = None
 ) -> Description:
@@ -135,7 +141,7 @@ def _describe(
             low, high = _wilson(mean, n, confidence)
             return Description(n=n, mean=mean, sd=0.0, ci_low=low, ci_high=high, method=method)
         return Description(n=n, mean=mean, sd=0.0, ci_low=mean, ci_high=mean, method=method)
-    mean = float(values.mean())
+    mean = exact_mean(values)
     sd = float(values.std(ddof=1))
     t = _t_quantile(0.5 + confidence / 2, n - 1)
     if method == WILSON:

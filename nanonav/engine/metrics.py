@@ -142,7 +142,7 @@ def robot_rows(
 
 
 def _mean(values: NDArray[np.float64]) -> float | None:
-    return float(values.mean()) if values.size else None
+    return stats.exact_mean(values) if values.size else None
 
 
 def swarm_summary(
@@ -151,7 +151,7 @@ def swarm_summary(
     """The swarm's numbers in one evaluation world (``cells``: cells x CELL columns)."""
     load = cells[:, CELL_LOAD]
     out: dict[str, Any] = {
-        "robots_per_cell": float(load.mean()),
+        "robots_per_cell": stats.exact_mean(load.astype(np.float64)),
         "most_robots_on_a_cell": int(load.max()),
         "bumps": int(tallies[:, EV_BUMPS].sum()),
     }
@@ -180,14 +180,14 @@ def world_summary(
         "mean_steps_to_reach": _mean(steps[reached]),
         "episode_steps": int(episode_steps),
         "success_rate": float((reached & ~swept).mean()),
-        "final_distance": float(final.mean()),
+        "final_distance": stats.exact_mean(final),
         "final_distance_reached": _mean(final[reached]),
         "final_distance_unreached": _mean(final[~reached]),
-        "average_distance": float((tallies[:, EV_SUM_DISTANCE] / counted).mean()),
-        "average_concentration": float((tallies[:, EV_SUM_CONCENTRATION] / counted).mean()),
+        "average_distance": stats.exact_mean(tallies[:, EV_SUM_DISTANCE] / counted),
+        "average_concentration": stats.exact_mean(tallies[:, EV_SUM_CONCENTRATION] / counted),
         "collisions": int(tallies[:, EV_COLLISIONS].sum()),
-        "path_efficiency": float(_efficiency(tallies).mean()),
-        "mean_return": float(tallies[:, EV_RETURN].mean()),
+        "path_efficiency": stats.exact_mean(_efficiency(tallies)),
+        "mean_return": stats.exact_mean(tallies[:, EV_RETURN]),
         "duration_s": float(duration_s),
         "robots": int(tallies.shape[0]),
         "reached": int(reached.sum()),
