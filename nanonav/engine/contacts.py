@@ -144,14 +144,6 @@ def relist(grid: CellList, i: int, x: float, y: float, z: float) -> None:
     grid.heads[new] = i
 
 
-@njit(cache=True, error_model="numpy", inline="always")
-def _seen(buckets: NDArray[np.int64], n: int, b: int) -> bool:
-    for k in range(n):  # noqa: SIM110 (numba compiles the loop; a generator it would not)
-        if buckets[k] == b:
-            return True
-    return False
-
-
 @njit(cache=True, error_model="numpy")
 def first_within(
     grid: CellList, pos: NDArray[np.float64], active: NDArray[np.bool_],
@@ -182,29 +174,66 @@ def first_within(
     return best
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _met_before(
+    grid: CellList, b: int, x0: int, y0: int, z0: int, ax: int, ay: int, az: int,
+    y1: int, z1: int,
+) -> bool:  # fmt: skip
+    """Whether a cell before (ax, ay, az) in a search's order over [x0..][y0..y1][z0..z1]
+    hashes to bucket ``b`` too: the search then met the bucket already. Recomputed rather than
+    remembered, so that a search allocates nothing (a search spans a few cells)."""
+    for cx in range(x0, ax + 1):
+        for cy in range(y0, y1 + 1):
+            for cz in range(z0, z1 + 1):
+                if cx == ax and cy == ay and cz == az:
+                    return False
+                if _bucket(grid, cx, cy, cz) == b:
+                    return True
+    return False
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _sift_down(a: NDArray[np.int64], start: int, end: int) -> None:
+    root = start
+    while 2 * root + 1 < end:
+        child = 2 * root + 1
+        if child + 1 < end and a[child] < a[child + 1]:
+            child += 1
+        if a[root] >= a[child]:
+            return
+        a[root], a[child] = a[child], a[root]
+        root = child
+
+
+@njit(cache=True, error_model="numpy")
+def sort_first(a: NDArray[np.int64], k: int) -> None:
+    """Sort ``a[:k]`` in place (a heapsort: numba's own sort allocates its stack)."""
+    for start in range(k // 2 - 1, -1, -1):
+        _sift_down(a, start, k)
+    for end in range(k - 1, 0, -1):
+        a[0], a[end] = a[end], a[0]
+        _sift_down(a, 0, end)
+
+
 @njit(cache=True, error_model="numpy")
 def each_within(
     grid: CellList, pos: NDArray[np.float64], x: float, y: float, z: float, distance: float,
     out: NDArray[np.int64],
 ) -> int:  # fmt: skip
     """Every listed robot closer than ``distance`` to (x, y, z), written to ``out[:k]`` in
-    increasing index order; returns k."""
+    increasing index order; returns k. Allocates nothing, so the step can call it."""
     reach = distance + grid.slack
     x0, x1 = _span(x, reach, grid)
     y0, y1 = _span(y, reach, grid)
     z0, z1 = _span(z, reach, grid)
     d2 = distance * distance
-    visited = np.empty((x1 - x0 + 1) * (y1 - y0 + 1) * (z1 - z0 + 1), dtype=np.int64)
-    n = 0
     k = 0
     for ax in range(x0, x1 + 1):
         for ay in range(y0, y1 + 1):
             for az in range(z0, z1 + 1):
                 b = _bucket(grid, ax, ay, az)
-                if _seen(visited, n, b):
+                if _met_before(grid, b, x0, y0, z0, ax, ay, az, y1, z1):
                     continue
-                visited[n] = b
-                n += 1
                 j = grid.heads[b]
                 while j >= 0:
                     dx = pos[j, 0] - x
@@ -214,7 +243,7 @@ def each_within(
                         out[k] = j
                         k += 1
                     j = grid.next[j]
-    out[:k].sort()
+    sort_first(out, k)
     return k
 
 
@@ -226,7 +255,6 @@ def pairs_within(
     freshly rebuilt grid."""
     d2 = distance * distance
     reach = distance + grid.slack
-    visited = np.empty(64, dtype=np.int64)
     found = 0
     for i in range(pos.shape[0]):
         if not active[i]:
@@ -234,18 +262,12 @@ def pairs_within(
         x0, x1 = _span(pos[i, 0], reach, grid)
         y0, y1 = _span(pos[i, 1], reach, grid)
         z0, z1 = _span(pos[i, 2], reach, grid)
-        cells = (x1 - x0 + 1) * (y1 - y0 + 1) * (z1 - z0 + 1)
-        if cells > visited.shape[0]:
-            visited = np.empty(cells, dtype=np.int64)
-        n = 0
         for ax in range(x0, x1 + 1):
             for ay in range(y0, y1 + 1):
                 for az in range(z0, z1 + 1):
                     b = _bucket(grid, ax, ay, az)
-                    if _seen(visited, n, b):
+                    if _met_before(grid, b, x0, y0, z0, ax, ay, az, y1, z1):
                         continue
-                    visited[n] = b
-                    n += 1
                     j = grid.heads[b]
                     while j >= 0:
                         if j > i:
