@@ -38,6 +38,7 @@ PresetName = Literal[
     "diffuse-tumour",
 ]
 FieldModel = Literal["gaussian", "inverse_square", "diffusion", "sampled_gaussian"]
+Schedule = Literal["sequential", "simultaneous"]
 RobotStart = Literal["anywhere", "corner"]
 Policy = Literal[
     "q_learning",
@@ -400,6 +401,16 @@ class Robots(_Part):
         "apart), a move into another robot is refused as one into an obstacle would be, and "
         "counts as a bump (neighbours are found in a cell list, O(robots) a step). Bound robots "
         "(delivered) keep their place. false: robots pass through each other (the paper's).",
+    )
+    schedule: Schedule = Field(
+        "sequential",
+        description="The order of a step's phases across robots (PettingZoo's names): "
+        "'sequential' (its AEC order, the paper's): robot i perceives, decides and acts before "
+        "robot i + 1 perceives, so it sees what the robots before it did in the same step (a "
+        "cell treated, a message sent, a place taken); 'simultaneous' (its parallel order): "
+        "every robot perceives, then every robot acts. With one robot the two are the same. "
+        "The environments step as their API says: NanoNavAECEnv sequentially, "
+        "NanoNavParallelEnv simultaneously.",
     )
     radius: float = Field(
         0.25,

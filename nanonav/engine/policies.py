@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit
+from numba.np.random.random_methods import buffered_bounded_lemire_uint32
 from numpy.typing import NDArray
 
 from nanonav.engine.communication import ATTRACTANT_RISING, REPELLENT
@@ -42,13 +43,24 @@ NO_BEHAVIOR = -1
 
 
 @njit(cache=True, error_model="numpy", inline="always")
+def below(rng: np.random.Generator, n: int) -> int:
+    """A uniform integer of 0 .. n - 1, as ``rng.integers(0, n)`` draws it (the same bits, the
+    same number) without allocating, so that the uncounted step may call it; for ``n`` of 1
+    it draws nothing, as ``integers`` draws nothing."""
+    if n <= 1:
+        return 0
+    drawn = buffered_bounded_lemire_uint32(rng.bit_generator, n - 1)  # type: ignore[no-untyped-call]
+    return int(np.int64(drawn))  # int() of a uint32 would type as float under numba
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def _choose(
     epsilon: float, rng: np.random.Generator, q: NDArray[np.float64], table: int, state: int
 ) -> int:
     """Epsilon-greedy over one row of the table; ties among the best are broken at random."""
     actions = q.shape[2]
     if epsilon > 0.0 and rng.random() < epsilon:
-        return int(rng.integers(0, actions))
+        return below(rng, actions)
     best = q[table, state, 0]
     ties = 1
     for a in range(1, actions):
@@ -58,7 +70,7 @@ def _choose(
             ties = 1
         elif v == best:
             ties += 1
-    pick = 0 if ties == 1 else int(rng.integers(0, ties))
+    pick = 0 if ties == 1 else below(rng, ties)
     for a in range(actions):
         if q[table, state, a] == best:
             if pick == 0:

@@ -161,11 +161,11 @@ def diffuse(
             scratch[i, j, last] = a * c[i, j, last] + r * (
                 side + c[i, j, last - 1] + ghost * c[i, j, last]
             )
-    # back through flat views, somewhat faster than numba's 3-D slice assignment on big grids
-    out = c.ravel()
-    done = scratch.ravel()
-    for q in range(done.shape[0]):
-        out[q] = done[q]
+    # back node by node: no view is made, so the uncounted step may call this
+    for i in range(dims):
+        for j in range(dims):
+            for m in range(dims):
+                c[i, j, m] = scratch[i, j, m]
 
 
 @njit(cache=True, error_model="numpy")

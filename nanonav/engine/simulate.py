@@ -15,7 +15,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from nanonav.engine import contacts, fields, kernel, metrics, qlearning, signals, state
+from nanonav.engine import contacts, fields, kernel, metrics, phases, qlearning, signals, state
 from nanonav.engine.dynamics import brownian
 from nanonav.engine.dynamics.brownian import heading_kick_scale
 from nanonav.engine.result import QTable, SimulationResult, Trajectory
@@ -109,6 +109,7 @@ def kernel_params(scenario: Scenario, record_bytes: int = DEFAULT_RECORD_BYTES) 
         cell_extent=scenario.cells.start_extent,
         walls=scenario.space.walls,
         robot_corner=scenario.robots.start == "corner",
+        schedule=state.SCHEDULE_CODES[scenario.robots.schedule],
     )
     if scenario.physics.model == "active_brownian":
         params = _brownian_params(scenario, params, b)
@@ -444,6 +445,11 @@ class _Run:
             load=np.zeros((rows, cells), dtype=np.int64),
             signal=np.zeros((rows if comm != "none" else 0, n)),
         )
+        self.sim = phases.Sim(
+            self.world, self.swarm, self.social, self.treatment, self.near, self.radio,
+            self.everyone, self.found, self.signals.conc, self.signals.scratch, self.recording,
+            phases.percept(n),
+        )  # fmt: skip
         self.counters = np.zeros(state.COUNTERS, dtype=np.int64)
         self.curve = np.zeros((scenario.episodes, state.CURVE_COLUMNS))
         self.evaluation = np.zeros((scenario.evaluation.worlds, n, state.EV_COLUMNS))
@@ -467,10 +473,8 @@ class _Run:
         """Run about ``budget`` robot-steps, stopping early at the end of training or of the
         evaluation."""
         kernel.run(
-            self.params, self.epsilons, self.world_rng, self.evaluation_rng, self.rng,
-            self.world, self.swarm, self.social, self.treatment, self.learner, self.recording,
-            self.counters, self.curve, self.evaluation, budget, self.near, self.radio,
-            self.everyone, self.found, self.signals.conc, self.signals.scratch, self.cell_tallies,
+            self.params, self.epsilons, self.world_rng, self.evaluation_rng, self.rng, self.sim,
+            self.learner, self.counters, self.curve, self.evaluation, budget, self.cell_tallies,
         )  # fmt: skip
         raise_for_layout(int(self.counters[state.LAYOUT_STATUS]), self.scenario)
 

@@ -39,6 +39,12 @@ COMMUNICATION_CODES = {
 ALPHA_CONSTANT = 0
 ALPHA_VISITS = 1
 ALPHA_SCHEDULE_CODES = {"constant": ALPHA_CONSTANT, "visits": ALPHA_VISITS}
+# The order of a step's phases over the robots (PettingZoo's names): robot i perceives, decides
+# and acts before robot i + 1 perceives (AEC), or every robot perceives, then every robot acts
+# (parallel).
+SEQUENTIAL = 0
+SIMULTANEOUS = 1
+SCHEDULE_CODES = {"sequential": SEQUENTIAL, "simultaneous": SIMULTANEOUS}
 
 
 class KernelParams(NamedTuple):
@@ -110,6 +116,7 @@ class KernelParams(NamedTuple):
     signal_spacing: float = 1.0
     signal_dims: int = 1
     broadcast_range: float = 0.0
+    schedule: int = SEQUENTIAL
 
 
 class Swarm(NamedTuple):

@@ -1,66 +1,43 @@
-"""A step whose actions come from outside the engine (an agent of an RL library), in two halves:
-every robot perceives, then every robot acts on the action it was given.
+"""Worlds stepped from outside the engine (an agent of an RL library hands in the actions),
+under the scenario's schedule, over the same phases (``phases``) ``simulate`` runs:
 
-``kernel`` interleaves the two robot by robot (robot i senses, chooses and moves before robot
-i + 1 senses), which an agent outside cannot do: it sees every robot's observation before it
-chooses any action. So here a step is ``act`` (each active robot, in index order, turns its
-given action into a move, as the kernel turns its own choice), then the world's next step
-begins (cells drift, sources and signals are placed, the field is read: ``_prelude``), then
-``perceive`` (each robot, in index order, senses, receives, and is delivered if a cell drifted
-within reach). With one robot the two orders are the same, random draw for random draw: an
-agent that acts as the kernel's greedy choice would reproduces ``simulate``'s evaluation
-exactly. With many they differ in what a robot can see of the others' moves within a step
-(a cell treated, a message sent earlier in the same step) and in the order of the random draws.
+- ``simultaneous`` (PettingZoo's parallel order): a step is ``act`` (each active robot, in
+  index order, on the action it was given), then the world's next step begins (``advance``),
+  then ``perceive`` (each robot, in index order, senses and receives, or takes in a cell that
+  drifted within reach). The agent sees every robot's observation before it chooses any action.
+- ``sequential`` (PettingZoo's AEC order, the kernel's own): one robot acts at a time; the
+  next active robot then perceives, and when the last robot of a step has acted the world's
+  next step begins. ``clock[CLOCK_NEXT]`` names the robot whose turn it is.
 
-The observation of robot i is ``FEATURES`` numbers (``OBS_*``): what the tabular state is built
-from, before it is cut into levels. Everything here runs under numba; ``step_worlds`` steps many
-worlds in one call.
+Either way the random draws come in the order ``simulate`` draws them under the same schedule,
+so an agent that acts as the engine's greedy choice would reproduces its evaluation exactly.
+The observation of robot i is ``phases.FEATURES`` numbers (``phases.OBS_*``). ``step_worlds``
+steps many worlds in one call.
 """
 
 from __future__ import annotations
-
-from collections.abc import Callable
-from typing import Any, NamedTuple, TypeVar, cast
 
 import numpy as np
 from numba import njit
 from numba.typed import List
 from numpy.typing import NDArray
 
-from nanonav.engine import communication as radio_room
-from nanonav.engine import kernel, treatment
-from nanonav.engine.contacts import CellList, bumped_back, relist
-from nanonav.engine.dynamics import brownian
-from nanonav.engine.dynamics.lattice import (
-    _move_cells,
-    _move_obstacles,
-    _move_robot,
-    _nearest_obstacle,
-    _redraw_emitters,
-)
-from nanonav.engine.fields import SAMPLED_GAUSSIAN, place_sources, place_treated
-from nanonav.engine.policies import NO_BEHAVIOR, _behavior_direction, _steer
-from nanonav.engine.qlearning import (
-    AVOID_OBSTACLE,
-    FOLLOW_SIGNAL,
-    STEER_TO_CELL,
-    STEER_TO_SIGNAL,
-    STEER_UP_GRADIENT,
-)
-from nanonav.engine.sensing import (
-    _read,
-    _sense,
-    _sense_all,
-    _sensed_gradient,
-    _state,
-    _steering_state,
+from nanonav.engine.contacts import CellList
+from nanonav.engine.kernel import begin_episode, over
+from nanonav.engine.phases import (
+    CLOCK_NEXT,
+    CLOCK_OVER,
+    CLOCK_STEP,
+    Percept,
+    Sim,
+    act,
+    advance,
+    command,
+    perceive,
+    uncounted,
 )
 from nanonav.engine.state import (
-    ACTIVE_BROWNIAN,
-    BEHAVIORS,
-    BROADCAST,
-    LATTICE,
-    NO_SIGNAL,
+    SEQUENTIAL,
     KernelParams,
     Recording,
     Social,
@@ -69,307 +46,69 @@ from nanonav.engine.state import (
     World,
 )
 
-# The observation's columns.
-OBS_READING = 0  # the reading it took (with the sensor's noise; 0 below the detection threshold)
-OBS_CHANGE = 1  # the reading minus the last (lattice, 0 at first) or its memory (brownian)
-OBS_GRADIENT = 2  # 2, 3, 4: the sensed gradient (x, y, z); 0 in active_brownian (read when steered)
-OBS_OBSTACLE = 5  # lattice: distance to the nearest obstacle's surface, capped at the sensing
-# radius; active_brownian: 1 if its last move was stopped by an obstacle, else 0
-OBS_CELL = 6  # distance to the nearest untreated cell (active_brownian: between their surfaces),
-# capped at the cell sensor's range (the cap: none sensed)
-OBS_SIGNAL = 7  # the net signal it read (attractant - repellent), or 1 while a message waits
-OBS_SIGNAL_CHANGE = 8  # minus the last net signal (0 with broadcast or without communication)
-FEATURES = 9
-
-# clock[] slots of a world
-CLOCK_STEP = 0  # the step the world is at
-CLOCK_OVER = 1  # 1 once its episode is over
-CLOCK_SLOTS = 2
-
 # worlds a call of _step_chunk steps: its arguments (the batch's every array, the parameters)
 # are copied in at each call, thousands of words, so a call takes several (step_worlds hands
 # it a tuple of exactly this many generators)
 CHUNK = 8
 
-_F = TypeVar("_F", bound=Callable[..., Any])
-
-
-def _uncounted(function: _F) -> _F:
-    """``njit`` without reference counting (numba's ``_nrt=False``, which its typed signature
-    does not name): ``_step_chunk`` says why."""
-    options: dict[str, Any] = {"cache": True, "error_model": "numpy", "_nrt": False}
-    return cast(_F, njit(**options)(function))
-
-
-class Percept(NamedTuple):
-    """What every robot perceived at the start of the step, for the act that follows, and what
-    it got since the agent's last decision."""
-
-    obs: NDArray[np.float64]  # (N, FEATURES)
-    state: NDArray[np.int64]  # (N,) the tabular state the engine's learner would see
-    target: NDArray[np.int64]  # (N,) the nearest untreated cell (-1 if none)
-    target_d: NDArray[np.float64]  # (N,) its distance
-    way: NDArray[np.float64]  # (N, 3) where what it receives points
-    reward: NDArray[np.float64]  # (N,) reward since the agent's last decision
-    clock: NDArray[np.int64]  # (CLOCK_SLOTS,)
-
-
-class Sim(NamedTuple):
-    """One world's arrays, as ``simulate.episode_arrays`` makes them, and its percept."""
-
-    w: World
-    s: Swarm
-    so: Social
-    tr: Treatment
-    near: CellList
-    radio: CellList
-    everyone: NDArray[np.bool_]
-    found: NDArray[np.int64]
-    sig: NDArray[np.float64]
-    sig_scratch: NDArray[np.float64]
-    rec: Recording  # an empty one: nothing is recorded
-    pc: Percept
-
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _prelude(p: KernelParams, rng: np.random.Generator, sim: Sim, t: int) -> None:
-    """The start of step ``t``: the world moves, its sources and the signal are placed, and the
-    true field is read at every active robot (as at the top of the kernel's step)."""
-    w = sim.w
-    tr = sim.tr
-    if p.cell_std > 0.0:
-        _move_cells(p, rng, w)
-    if p.physics == LATTICE:
-        if p.obstacle_std > 0.0 and w.obstacles.shape[0] > 0:
-            _move_obstacles(p, rng, w, sim.s)
-        if p.model == SAMPLED_GAUSSIAN:
-            _redraw_emitters(p, rng, w)
-    place_sources(p.model, w.cells, w.offsets, w.sx, w.sy, w.sz)
-    if p.capacity > 0:
-        tr.treated_sources[0] = place_treated(
-            p.model, w.cells, w.offsets, tr.treated_at, tr.tx, tr.ty, tr.tz
-        )  # fmt: skip
-    if p.signal != NO_SIGNAL and p.signal != BROADCAST and t % p.signal_every == 0:
-        radio_room.update_field(p, sim.s.pos, sim.so.bound_to, tr.treated_at, sim.sig,
-                                sim.sig_scratch)  # fmt: skip
-    _sense_all(p, w, sim.s, tr, sim.s.active)
-
-
-@njit(cache=True, error_model="numpy")
-def _delivered(p: KernelParams, sim: Sim, i: int, cell: int, t: int) -> None:
-    """Robot ``i`` reached ``cell`` at step ``t``: it delivers, is done, and broadcasts."""
+def _perceive_all(p: KernelParams, rng: np.random.Generator, sim: Sim, t: int) -> None:
+    """Every active robot perceives, in index order (the simultaneous schedule)."""
     s = sim.s
-    s.active[i] = False
-    treatment.deliver(p, sim.tr, sim.so, i, cell, t + 1)
-    if p.signal == BROADCAST:
-        radio_room.broadcast(p, s.pos, s.active, sim.so, sim.radio, sim.found, i)
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _perceive(p: KernelParams, rng: np.random.Generator, sim: Sim, t: int) -> None:
-    """Every active robot, in index order, at the start of step ``t``: a cell that drifted
-    within reach is received (the robot's step is spent so, as in the kernel); otherwise it
-    senses and receives, and its observation and tabular state are written."""
-    s = sim.s
-    so = sim.so
-    pc = sim.pc
-    brownian_robots = p.physics == ACTIVE_BROWNIAN
-    arrived = max(p.cell_sensing_radius, p.speed)
-    if brownian_robots:
-        arrived = max(p.cell_sensing_radius + p.reach_distance, p.speed)
     for i in range(s.pos.shape[0]):
-        if not s.active[i]:
-            continue
-        px = s.pos[i, 0]
-        py = s.pos[i, 1]
-        pz = s.pos[i, 2]
-        cell, cell_d = treatment.nearest_target(sim.w.cells, sim.tr.treated_at, px, py, pz)
-        if cell_d <= p.reach_distance:
-            toward = (
-                s.heading[i, 0] * (sim.w.cells[cell, 0] - px)
-                + s.heading[i, 1] * (sim.w.cells[cell, 1] - py)
-                + s.heading[i, 2] * (sim.w.cells[cell, 2] - pz)
-            )
-            s.swept[i] = toward <= 0.0
-            s.steps[i] += 1
-            s.returns[i] += p.reward_reach + p.reward_step
-            pc.reward[i] += p.reward_reach + p.reward_step
-            _delivered(p, sim, i, cell, t)
-            continue
-        row = pc.obs[i]
-        if brownian_robots:
-            c = _read(p, rng, s.reading[i])
-            s.sensed[i] = c
-            if s.prev_conc[i] < 0.0:
-                s.prev_conc[i] = c  # the first reading starts the memory
-            row[OBS_READING] = c
-            row[OBS_CHANGE] = c - s.prev_conc[i]
-            row[OBS_GRADIENT] = 0.0
-            row[OBS_GRADIENT + 1] = 0.0
-            row[OBS_GRADIENT + 2] = 0.0
-            row[OBS_OBSTACLE] = 1.0 if s.blocked[i] else 0.0
-            gap = cell_d - p.reach_distance
-            row[OBS_CELL] = min(gap, p.cell_sensing_radius)
-            state = _steering_state(
-                p, c, c > s.prev_conc[i], s.blocked[i], gap <= p.cell_sensing_radius
-            )
-        else:
-            c, gx, gy, gz = _sense(p, rng, s, i)
-            row[OBS_READING] = c
-            row[OBS_CHANGE] = c - s.prev_conc[i] if s.prev_conc[i] >= 0.0 else 0.0
-            row[OBS_GRADIENT] = gx
-            row[OBS_GRADIENT + 1] = gy
-            row[OBS_GRADIENT + 2] = gz
-            gap = _nearest_obstacle(sim.w.obstacles, p.obstacle_radius, px, py, pz)[1]
-            row[OBS_OBSTACLE] = min(max(gap, 0.0), p.sensing_radius)
-            row[OBS_CELL] = min(cell_d, p.cell_sensing_radius)
-            state = _state(p, c, s.prev_conc[i], gx, gy, gz, gap, cell_d)
-        row[OBS_SIGNAL] = 0.0
-        row[OBS_SIGNAL_CHANGE] = 0.0
-        ux = 0.0
-        uy = 0.0
-        uz = 0.0
-        if p.signal != NO_SIGNAL:
-            before = so.prev_signal[i]
-            heard, ux, uy, uz = radio_room.listen(p, rng, sim.sig, s.pos, so, i, arrived)
-            state = state * p.signal_states + heard
-            row[OBS_SIGNAL] = so.signal[i]
-            if p.signal != BROADCAST:
-                row[OBS_SIGNAL_CHANGE] = so.signal[i] - before
-        pc.state[i] = state
-        pc.target[i] = cell
-        pc.target_d[i] = cell_d
-        pc.way[i, 0] = ux
-        pc.way[i, 1] = uy
-        pc.way[i, 2] = uz
+        if s.active[i]:
+            perceive(p, rng, sim, i, t, True)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _act(
-    p: KernelParams, rng: np.random.Generator, sim: Sim, actions: NDArray[np.int64], t: int,
-    directions: NDArray[np.float64],
-) -> None:  # fmt: skip
-    """Every active robot, in index order, carries out its action of step ``t``: the move it
-    makes, a bump into another robot, the reward (paper 2.7), and a delivery on arrival."""
+def _next_turn(p: KernelParams, rng: np.random.Generator, sim: Sim, first: int) -> None:
+    """The sequential schedule: the first active robot from ``first`` on that perceives (one a
+    drifting cell reaches spends its turn so) gets the turn; when a step's robots have all had
+    theirs the step ends, and unless the episode is over the next begins."""
     s = sim.s
-    so = sim.so
-    pc = sim.pc
-    w = sim.w
-    for i in range(s.pos.shape[0]):
-        if not s.active[i]:
-            continue
-        pc.reward[i] = 0.0
-        px = s.pos[i, 0]
-        py = s.pos[i, 1]
-        pz = s.pos[i, 2]
-        action = actions[i]
-        c = pc.obs[i, OBS_READING]
-        cell = pc.target[i]
-        cell_d = pc.target_d[i]
-        hx = s.heading[i, 0]
-        hy = s.heading[i, 1]
-        hz = s.heading[i, 2]
-        path = s.path_length[i]
-        if p.physics == ACTIVE_BROWNIAN:
-            gx = 0.0
-            gy = 0.0
-            gz = 0.0
-            if action == STEER_UP_GRADIENT:
-                gx, gy, gz = _sensed_gradient(p, rng, s, i)
-            tx = 0.0
-            ty = 0.0
-            tz = 0.0
-            if action == STEER_TO_CELL and cell_d - p.reach_distance <= p.cell_sensing_radius:
-                tx = w.cells[cell, 0] - px
-                ty = w.cells[cell, 1] - py
-                tz = w.cells[cell, 2] - pz
-            elif action == STEER_TO_SIGNAL:
-                action = STEER_TO_CELL
-                tx = pc.way[i, 0]
-                ty = pc.way[i, 1]
-                tz = pc.way[i, 2]
-            _steer(p, rng, s, i, action, gx, gy, gz, tx, ty, tz)
-            s.prev_conc[i] += p.memory_weight * (c - s.prev_conc[i])
-            nx, ny, nz, blocked = brownian.move_robot(p, rng, w, s, i, px, py, pz)
-        else:
-            behavior = NO_BEHAVIOR
-            dx = 0.0
-            dy = 0.0
-            dz = 0.0
-            step = p.speed
-            if p.action_set == BEHAVIORS:
-                behavior = action
-            else:
-                dx = directions[action, 0]
-                dy = directions[action, 1]
-                dz = directions[action, 2]
-            gx = pc.obs[i, OBS_GRADIENT]
-            gy = pc.obs[i, OBS_GRADIENT + 1]
-            gz = pc.obs[i, OBS_GRADIENT + 2]
-            if behavior == FOLLOW_SIGNAL:
-                behavior = AVOID_OBSTACLE
-                gx = pc.way[i, 0]
-                gy = pc.way[i, 1]
-                gz = pc.way[i, 2]
-            if behavior >= 0:
-                dx, dy, dz, step = _behavior_direction(
-                    p, rng, w, s, i, behavior, px, py, pz, gx, gy, gz, cell, cell_d
-                )
-            s.prev_conc[i] = c
-            nx, ny, nz, blocked = _move_robot(p, w, s, i, px, py, pz, dx, dy, dz, step)
-        if (
-            p.exclusion
-            and not blocked
-            and bumped_back(sim.near, s.pos, sim.everyone, i, px, py, pz, p.contact)
-        ):
-            so.bumps[i] += 1
-            blocked = True
-            s.path_length[i] = path
-            if p.physics == LATTICE:
-                s.heading[i, 0] = hx
-                s.heading[i, 1] = hy
-                s.heading[i, 2] = hz
-            nx = px
-            ny = py
-            nz = pz
-        if p.signal == BROADCAST and not blocked:
-            relist(sim.radio, i, nx, ny, nz)
-        if p.physics == ACTIVE_BROWNIAN:
-            s.blocked[i] = blocked
-        reward = p.reward_step
-        if blocked:
-            reward += p.reward_collision
-        s.steps[i] += 1
-        target, new_d = treatment.nearest_target(w.cells, sim.tr.treated_at, nx, ny, nz)
-        if cell >= 0 and target >= 0:
-            reward += p.reward_approach * (cell_d - new_d)
-        if new_d <= p.reach_distance:
-            reward += p.reward_reach
-            _delivered(p, sim, i, target, t)
-        s.returns[i] += reward
-        pc.reward[i] = reward
+    clock = sim.pc.clock
+    n = s.pos.shape[0]
+    t = clock[CLOCK_STEP]
+    i = first
+    while True:
+        while i < n:
+            if s.active[i] and perceive(p, rng, sim, i, t, True):
+                clock[CLOCK_NEXT] = i
+                return
+            i += 1
+        t += 1
+        clock[CLOCK_STEP] = t
+        if over(p, sim.tr, s, t):
+            clock[CLOCK_OVER] = 1
+            clock[CLOCK_NEXT] = -1
+            return
+        advance(p, rng, sim, t)
+        i = 0
 
 
 @njit(cache=True, error_model="numpy")
 def reset_world(
     p: KernelParams, world_rng: np.random.Generator, rng: np.random.Generator, sim: Sim
 ) -> int:
-    """Draw a fresh world and perceive its step 0; returns ``world.draw_world``'s status."""
+    """Draw a fresh world and perceive its step 0 (under the sequential schedule, up to the
+    first robot's turn); returns ``world.draw_world``'s status."""
     clock = sim.pc.clock
     clock[CLOCK_STEP] = 0
     clock[CLOCK_OVER] = 0
+    clock[CLOCK_NEXT] = -1
     sim.pc.reward[:] = 0.0
     sim.pc.state[:] = 0
     sim.pc.obs[:] = 0.0
-    status = kernel._begin_episode(
-        p, world_rng, rng, sim.w, sim.s, sim.so, sim.tr, sim.rec, False, False, sim.near,
-        sim.radio, sim.everyone, sim.sig,
-    )  # fmt: skip
+    status = begin_episode(p, world_rng, rng, sim, False, False)
     if status != 0:
         clock[CLOCK_OVER] = 1
         return status
-    _prelude(p, rng, sim, 0)
-    _perceive(p, rng, sim, 0)
+    advance(p, rng, sim, 0)
+    if p.schedule == SEQUENTIAL:
+        _next_turn(p, rng, sim, 0)
+        return 0
+    _perceive_all(p, rng, sim, 0)
     if not sim.s.active.any():
         clock[CLOCK_STEP] = 1
         clock[CLOCK_OVER] = 1
@@ -377,22 +116,45 @@ def reset_world(
 
 
 @njit(cache=True, error_model="numpy", inline="always")
+def _act_on(
+    p: KernelParams, rng: np.random.Generator, sim: Sim, i: int, t: int, action: int,
+    directions: NDArray[np.float64],
+) -> None:  # fmt: skip
+    code, dx, dy, dz, gx, gy, gz = command(p, sim, i, action, directions)
+    act(p, rng, sim, i, t, code, dx, dy, dz, gx, gy, gz)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def step_world(
     p: KernelParams, rng: np.random.Generator, sim: Sim, actions: NDArray[np.int64],
     directions: NDArray[np.float64],
 ) -> None:  # fmt: skip
-    """One step of a world whose episode is not over: act, then perceive the next step."""
-    clock = sim.pc.clock
+    """One move of a world whose episode is not over, each robot's reward of it in
+    ``pc.reward`` (0 for a robot that did nothing). Simultaneous: every active robot acts on
+    its action, and the next step is perceived. Sequential: the robot whose turn it is acts on
+    its action (the others' are unused), and the next turn is perceived."""
+    pc = sim.pc
+    s = sim.s
+    clock = pc.clock
     t = clock[CLOCK_STEP]
-    _act(p, rng, sim, actions, t, directions)
+    for i in range(s.pos.shape[0]):
+        pc.reward[i] = 0.0
+    if p.schedule == SEQUENTIAL:
+        i = clock[CLOCK_NEXT]
+        _act_on(p, rng, sim, i, t, actions[i], directions)
+        _next_turn(p, rng, sim, i + 1)
+        return
+    for i in range(s.pos.shape[0]):
+        if s.active[i]:
+            _act_on(p, rng, sim, i, t, actions[i], directions)
     t += 1
     clock[CLOCK_STEP] = t
-    if kernel._over(p, sim.tr, sim.s, t):
+    if over(p, sim.tr, s, t):
         clock[CLOCK_OVER] = 1
         return
-    _prelude(p, rng, sim, t)
-    _perceive(p, rng, sim, t)
-    if not sim.s.active.any():
+    advance(p, rng, sim, t)
+    _perceive_all(p, rng, sim, t)
+    if not s.active.any():
         # the last robots spent step t receiving cells that drifted onto them: it counts
         clock[CLOCK_STEP] = t + 1
         clock[CLOCK_OVER] = 1
@@ -441,8 +203,9 @@ def _recording_at(b: Recording, k: int) -> Recording:
 @njit(cache=True, error_model="numpy", inline="always")
 def _percept_at(b: Percept, k: int) -> Percept:
     return Percept(
-        b.obs[k], b.state[k], b.target[k], b.target_d[k], b.way[k], b.reward[k], b.clock[k]
-    )
+        b.obs[k], b.state[k], b.heard[k], b.target[k], b.target_d[k], b.way[k], b.reward[k],
+        b.clock[k],
+    )  # fmt: skip
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -467,12 +230,13 @@ def step_worlds(
     fresh: NDArray[np.bool_],
     directions: NDArray[np.float64],
 ) -> int:
-    """Every world k of ``batches[0]`` (its arrays shaped worlds x ...) one step on
-    ``actions[k]`` (robots x 1), or, where ``fresh[k]``, into a fresh world (its actions
-    unused); a world whose episode is over and is not fresh stays as it is. What each world's
-    robots perceived and got is then in its ``pc``. Returns the first non-zero ``draw_world``
-    status, or 0. (The parameters and the batch come in lists of one: a list crosses into
-    compiled code at once, where a tuple of many arrays is checked array by array each call.)"""
+    """Every world k of ``batches[0]`` (its arrays shaped worlds x ...) one move
+    (``step_world``) on ``actions[k]`` (one per robot), or, where ``fresh[k]``, into a fresh
+    world (its actions unused); a world whose episode is over and is not fresh stays as it
+    is. What each world's robots perceived and got is then in its ``pc``. Returns the first
+    non-zero ``draw_world`` status, or 0. (The parameters and the batch come in lists of one:
+    a list crosses into compiled code at once, where a tuple of many arrays is checked array
+    by array each call.)"""
     p = params[0]
     batch = batches[0]
     worlds = batch.pc.clock.shape[0]
@@ -494,7 +258,7 @@ def step_worlds(
     return 0
 
 
-@_uncounted
+@uncounted
 def _step_chunk(
     p: KernelParams, generators: tuple[np.random.Generator, ...], batch: Sim, start: int,
     count: int, actions: NDArray[np.int64], fresh: NDArray[np.bool_],
@@ -502,10 +266,8 @@ def _step_chunk(
 ) -> None:  # fmt: skip
     """``step_world`` of worlds ``start`` ... ``start + count - 1`` of the batch (world
     ``start + j`` with ``generators[j]``; one fresh or over is left as it is), compiled without
-    reference counting (``_nrt=False``). Every view of a world and every member taken from its
-    NamedTuples would otherwise be counted in and out, an atomic call each: measured, those
-    calls were two thirds of a step's time. Nothing here allocates (numba refuses to compile it
-    if anything did), and the batch it views is held by the caller for the whole call."""
+    reference counting (``phases.uncounted``); the batch it views is held by the caller for the
+    whole call."""
     clock = batch.pc.clock
     for j in range(count):
         k = start + j

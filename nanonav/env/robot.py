@@ -56,7 +56,7 @@ class NanoNavEnv(gymnasium.Env[NDArray[np.float64], np.int64]):
 
     def __init__(self, scenario: ScenarioLike = None) -> None:
         self.scenario = with_robots(as_scenario(scenario), 1)
-        self._worlds = Worlds(self.scenario, 1)
+        self._worlds = Worlds(self.scenario, 1, "simultaneous")
         self._seen = observation_of(self.scenario)
         self.observation_space = spaces.Box(self._seen.low, self._seen.high, dtype=np.float64)
         self.action_space = spaces.Discrete(self._worlds.actions)
@@ -122,7 +122,7 @@ class NanoNavVectorEnv(VectorEnv[NDArray[np.float64], NDArray[np.int64], NDArray
             raise ValueError("num_envs must be at least 1")
         self.scenario = with_robots(as_scenario(scenario), 1)
         self.num_envs = num_envs
-        self._worlds = Worlds(self.scenario, num_envs)
+        self._worlds = Worlds(self.scenario, num_envs, "simultaneous")
         self._seen = observation_of(self.scenario)
         self.observation_labels = self._seen.labels
         self.single_observation_space = spaces.Box(

@@ -1,5 +1,6 @@
-"""The swarm as a PettingZoo ``ParallelEnv``: every robot of a scenario an agent, all stepped in
-one compiled call."""
+"""The swarm as PettingZoo agents: ``NanoNavParallelEnv`` (every robot perceives, then every
+robot acts: the simultaneous schedule) and ``SwarmSpaces``, the agents, spaces and labels it
+shares with ``turns.NanoNavAECEnv`` (one robot at a time: the sequential schedule)."""
 
 from __future__ import annotations
 
@@ -18,25 +19,18 @@ from nanonav.env.worlds import (
     observation_of,
     state_labels,
 )
+from nanonav.scenario import Schedule
 
 
-class NanoNavParallelEnv(ParallelEnv[str, NDArray[np.float64], int]):
-    """Every robot of a scenario an agent (``robot_0`` ... in index order), observing, acting
-    and rewarded as ``NanoNavEnv``'s one robot (its docstring says what the observation means);
-    a robot that reaches a cell is terminated and leaves ``agents`` (it stays bound to the cell,
-    in the way of others and releasing its signal); the rest are truncated at the step limit or
-    once every cell is treated.
+class SwarmSpaces:
+    """Every robot of a scenario an agent (``robot_0`` ... in index order) in one world stepped
+    under ``schedule``, observing and acting as ``NanoNavEnv``'s one robot (its docstring says
+    what the observation means): the agents, their spaces (one object per agent, made once)
+    and the labels of observations, actions and tabular states."""
 
-    All robots perceive, then all act on their actions, in index order (``engine.stepping``);
-    ``infos[agent]["state"]`` is the agent's tabular state. ``step_arrays`` takes and gives
-    arrays indexed by robot instead of dicts, for swarms too large for dicts each step.
-    """
-
-    metadata: dict[str, Any] = {"name": "nanonav_swarm_v0", "render_modes": []}  # noqa: RUF012
-
-    def __init__(self, scenario: ScenarioLike = None) -> None:
+    def __init__(self, scenario: ScenarioLike, schedule: Schedule) -> None:
         self.scenario = as_scenario(scenario)
-        self._worlds = Worlds(self.scenario, 1)
+        self._worlds = Worlds(self.scenario, 1, schedule)
         n = self.scenario.robots.count
         self.possible_agents = [f"robot_{i}" for i in range(n)]
         self._index = {agent: i for i, agent in enumerate(self.possible_agents)}
@@ -47,11 +41,6 @@ class NanoNavParallelEnv(ParallelEnv[str, NDArray[np.float64], int]):
         self.observation_labels = self._seen.labels
         self.action_labels = action_labels(self.scenario)
         self.state_labels = state_labels(self.scenario)
-        # the robots of ``agents``, in order: what a step gives back is read at these
-        self._live = np.zeros(0, dtype=np.int64)
-        self._actions = np.zeros((1, n), dtype=np.int64)
-        self._fresh = np.ones(1, dtype=np.bool_)
-        self._stale = np.zeros(1, dtype=np.bool_)
 
     def observation_space(self, agent: str) -> spaces.Box:
         space = self._observation_spaces.get(agent)
@@ -74,6 +63,31 @@ class NanoNavParallelEnv(ParallelEnv[str, NDArray[np.float64], int]):
         if index is None:
             raise KeyError(f"{agent!r} is not one of this swarm's agents (robot_0 ...)")
         return index
+
+
+class NanoNavParallelEnv(SwarmSpaces, ParallelEnv[str, NDArray[np.float64], int]):
+    """Every robot of a scenario an agent (``robot_0`` ... in index order), observing, acting
+    and rewarded as ``NanoNavEnv``'s one robot (its docstring says what the observation means);
+    a robot that reaches a cell is terminated and leaves ``agents`` (it stays bound to the cell,
+    in the way of others and releasing its signal); the rest are truncated at the step limit or
+    once every cell is treated.
+
+    All robots perceive, then all act on their actions, in index order (the simultaneous
+    schedule, whatever the scenario's: ``engine.stepping``);
+    ``infos[agent]["state"]`` is the agent's tabular state. ``step_arrays`` takes and gives
+    arrays indexed by robot instead of dicts, for swarms too large for dicts each step.
+    """
+
+    metadata: dict[str, Any] = {"name": "nanonav_swarm_v0", "render_modes": []}  # noqa: RUF012
+
+    def __init__(self, scenario: ScenarioLike = None) -> None:
+        SwarmSpaces.__init__(self, scenario, "simultaneous")
+        # the robots of ``agents``, in order: what a step gives back is read at these
+        self._live = np.zeros(0, dtype=np.int64)
+        n = len(self.possible_agents)
+        self._actions = np.zeros((1, n), dtype=np.int64)
+        self._fresh = np.ones(1, dtype=np.bool_)
+        self._stale = np.zeros(1, dtype=np.bool_)
 
     def reset(
         self, seed: int | None = None, options: dict[str, Any] | None = None

@@ -14,11 +14,11 @@ import numpy as np
 from numba.typed import List
 from numpy.typing import NDArray
 
-from nanonav.engine import qlearning, stepping
+from nanonav.engine import phases, qlearning, stepping
 from nanonav.engine.simulate import episode_arrays, kernel_params
-from nanonav.engine.state import KernelParams, Recording
+from nanonav.engine.state import SCHEDULE_CODES, KernelParams, Recording
 from nanonav.engine.world import DYNAMICS_STREAM, EVALUATION_STREAM, raise_for_layout, stream
-from nanonav.scenario import Scenario
+from nanonav.scenario import Scenario, Schedule
 
 # No history is recorded: the cap only keeps kernel_params from refusing a large swarm.
 _NO_HISTORY_CAP = 2**62
@@ -57,28 +57,28 @@ def with_robots(scenario: Scenario, count: int) -> Scenario:
 
 
 def _bounds(scenario: Scenario) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """(low, high) of each engine column (``stepping.OBS_*``) in this scenario's units:
+    """(low, high) of each engine column (``phases.OBS_*``) in this scenario's units:
     readings and signals are unbounded (``UNBOUNDED``; a noise floor can read below 0), the
     distances are capped at the sensors' ranges, the obstacle contact of active_brownian is 0
     or 1; a column the scenario never fills is 0 to 0."""
-    low = np.full(stepping.FEATURES, -UNBOUNDED)
-    high = np.full(stepping.FEATURES, UNBOUNDED)
+    low = np.full(phases.FEATURES, -UNBOUNDED)
+    high = np.full(phases.FEATURES, UNBOUNDED)
     brownian = scenario.physics.model == "active_brownian"
-    low[stepping.OBS_OBSTACLE] = 0.0
-    high[stepping.OBS_OBSTACLE] = 1.0 if brownian else scenario.robots.sensing_radius
-    low[stepping.OBS_CELL] = 0.0
-    high[stepping.OBS_CELL] = scenario.robots.cell_sensing_radius
+    low[phases.OBS_OBSTACLE] = 0.0
+    high[phases.OBS_OBSTACLE] = 1.0 if brownian else scenario.robots.sensing_radius
+    low[phases.OBS_CELL] = 0.0
+    high[phases.OBS_CELL] = scenario.robots.cell_sensing_radius
     if brownian:
-        low[stepping.OBS_GRADIENT : stepping.OBS_GRADIENT + 3] = 0.0
-        high[stepping.OBS_GRADIENT : stepping.OBS_GRADIENT + 3] = 0.0
+        low[phases.OBS_GRADIENT : phases.OBS_GRADIENT + 3] = 0.0
+        high[phases.OBS_GRADIENT : phases.OBS_GRADIENT + 3] = 0.0
     if scenario.communication.model == "none":
-        low[stepping.OBS_SIGNAL :] = 0.0
-        high[stepping.OBS_SIGNAL :] = 0.0
+        low[phases.OBS_SIGNAL :] = 0.0
+        high[phases.OBS_SIGNAL :] = 0.0
     elif scenario.communication.model == "broadcast":
-        low[stepping.OBS_SIGNAL] = 0.0
-        high[stepping.OBS_SIGNAL] = 1.0
-        low[stepping.OBS_SIGNAL_CHANGE] = 0.0
-        high[stepping.OBS_SIGNAL_CHANGE] = 0.0
+        low[phases.OBS_SIGNAL] = 0.0
+        high[phases.OBS_SIGNAL] = 1.0
+        low[phases.OBS_SIGNAL_CHANGE] = 0.0
+        high[phases.OBS_SIGNAL_CHANGE] = 0.0
     return low, high
 
 
@@ -142,40 +142,36 @@ def _stacked(one: Any, count: int) -> Any:
 
 class Worlds:
     """``count`` independent worlds of ``scenario``, each with its robots and its two
-    generators (the worlds' and the dynamics'), stepped together in one compiled call.
+    generators (the worlds' and the dynamics'), stepped together in one compiled call under
+    ``schedule`` (an environment's API decides it, whatever the scenario's: ``stepping`` says
+    what a move is under each).
 
     World k seeded with s draws, episode after episode, the worlds a job of seed s evaluates
     in (``simulate``'s evaluation stream) and runs on the dynamics stream of seed s, so a policy
     evaluated here with seed s meets what the service would evaluate it in: train on other seeds.
     """
 
-    def __init__(self, scenario: Scenario, count: int) -> None:
+    def __init__(self, scenario: Scenario, count: int, schedule: Schedule) -> None:
         if count < 1:
             raise ValueError("count must be at least 1")
         self.scenario = scenario
         self.count = count
         self.robots = scenario.robots.count
-        self.params = kernel_params(scenario, _NO_HISTORY_CAP)
+        self.schedule = schedule
+        self.params = kernel_params(scenario, _NO_HISTORY_CAP)._replace(
+            schedule=SCHEDULE_CODES[schedule]
+        )
         self.actions = len(action_labels(scenario))
         self.directions = np.ascontiguousarray(qlearning.DIRECTIONS)
         arrays = episode_arrays(scenario)
         n = self.robots
-        percept = stepping.Percept(
-            obs=np.zeros((n, stepping.FEATURES)),
-            state=np.zeros(n, dtype=np.int64),
-            target=np.full(n, -1, dtype=np.int64),
-            target_d=np.zeros(n),
-            way=np.zeros((n, 3)),
-            reward=np.zeros(n),
-            clock=np.zeros(stepping.CLOCK_SLOTS, dtype=np.int64),
-        )
-        one = stepping.Sim(
+        one = phases.Sim(
             arrays.world, arrays.swarm, arrays.social, arrays.treatment, arrays.near,
             arrays.radio, arrays.everyone, arrays.found, arrays.signals.conc,
-            arrays.signals.scratch, _empty_recording(n, scenario.cells.count), percept,
+            arrays.signals.scratch, _empty_recording(n, scenario.cells.count), phases.percept(n),
         )  # fmt: skip
-        self.batch: stepping.Sim = _stacked(one, count)
-        self._batches: List[stepping.Sim] = List([self.batch])
+        self.batch: phases.Sim = _stacked(one, count)
+        self._batches: List[phases.Sim] = List([self.batch])
         self._params: List[KernelParams] = List([self.params])
         self.world_rngs: List[np.random.Generator] = List()
         self.rngs: List[np.random.Generator] = List()
@@ -187,7 +183,7 @@ class Worlds:
         self.state = pc.state
         self.reward = pc.reward
         self.active = self.batch.s.active
-        pc.clock[:, stepping.CLOCK_OVER] = 1
+        pc.clock[:, phases.CLOCK_OVER] = 1
         self._no_actions = np.zeros((count, self.robots), dtype=np.int64)
 
     def seed(self, seeds: Sequence[int]) -> None:
@@ -242,9 +238,13 @@ class Worlds:
     @property
     def over(self) -> NDArray[np.bool_]:
         """Whether each world's episode is over."""
-        over: NDArray[np.bool_] = self.batch.pc.clock[:, stepping.CLOCK_OVER] != 0
+        over: NDArray[np.bool_] = self.batch.pc.clock[:, phases.CLOCK_OVER] != 0
         return over
+
+    def turn(self, k: int) -> int:
+        """The robot whose turn it is in world ``k`` (the sequential schedule; -1 once over)."""
+        return int(self.batch.pc.clock[k, phases.CLOCK_NEXT])
 
     def steps(self, k: int) -> int:
         """The step world ``k`` is at."""
-        return int(self.batch.pc.clock[k, stepping.CLOCK_STEP])
+        return int(self.batch.pc.clock[k, phases.CLOCK_STEP])

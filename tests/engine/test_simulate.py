@@ -268,3 +268,30 @@ def test_policy_from_needs_q_learning_and_no_training() -> None:
             {"policy_from": 3, "robots": {"policy": "gradient"}, "learning": {"episodes": 0}}
         )
     assert raised.value.errors()[0]["loc"] == ("robots", "policy")
+
+
+def _under(schedule: str, **parts: Any) -> SimulationResult:
+    base: dict[str, Any] = {
+        "learning": {"episodes": 3, "max_steps": 80},
+        "evaluation": {"worlds": 2},
+    }
+    return simulate(Scenario.model_validate({**base, **parts, "robots": {
+        **parts.get("robots", {}), "schedule": schedule}}))  # fmt: skip
+
+
+def test_the_two_schedules_are_the_same_for_one_robot_and_differ_for_a_swarm() -> None:
+    one = [without_timings(_under(s).to_dict()) for s in ("sequential", "simultaneous")]
+    for result in one:
+        del result["scenario"]  # which names its schedule
+    assert one[0] == one[1]
+    swarm = {"robots": {"count": 8}, "cells": {"count": 2, "capacity": 1},
+             "communication": {"model": "broadcast"}}  # fmt: skip
+    seq, sim = (_under(s, **swarm) for s in ("sequential", "simultaneous"))
+    assert seq.qtable is not None and sim.qtable is not None
+    assert not np.array_equal(seq.qtable.values, sim.qtable.values)
+
+
+def test_a_schedule_is_one_of_two_names() -> None:
+    with pytest.raises(ValidationError) as raised:
+        Scenario.model_validate({"robots": {"schedule": "parallel"}})
+    assert raised.value.errors()[0]["loc"] == ("robots", "schedule")

@@ -1,0 +1,526 @@
+"""The phases of a world's step, each written once for both physics: ``advance`` the world,
+``perceive`` (each robot senses and receives, or takes in a cell that drifted within reach),
+``decide`` (an action from the robot's percept), ``act`` (the move, a bump, the reward of
+paper 2.7, a delivery) and ``learn`` (the Q update of a transition).
+
+``kernel`` runs them for ``simulate`` and ``stepping`` for the environments, under either
+schedule (``state.SEQUENTIAL``: robot i perceives, decides and acts before robot i + 1
+perceives; ``state.SIMULTANEOUS``: every robot perceives, then every robot acts). The physics
+differ only inside the rooms that differ (``dynamics.lattice`` or ``dynamics.brownian``,
+``sensing``, ``policies``); what a phase does with a robot is the same whoever decides: the
+engine's own policies choose in ``decide``, an agent outside hands an action to ``command``.
+
+Everything here is inlined into the compiled schedules (``inline="always"``), which run without
+reference counting: nothing here allocates, and arrays are indexed element by element.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any, NamedTuple, TypeVar, cast
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+from nanonav.engine import communication as radio_room
+from nanonav.engine import treatment
+from nanonav.engine.contacts import CellList, bumped_back, relist
+from nanonav.engine.dynamics import brownian
+from nanonav.engine.dynamics.lattice import (
+    _move_cells,
+    _move_obstacles,
+    _move_robot,
+    _nearest_obstacle,
+    _redraw_emitters,
+)
+from nanonav.engine.fields import SAMPLED_GAUSSIAN, place_sources, place_treated
+from nanonav.engine.learning import _learn, _learn_bootstrapped
+from nanonav.engine.policies import (
+    NO_BEHAVIOR,
+    _baseline,
+    _behavior_direction,
+    _choose,
+    _steer,
+    _steering_baseline,
+)
+from nanonav.engine.qlearning import (
+    AVOID_OBSTACLE,
+    FOLLOW_SIGNAL,
+    STEER_TO_CELL,
+    STEER_TO_SIGNAL,
+    STEER_UP_GRADIENT,
+)
+from nanonav.engine.sensing import (
+    _read,
+    _sense,
+    _sense_all,
+    _sensed_gradient,
+    _state,
+    _steering_state,
+)
+from nanonav.engine.state import (
+    ACTIVE_BROWNIAN,
+    BEHAVIORS,
+    BROADCAST,
+    EXACT_GRADIENT,
+    LATTICE,
+    NO_SIGNAL,
+    Q_LEARNING,
+    KernelParams,
+    Learner,
+    Recording,
+    Social,
+    Swarm,
+    Treatment,
+    World,
+)
+
+# The observation's columns: what the tabular state is built from, before it is cut into levels.
+OBS_READING = 0  # the reading it took (with the sensor's noise; 0 below the detection threshold)
+OBS_CHANGE = 1  # the reading minus the last (lattice, 0 at first) or its memory (brownian)
+OBS_GRADIENT = 2  # 2, 3, 4: the sensed gradient (x, y, z); 0 in active_brownian (read when steered)
+OBS_OBSTACLE = 5  # lattice: distance to the nearest obstacle's surface, capped at the sensing
+# radius; active_brownian: 1 if its last move was stopped by an obstacle, else 0
+OBS_CELL = 6  # distance to the nearest untreated cell (active_brownian: between their surfaces),
+# capped at the cell sensor's range (the cap: none sensed)
+OBS_SIGNAL = 7  # the net signal it read (attractant - repellent), or 1 while a message waits
+OBS_SIGNAL_CHANGE = 8  # minus the last net signal (0 with broadcast or without communication)
+FEATURES = 9
+
+# clock[] slots of a world
+CLOCK_STEP = 0  # the step the world is at
+CLOCK_OVER = 1  # 1 once its episode is over
+CLOCK_NEXT = 2  # sequential schedule, driven from outside: the robot whose turn it is (-1: none)
+CLOCK_SLOTS = 3
+
+_F = TypeVar("_F", bound=Callable[..., Any])
+
+
+def uncounted(function: _F) -> _F:
+    """``njit`` without reference counting (numba's ``_nrt=False``, which its typed signature
+    does not name), for the schedules the phases are inlined into. Every view of a world and
+    every member taken from its NamedTuples would otherwise be counted in and out, an atomic
+    call each: measured, those calls were two thirds of a step's time. Nothing compiled so may
+    allocate (numba refuses it if anything does), and its caller holds every array it views."""
+    options: dict[str, Any] = {"cache": True, "error_model": "numpy", "_nrt": False}
+    return cast(_F, njit(**options)(function))
+
+
+class Percept(NamedTuple):
+    """What every robot perceived this step, for the decision and the act that follow, and
+    what it got since its last decision."""
+
+    obs: NDArray[np.float64]  # (N, FEATURES)
+    state: NDArray[np.int64]  # (N,) the tabular state
+    heard: NDArray[np.int64]  # (N,) what it received (``communication``'s codes)
+    target: NDArray[np.int64]  # (N,) the nearest untreated cell (-1 if none)
+    target_d: NDArray[np.float64]  # (N,) its distance
+    way: NDArray[np.float64]  # (N, 3) where what it receives points
+    reward: NDArray[np.float64]  # (N,) reward since the last decision
+    clock: NDArray[np.int64]  # (CLOCK_SLOTS,)
+
+
+class Sim(NamedTuple):
+    """One world's arrays (``simulate.episode_arrays`` makes them), its recording (empty where
+    nothing is recorded) and its percept."""
+
+    w: World
+    s: Swarm
+    so: Social
+    tr: Treatment
+    near: CellList
+    radio: CellList
+    everyone: NDArray[np.bool_]
+    found: NDArray[np.int64]
+    sig: NDArray[np.float64]
+    sig_scratch: NDArray[np.float64]
+    rec: Recording
+    pc: Percept
+
+
+def percept(robots: int) -> Percept:
+    """An empty percept of ``robots`` robots."""
+    return Percept(
+        obs=np.zeros((robots, FEATURES)),
+        state=np.zeros(robots, dtype=np.int64),
+        heard=np.zeros(robots, dtype=np.int64),
+        target=np.full(robots, -1, dtype=np.int64),
+        target_d=np.zeros(robots),
+        way=np.zeros((robots, 3)),
+        reward=np.zeros(robots),
+        clock=np.zeros(CLOCK_SLOTS, dtype=np.int64),
+    )
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def advance(p: KernelParams, rng: np.random.Generator, sim: Sim, t: int) -> None:
+    """Advance the world into step ``t``: cells (and in the lattice, obstacles and emitters)
+    move, the sources and the signal are placed, and the true field is read at every active
+    robot."""
+    w = sim.w
+    tr = sim.tr
+    if p.cell_std > 0.0:
+        _move_cells(p, rng, w)
+    if p.physics == LATTICE:
+        if p.obstacle_std > 0.0 and w.obstacles.shape[0] > 0:
+            _move_obstacles(p, rng, w, sim.s)
+        if p.model == SAMPLED_GAUSSIAN:
+            _redraw_emitters(p, rng, w)
+    place_sources(p.model, w.cells, w.offsets, w.sx, w.sy, w.sz)
+    if p.capacity > 0:
+        tr.treated_sources[0] = place_treated(
+            p.model, w.cells, w.offsets, tr.treated_at, tr.tx, tr.ty, tr.tz
+        )  # fmt: skip
+    if p.signal != NO_SIGNAL and p.signal != BROADCAST and t % p.signal_every == 0:
+        radio_room.update_field(p, sim.s.pos, sim.so.bound_to, tr.treated_at, sim.sig,
+                                sim.sig_scratch)  # fmt: skip
+    _sense_all(p, w, sim.s, tr, sim.s.active)
+
+
+@njit(cache=True, error_model="numpy")
+def delivered(p: KernelParams, sim: Sim, i: int, cell: int, t: int) -> None:
+    """Robot ``i`` reached ``cell`` in step ``t``: it delivers, is done, and broadcasts."""
+    s = sim.s
+    s.active[i] = False
+    treatment.deliver(p, sim.tr, sim.so, i, cell, t + 1)
+    if p.signal == BROADCAST:
+        radio_room.broadcast(p, s.pos, s.active, sim.so, sim.radio, sim.found, i)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def read_state(
+    p: KernelParams, rng: np.random.Generator, sim: Sim, i: int, cell_d: float, full: bool
+) -> int:
+    """Robot ``i`` takes its reading (and in the lattice, its gradient): its observation's
+    columns up to the signal's are written, and its tabular state without the signal returned.
+    Unless ``full`` or the robot's policy learns, a lattice robot does not look for obstacles
+    (no fixed rule needs the distance) and its state is 0."""
+    s = sim.s
+    obs = sim.pc.obs
+    if p.physics == ACTIVE_BROWNIAN:
+        c = _read(p, rng, s.reading[i])
+        s.sensed[i] = c
+        if s.prev_conc[i] < 0.0:
+            s.prev_conc[i] = c  # the first reading starts the memory
+        gap = cell_d - p.reach_distance
+        obs[i, OBS_READING] = c
+        obs[i, OBS_CHANGE] = c - s.prev_conc[i]
+        obs[i, OBS_GRADIENT] = 0.0
+        obs[i, OBS_GRADIENT + 1] = 0.0
+        obs[i, OBS_GRADIENT + 2] = 0.0
+        obs[i, OBS_OBSTACLE] = 1.0 if s.blocked[i] else 0.0
+        obs[i, OBS_CELL] = min(gap, p.cell_sensing_radius)
+        return _steering_state(p, c, c > s.prev_conc[i], s.blocked[i], gap <= p.cell_sensing_radius)
+    c, gx, gy, gz = _sense(p, rng, s, i)
+    obs[i, OBS_READING] = c
+    obs[i, OBS_CHANGE] = c - s.prev_conc[i] if s.prev_conc[i] >= 0.0 else 0.0
+    obs[i, OBS_GRADIENT] = gx
+    obs[i, OBS_GRADIENT + 1] = gy
+    obs[i, OBS_GRADIENT + 2] = gz
+    obs[i, OBS_CELL] = min(cell_d, p.cell_sensing_radius)
+    if not full and p.policy != Q_LEARNING:
+        return 0
+    gap = _nearest_obstacle(sim.w.obstacles, p.obstacle_radius, s.pos[i, 0], s.pos[i, 1],
+                            s.pos[i, 2])[1]  # fmt: skip
+    obs[i, OBS_OBSTACLE] = min(max(gap, 0.0), p.sensing_radius)
+    return _state(p, c, s.prev_conc[i], gx, gy, gz, gap, cell_d)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def perceive(
+    p: KernelParams, rng: np.random.Generator, sim: Sim, i: int, t: int, full: bool
+) -> bool:  # fmt: skip
+    """Robot ``i`` in step ``t``: a cell that drifted within reach is received (the robot
+    spends its step so, and is done: returns False); otherwise it senses and receives, and its
+    percept (observation, tabular state, nearest cell, what it heard and where that points) is
+    written. ``full``: see ``read_state``."""
+    s = sim.s
+    so = sim.so
+    pc = sim.pc
+    w = sim.w
+    px = s.pos[i, 0]
+    py = s.pos[i, 1]
+    pz = s.pos[i, 2]
+    cell, cell_d = treatment.nearest_target(w.cells, sim.tr.treated_at, px, py, pz)
+    if cell_d <= p.reach_distance:
+        # Unless its last heading pointed at the cell, the cell found the robot (a robot parked
+        # at a field maximum, say), not the robot the cell.
+        toward = (
+            s.heading[i, 0] * (w.cells[cell, 0] - px)
+            + s.heading[i, 1] * (w.cells[cell, 1] - py)
+            + s.heading[i, 2] * (w.cells[cell, 2] - pz)
+        )
+        s.swept[i] = toward <= 0.0
+        s.steps[i] += 1
+        s.returns[i] += p.reward_reach + p.reward_step
+        pc.reward[i] += p.reward_reach + p.reward_step
+        delivered(p, sim, i, cell, t)
+        return False
+    state = read_state(p, rng, sim, i, cell_d, full)
+    heard = 0
+    ux = 0.0
+    uy = 0.0
+    uz = 0.0
+    pc.obs[i, OBS_SIGNAL] = 0.0
+    pc.obs[i, OBS_SIGNAL_CHANGE] = 0.0
+    if p.signal != NO_SIGNAL:
+        arrived = max(p.cell_sensing_radius, p.speed)
+        if p.physics == ACTIVE_BROWNIAN:
+            arrived = max(p.cell_sensing_radius + p.reach_distance, p.speed)
+        before = so.prev_signal[i]
+        heard, ux, uy, uz = radio_room.listen(p, rng, sim.sig, s.pos, so, i, arrived)
+        state = state * p.signal_states + heard
+        pc.obs[i, OBS_SIGNAL] = so.signal[i]
+        if p.signal != BROADCAST:
+            pc.obs[i, OBS_SIGNAL_CHANGE] = so.signal[i] - before
+    pc.state[i] = state
+    pc.heard[i] = heard
+    pc.target[i] = cell
+    pc.target_d[i] = cell_d
+    pc.way[i, 0] = ux
+    pc.way[i, 1] = uy
+    pc.way[i, 2] = uz
+    return True
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def command(
+    p: KernelParams, sim: Sim, i: int, action: int, directions: NDArray[np.float64]
+) -> tuple[int, float, float, float, float, float, float]:  # fmt: skip
+    """The decision an action of the scenario's action set stands for, as ``act`` takes it:
+    ``(code, dx, dy, dz, gx, gy, gz)``. Lattice: one of the paper's behaviours climbing the
+    sensed gradient g, or ``NO_BEHAVIOR`` and the unit direction d; active Brownian: the
+    steering action (d and g unused)."""
+    if p.physics == ACTIVE_BROWNIAN:
+        return action, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    obs = sim.pc.obs
+    gx = obs[i, OBS_GRADIENT]
+    gy = obs[i, OBS_GRADIENT + 1]
+    gz = obs[i, OBS_GRADIENT + 2]
+    if p.action_set == BEHAVIORS:
+        return action, 0.0, 0.0, 0.0, gx, gy, gz
+    d = directions[action]
+    return NO_BEHAVIOR, d[0], d[1], d[2], gx, gy, gz
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def decide(
+    p: KernelParams, rng: np.random.Generator, sim: Sim, lrn: Learner, i: int, epsilon: float,
+) -> tuple[int, int, float, float, float, float, float, float]:  # fmt: skip
+    """Robot ``i``'s own choice from its percept: the table's epsilon-greedy action (counted in
+    its visits), or a fixed policy's. Returns the action number (0 for a fixed policy) and the
+    decision ``command`` describes."""
+    s = sim.s
+    pc = sim.pc
+    if p.policy == Q_LEARNING:
+        table = 0 if p.shared else i
+        action = _choose(epsilon, rng, lrn.q, table, pc.state[i])
+        lrn.visits[table, pc.state[i], action] += 1
+        code, dx, dy, dz, gx, gy, gz = command(p, sim, i, action, lrn.directions)
+        return action, code, dx, dy, dz, gx, gy, gz
+    c = pc.obs[i, OBS_READING]
+    if p.physics == ACTIVE_BROWNIAN:
+        code = _steering_baseline(p, rng, c > s.prev_conc[i])
+        if code == STEER_UP_GRADIENT and pc.heard[i] > 0 and c <= p.level_1:
+            # the written rule: where the biomarker is at trace level, follow the signal
+            code = STEER_TO_SIGNAL
+        return 0, code, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    code, dx, dy, dz, gx, gy, gz = _baseline(
+        p, rng, s.heading, i, c, s.prev_conc[i], pc.obs[i, OBS_GRADIENT],
+        pc.obs[i, OBS_GRADIENT + 1], pc.obs[i, OBS_GRADIENT + 2], pc.target_d[i], pc.heard[i],
+    )  # fmt: skip
+    return 0, code, dx, dy, dz, gx, gy, gz
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def act(
+    p: KernelParams, rng: np.random.Generator, sim: Sim, i: int, t: int, code: int,
+    dx: float, dy: float, dz: float, gx: float, gy: float, gz: float,
+) -> tuple[float, bool]:  # fmt: skip
+    """Robot ``i`` carries out its decision of step ``t`` (``command`` says what the numbers
+    are): it moves (a lattice step, or a steered swim), is refused by another robot in the
+    way (a bump), earns the reward of paper 2.7, and delivers on arrival. Returns the reward
+    and whether it arrived."""
+    s = sim.s
+    so = sim.so
+    pc = sim.pc
+    w = sim.w
+    px = s.pos[i, 0]
+    py = s.pos[i, 1]
+    pz = s.pos[i, 2]
+    c = pc.obs[i, OBS_READING]
+    cell = pc.target[i]
+    cell_d = pc.target_d[i]
+    hx = s.heading[i, 0]
+    hy = s.heading[i, 1]
+    hz = s.heading[i, 2]
+    path = s.path_length[i]
+    if p.physics == ACTIVE_BROWNIAN:
+        sx = 0.0
+        sy = 0.0
+        sz = 0.0
+        if code == STEER_UP_GRADIENT:
+            if p.policy == EXACT_GRADIENT:
+                sx = s.reading_grad[i, 0]
+                sy = s.reading_grad[i, 1]
+                sz = s.reading_grad[i, 2]
+            else:
+                sx, sy, sz = _sensed_gradient(p, rng, s, i)
+        tx = 0.0
+        ty = 0.0
+        tz = 0.0
+        if code == STEER_TO_CELL and cell_d - p.reach_distance <= p.cell_sensing_radius:
+            tx = w.cells[cell, 0] - px
+            ty = w.cells[cell, 1] - py
+            tz = w.cells[cell, 2] - pz
+        elif code == STEER_TO_SIGNAL:
+            # toward what it receives: as steering toward a cell, along the signal's way
+            code = STEER_TO_CELL
+            tx = pc.way[i, 0]
+            ty = pc.way[i, 1]
+            tz = pc.way[i, 2]
+        _steer(p, rng, s, i, code, sx, sy, sz, tx, ty, tz)
+        s.prev_conc[i] += p.memory_weight * (c - s.prev_conc[i])
+        nx, ny, nz, blocked = brownian.move_robot(p, rng, w, s, i, px, py, pz)
+    else:
+        step = p.speed
+        if code == FOLLOW_SIGNAL:
+            # up what it receives, round obstacles (straight on where it receives nothing)
+            code = AVOID_OBSTACLE
+            gx = pc.way[i, 0]
+            gy = pc.way[i, 1]
+            gz = pc.way[i, 2]
+        if code >= 0:
+            dx, dy, dz, step = _behavior_direction(
+                p, rng, w, s, i, code, px, py, pz, gx, gy, gz, cell, cell_d
+            )
+        s.prev_conc[i] = c
+        nx, ny, nz, blocked = _move_robot(p, w, s, i, px, py, pz, dx, dy, dz, step)
+    if p.exclusion and not blocked and bumped_back(sim.near, s.pos, sim.everyone, i, px, py, pz,
+                                                   p.contact):  # fmt: skip
+        # another robot is in the way: the move is refused, a bump (a swimmer's heading has
+        # diffused all the same, as when an obstacle refuses it)
+        so.bumps[i] += 1
+        blocked = True
+        s.path_length[i] = path
+        if p.physics == LATTICE:
+            s.heading[i, 0] = hx
+            s.heading[i, 1] = hy
+            s.heading[i, 2] = hz
+        nx = px
+        ny = py
+        nz = pz
+    if p.signal == BROADCAST and not blocked:
+        relist(sim.radio, i, nx, ny, nz)
+    if p.physics == ACTIVE_BROWNIAN:
+        s.blocked[i] = blocked
+    reward = p.reward_step
+    if blocked:
+        reward += p.reward_collision
+    s.steps[i] += 1
+    target, new_d = treatment.nearest_target(w.cells, sim.tr.treated_at, nx, ny, nz)
+    # paper 2.7: +approach per unit moved toward the source, +reach on arrival (no approach
+    # once every cell is treated: the episode ends with this step)
+    if cell >= 0 and target >= 0:
+        reward += p.reward_approach * (cell_d - new_d)
+    reached = new_d <= p.reach_distance
+    if reached:
+        reward += p.reward_reach
+        delivered(p, sim, i, target, t)
+    s.returns[i] += reward
+    pc.reward[i] = reward
+    return reward, reached
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def learn_arrival(p: KernelParams, lrn: Learner, s: Swarm, i: int) -> None:
+    """A cell drifted onto robot ``i``: its waiting transition ends its episode, with the
+    reward of the step it spent receiving."""
+    if s.pending[i]:
+        _learn(
+            p, lrn.q, lrn.visits, 0 if p.shared else i, s.last_state[i], s.last_action[i],
+            s.last_reward[i] + p.reward_reach + p.reward_step,
+        )  # fmt: skip
+    s.pending[i] = False
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def learn_last(p: KernelParams, lrn: Learner, s: Swarm, i: int, state: int) -> None:
+    """Robot ``i``'s waiting transition, now that its next ``state`` is perceived (eq. 2.7)."""
+    if s.pending[i]:
+        _learn_bootstrapped(
+            p, lrn.q, lrn.visits, 0 if p.shared else i, s.last_state[i], s.last_action[i],
+            s.last_reward[i], state,
+        )  # fmt: skip
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def learn(
+    p: KernelParams, lrn: Learner, s: Swarm, i: int, state: int, action: int, reward: float,
+    reached: bool,
+) -> None:  # fmt: skip
+    """The transition robot ``i`` just made: learned at once when it ended the robot's
+    episode, else kept until its next state is perceived (``learn_last``)."""
+    if reached:
+        _learn(p, lrn.q, lrn.visits, 0 if p.shared else i, state, action, reward)
+        s.pending[i] = False
+    else:
+        s.pending[i] = True
+        s.last_state[i] = state
+        s.last_action[i] = action
+        s.last_reward[i] = reward
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def turn(
+    p: KernelParams, rng: np.random.Generator, sim: Sim, lrn: Learner, i: int, t: int,
+    epsilon: float, learning: bool,
+) -> None:  # fmt: skip
+    """Robot ``i``'s turn in step ``t`` when the engine decides: perceive, learn the last
+    transition, decide, act, and learn (or keep) this one."""
+    s = sim.s
+    if not perceive(p, rng, sim, i, t, False):
+        if learning:
+            learn_arrival(p, lrn, s, i)
+        s.pending[i] = False
+        return
+    state = sim.pc.state[i]
+    if learning:
+        learn_last(p, lrn, s, i, state)
+    action, code, dx, dy, dz, gx, gy, gz = decide(p, rng, sim, lrn, i, epsilon)
+    reward, reached = act(p, rng, sim, i, t, code, dx, dy, dz, gx, gy, gz)
+    if learning:
+        learn(p, lrn, s, i, state, action, reward, reached)
+
+
+@njit(cache=True, error_model="numpy")
+def _heard(p: KernelParams, rng: np.random.Generator, sim: Sim, i: int) -> int:
+    """What robot ``i`` would receive where it ended (the state's 'signal'), without taking
+    it in, for the episode's last bootstrap."""
+    s = sim.s
+    if p.signal == BROADCAST:
+        return 1 if sim.so.has_message[i] else 0
+    net = radio_room.receive(p, rng, sim.sig, s.pos[i, 0], s.pos[i, 1], s.pos[i, 2])[0]
+    return radio_room.received(p, net, sim.so.prev_signal[i])
+
+
+@njit(cache=True, error_model="numpy")
+def learn_at_limit(p: KernelParams, rng: np.random.Generator, sim: Sim, lrn: Learner) -> None:
+    """The step limit ended the episode: every robot's waiting transition is bootstrapped from
+    the state it ended in (not terminal)."""
+    w = sim.w
+    s = sim.s
+    place_sources(p.model, w.cells, w.offsets, w.sx, w.sy, w.sz)
+    _sense_all(p, w, s, sim.tr, s.pending)
+    for i in range(s.pos.shape[0]):
+        if not s.pending[i]:
+            continue
+        cell_d = treatment.nearest_target(
+            w.cells, sim.tr.treated_at, s.pos[i, 0], s.pos[i, 1], s.pos[i, 2]
+        )[1]  # fmt: skip
+        state = read_state(p, rng, sim, i, cell_d, True)
+        if p.signal != NO_SIGNAL:
+            state = state * p.signal_states + _heard(p, rng, sim, i)
+        learn_last(p, lrn, s, i, state)
+        s.pending[i] = False
