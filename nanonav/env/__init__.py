@@ -1,8 +1,10 @@
 """NanoNav as an environment: Gymnasium's ``NanoNavEnv`` (one robot) and ``NanoNavVectorEnv``
-(many worlds in one compiled call), PettingZoo's ``NanoNavParallelEnv`` (the swarm). Importing
-this package registers ``NanoNav-v0``, so ``gymnasium.make("NanoNav-v0", scenario={...})`` and
-``gymnasium.make_vec("NanoNav-v0", num_envs=N, vectorization_mode="vector_entry_point")`` work
-(or, without the import, ``gymnasium.make("nanonav.env:NanoNav-v0")``)."""
+(many worlds in one compiled call); PettingZoo's ``NanoNavParallelEnv`` (the swarm, every robot
+perceiving, then every robot acting) and ``NanoNavAECEnv`` (the swarm taking turns, as
+``simulate`` steps it by default). Importing this package registers ``NanoNav-v0``, so
+``gymnasium.make("NanoNav-v0", scenario={...})`` and ``gymnasium.make_vec("NanoNav-v0",
+num_envs=N, vectorization_mode="vector_entry_point")`` work (or, without the import,
+``gymnasium.make("nanonav.env:NanoNav-v0")``)."""
 
 from __future__ import annotations
 
@@ -10,6 +12,7 @@ import gymnasium
 
 from nanonav.env.robot import NanoNavEnv, NanoNavVectorEnv
 from nanonav.env.swarm import NanoNavParallelEnv
+from nanonav.env.turns import NanoNavAECEnv
 from nanonav.env.worlds import OBSERVATION_LABELS
 
 ENV_ID = "NanoNav-v0"
@@ -21,4 +24,11 @@ if ENV_ID not in gymnasium.registry:
         vector_entry_point="nanonav.env.robot:NanoNavVectorEnv",
     )
 
-__all__ = ["ENV_ID", "OBSERVATION_LABELS", "NanoNavEnv", "NanoNavParallelEnv", "NanoNavVectorEnv"]
+__all__ = [
+    "ENV_ID",
+    "OBSERVATION_LABELS",
+    "NanoNavAECEnv",
+    "NanoNavEnv",
+    "NanoNavParallelEnv",
+    "NanoNavVectorEnv",
+]

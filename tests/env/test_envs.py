@@ -172,29 +172,6 @@ def test_the_env_driven_by_a_greedy_table_reproduces_simulates_evaluation(
         assert total == pytest.approx(world["mean_return"], rel=1e-12, abs=1e-12), k
 
 
-def test_the_swarm_env_driven_by_a_greedy_table_reproduces_simulates_evaluation() -> None:
-    """With exact sensing and no treatment or radio, a robot's observation does not depend on
-    the other robots' moves in the same step, so the swarm's two orders draw alike too."""
-    scenario = Scenario.model_validate(_with(LATTICE_SWARM, evaluation={"worlds": 3}))
-    table = _greedy(scenario, 10)
-    env = NanoNavParallelEnv(scenario)
-    worlds = _evaluation(scenario, table)
-    assert all(0 < world["reached"] < 15 for world in worlds)
-    for k, world in enumerate(worlds):
-        _, infos = env.reset(seed=scenario.seed) if k == 0 else env.reset()
-        returns = dict.fromkeys(env.possible_agents, 0.0)
-        reached = 0
-        while env.agents:
-            actions = {a: int(table[infos[a]["state"]].argmax()) for a in env.agents}
-            _, rewards, terminated, _, infos = env.step(actions)
-            for agent, reward in rewards.items():
-                returns[agent] += reward
-            reached += sum(terminated.values())
-        assert reached == world["reached"], k
-        mean = float(np.mean(list(returns.values())))
-        assert mean == pytest.approx(world["mean_return"], rel=1e-12, abs=1e-12), k
-
-
 @pytest.mark.parametrize(
     "scenario", [LATTICE_SWARM, BROWNIAN_SWARM], ids=["lattice", "active_brownian"]
 )
