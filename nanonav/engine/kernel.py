@@ -20,19 +20,7 @@ from nanonav.engine import treatment
 from nanonav.engine.contacts import rebuild
 from nanonav.engine.dynamics.lattice import _nearest, _redraw_emitters
 from nanonav.engine.fields import SAMPLED_GAUSSIAN, place_sources
-from nanonav.engine.phases import (
-    Sim,
-    act,
-    advance,
-    decide,
-    learn,
-    learn_arrival,
-    learn_at_limit,
-    learn_last,
-    perceive,
-    turn,
-    uncounted,
-)
+from nanonav.engine.phases import Sim, advance, learn_at_limit, respond, sense, uncounted
 from nanonav.engine.sensing import _sense_all
 from nanonav.engine.state import (
     BROADCAST,
@@ -296,24 +284,15 @@ def _steps(
         advance(p, rng, sim, t)
         if p.schedule == SEQUENTIAL:
             for i in range(n):
-                if s.active[i]:
-                    turn(p, rng, sim, lrn, i, t, epsilon, learning)
+                if s.active[i] and sense(p, rng, sim, lrn, i, t, learning):
+                    respond(p, rng, sim, lrn, i, t, epsilon, learning)
         else:
             for i in range(n):
-                if s.active[i] and not perceive(p, rng, sim, i, t, False):
-                    if learning:
-                        learn_arrival(p, lrn, s, i)
-                    s.pending[i] = False
+                if s.active[i]:
+                    sense(p, rng, sim, lrn, i, t, learning)
             for i in range(n):
-                if not s.active[i]:
-                    continue
-                state = sim.pc.state[i]
-                if learning:
-                    learn_last(p, lrn, s, i, state)
-                action, code, dx, dy, dz, gx, gy, gz = decide(p, rng, sim, lrn, i, epsilon)
-                reward, reached = act(p, rng, sim, i, t, code, dx, dy, dz, gx, gy, gz)
-                if learning:
-                    learn(p, lrn, s, i, state, action, reward, reached)
+                if s.active[i]:
+                    respond(p, rng, sim, lrn, i, t, epsilon, learning)
         t += 1
         if evaluating:
             observe(p, sim, t, False, record)

@@ -473,18 +473,28 @@ def learn(
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def turn(
+def sense(
+    p: KernelParams, rng: np.random.Generator, sim: Sim, lrn: Learner, i: int, t: int,
+    learning: bool,
+) -> bool:  # fmt: skip
+    """Robot ``i`` perceives in step ``t`` when the engine decides; a cell that drifted onto
+    it ends its episode, and its waiting transition with it (returns False)."""
+    if perceive(p, rng, sim, i, t, False):
+        return True
+    if learning:
+        learn_arrival(p, lrn, sim.s, i)
+    sim.s.pending[i] = False
+    return False
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def respond(
     p: KernelParams, rng: np.random.Generator, sim: Sim, lrn: Learner, i: int, t: int,
     epsilon: float, learning: bool,
 ) -> None:  # fmt: skip
-    """Robot ``i``'s turn in step ``t`` when the engine decides: perceive, learn the last
-    transition, decide, act, and learn (or keep) this one."""
+    """Robot ``i``, having perceived, learns its last transition, decides, acts, and learns
+    (or keeps) this one."""
     s = sim.s
-    if not perceive(p, rng, sim, i, t, False):
-        if learning:
-            learn_arrival(p, lrn, s, i)
-        s.pending[i] = False
-        return
     state = sim.pc.state[i]
     if learning:
         learn_last(p, lrn, s, i, state)
