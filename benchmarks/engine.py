@@ -4,6 +4,11 @@ in the same run so that every ratio compares like with like.
 
     python benchmarks/engine.py            # the full tables (about four minutes)
     python benchmarks/engine.py --quick    # a smoke run with small workloads
+    python benchmarks/engine.py --against REV   # old (a git revision) and new side by side
+
+``--against`` measures, case by case, the revision and this tree alternately in one run
+(``against.py``): ``simulate`` at 15 and 1,000 robots in both physics and for each kind of
+policy, and the swarm with exclusion at 10,000 robots.
 
 The third table is the swarm's: robots that take up space (exclusion), and exclusion with
 signalling (an attractant and a repellent on the grid, or broadcast), from 100 to 100,000
@@ -23,6 +28,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+from against import side_by_side
 from naive import naive_robot_steps_per_second
 
 from nanonav.engine import simulate
@@ -96,6 +102,32 @@ def swarm_scenario(config: str, robots: int, robot_steps: int) -> Scenario:
     )
 
 
+def with_policy(scenario: Scenario, policy: str) -> Scenario:
+    data = scenario.model_dump(mode="json")
+    data["robots"]["policy"] = policy
+    return Scenario.model_validate(data)
+
+
+# old and new side by side: the figure of each, robot-steps/s
+COMPARED = {
+    "lattice, q_learning, 15 robots": lambda: bench_scenario("gaussian", 15, 400_000),
+    "lattice, q_learning, 1,000 robots": lambda: bench_scenario("gaussian", 1000, 400_000),
+    "lattice, rule, 1,000 robots": lambda: with_policy(
+        bench_scenario("gaussian", 1000, 400_000), "rule"
+    ),
+    "lattice, random, 1,000 robots": lambda: with_policy(
+        bench_scenario("gaussian", 1000, 400_000), "random"
+    ),
+    "active_brownian, q_learning, 15 robots": lambda: brownian_scenario("q_learning", 15, 400_000),
+    "active_brownian, q_learning, 1,000": lambda: brownian_scenario("q_learning", 1000, 400_000),
+    "active_brownian, run_and_tumble, 1,000": lambda: brownian_scenario(
+        "run_and_tumble", 1000, 400_000
+    ),
+    "active_brownian, gradient, 1,000": lambda: brownian_scenario("gradient", 1000, 400_000),
+    "exclusion, 10,000 robots": lambda: swarm_scenario("exclusion", 10_000, 3_000_000),
+}
+
+
 def engine_rate(scenario: Scenario, repeats: int) -> tuple[float, int]:
     rates = []
     steps = 0
@@ -119,7 +151,21 @@ def main(argv: list[str] | None = None) -> int:
         help="comma-separated sizes of the swarm's table",
     )
     parser.add_argument("--skip-fields", action="store_true", help="only the swarm's table")
+    parser.add_argument("--against", metavar="REV", help="old (REV) and new side by side, only")
+    parser.add_argument("--measure", help=argparse.SUPPRESS)  # one case of --against, as JSON
     args = parser.parse_args(argv)
+    if args.measure:
+        simulate(bench_scenario("gaussian", 1, 1000))  # start-up, not timed
+        print(engine_rate(COMPARED[args.measure](), 3)[0])
+        return 0
+    if args.against:
+        figures = side_by_side(Path(__file__).resolve(), list(COMPARED), args.against)
+        new = figures["exclusion, 10,000 robots"][1]
+        status = "meets" if new >= TARGET_SWARM_RATE else "BELOW"
+        print(f"{status} target: exclusion, 10,000 robots, {new:,.0f} vs {TARGET_SWARM_RATE:,}")
+        slower = [case for case, (o, n) in figures.items() if n < o]
+        print(f"slower than {args.against}: {', '.join(slower) or 'none'}")
+        return 0
     models = args.models.split(",")
     swarms = [int(n) for n in args.robots.split(",")]
     workload = 20_000 if args.quick else 400_000

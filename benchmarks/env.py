@@ -5,6 +5,11 @@ PettingZoo's dicts and through its arrays), all with random actions, on one core
 
     python benchmarks/env.py            # about two minutes
     python benchmarks/env.py --quick    # a smoke run
+    python benchmarks/env.py --against REV   # old (a git revision) and new side by side
+
+``--against`` measures, case by case, the revision and this tree alternately in one run
+(``against.py``): the vector env at 1,000 worlds, the swarm env's ``step_arrays`` at 1,000
+robots, and ``simulate``'s own loop with one robot and with 1,000 (random behaviours).
 
 Worlds: the single env and the vector env's are 'paper-single' (one robot, one cell, ten
 obstacles, the paper's behaviours); the swarm's is 'paper-swarm' with 1,000 robots. A robot that
@@ -18,11 +23,17 @@ from __future__ import annotations
 
 import argparse
 import statistics
+import sys
 import time
 from collections.abc import Callable
+from pathlib import Path
 
 import gymnasium
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from against import side_by_side
 
 from nanonav.engine import simulate
 from nanonav.env import NanoNavEnv, NanoNavParallelEnv, NanoNavVectorEnv
@@ -118,18 +129,51 @@ def engine_rate(world: dict[str, object], robot_steps: int) -> float:
     return float(work["robot_steps"]) / float(work["engine_s"])
 
 
+# old and new side by side: the figure of each, robot-steps/s
+COMPARED: dict[str, Callable[[], float]] = {
+    "vector env, 1,000 worlds": lambda: _median(vector_env(1000, 2_000_000)),
+    "swarm env, step_arrays, 1,000 robots": lambda: _median(swarm_env(2_000_000, True)),
+    "simulate, one robot, random": lambda: engine_rate(SINGLE, 500_000),
+    "simulate, 1,000 robots, random": lambda: engine_rate(SWARM, 2_000_000),
+}
+
+
+def _warm_up() -> None:
+    """Compile (or load numba's cache) before any timing."""
+    warm = NanoNavVectorEnv(2, SINGLE)
+    warm.reset(seed=0)
+    warm.step(np.zeros(2, dtype=np.int64))
+    engine_rate(SINGLE, 1000)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="small workloads")
+    parser.add_argument("--against", metavar="REV", help="old (REV) and new side by side, only")
+    parser.add_argument("--measure", help=argparse.SUPPRESS)  # one case of --against, as JSON
     args = parser.parse_args(argv)
+    if args.measure:
+        _warm_up()
+        print(COMPARED[args.measure]())
+        return 0
+    if args.against:
+        figures = side_by_side(Path(__file__).resolve(), list(COMPARED), args.against)
+        vector = figures["vector env, 1,000 worlds"][1]
+        lone = figures["simulate, one robot, random"][1]
+        status = "meets" if vector >= lone else "BELOW"
+        print(f"{status} target: the vector env at 1,000 worlds, {vector:,.0f}, reaches "
+              f"simulate's one-robot speed, {lone:,.0f}")  # fmt: skip
+        arrays = figures["swarm env, step_arrays, 1,000 robots"][0]
+        own = figures["simulate, 1,000 robots, random"][1]
+        status = "meets" if own >= arrays else "BELOW"
+        print(f"{status} target: simulate at 1,000 robots, random, {own:,.0f}, reaches what "
+              f"step_arrays reached at {args.against}, {arrays:,.0f}")  # fmt: skip
+        return 0
     scale = 10 if args.quick else 1
     single_steps = 20_000 // scale
     robot_steps = 2_000_000 // scale
 
-    # compile (or load numba's cache) before any timing
-    _warm = NanoNavVectorEnv(2, SINGLE)
-    _warm.reset(seed=0)
-    _warm.step(np.zeros(2, dtype=np.int64))
+    _warm_up()
 
     nanonav = _median(single_env(NanoNavEnv(SINGLE), single_steps))
     cartpole = _median(single_env(gymnasium.make("CartPole-v1").unwrapped, single_steps))
