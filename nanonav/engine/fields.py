@@ -25,7 +25,38 @@ MODEL_CODES = {"gaussian": GAUSSIAN, "inverse_square": INVERSE_SQUARE, "diffusio
 # Models whose sources are emitters around each cell, not the cells themselves.
 EMITTER_MODELS = ("inverse_square", "sampled_gaussian")
 
-FASTMATH = {"reassoc", "contract", "nsz", "arcp"}
+# No "reassoc": the sum over sources keeps the order ``sample`` writes (four lanes), so that a
+# field is the same bits on every processor. Reassociated, the compiler took the sum's order
+# from the processor's vector width, and a machine with AVX-512 computed other fields, and so
+# other runs, than one with AVX2.
+FASTMATH = {"contract", "nsz", "arcp"}
+# The lanes ``sample`` sums sources in: partial sums a vector unit adds side by side.
+LANES = 4
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _term(
+    model: int, dx: float, dy: float, dz: float, weight: float, scale: float, eps2: float
+) -> tuple[float, float, float, float]:
+    """One source's concentration and gradient at offset (dx, dy, dz) from it; ``scale`` is
+    1 / sigma^2 (Gaussian) or 1 / lambda (diffusion)."""
+    if model in (GAUSSIAN, SAMPLED_GAUSSIAN):
+        # eq. 2.1: rho = rho0 exp(-r^2 / 2 sigma^2); eq. 2.2: d rho/dx = -(x - x0)/sigma^2 rho
+        e = weight * math.exp(-0.5 * (dx * dx + dy * dy + dz * dz) * scale)
+        return e, -(dx * scale * e), -(dy * scale * e), -(dz * scale * e)
+    if model == INVERSE_SQUARE:
+        # eq. 2.6: C = sum B / d^2, softened to B / (d^2 + eps^2); dC/dx = -2 B (x - xi) / s^2
+        inv = 1.0 / (dx * dx + dy * dy + dz * dz + eps2)
+        e = weight * inv
+        f = -2.0 * e * inv
+    else:
+        # steady diffusion with first-order decay: C = Q exp(-r/lambda) / (4 pi D r),
+        # r softened to rs = sqrt(r^2 + eps^2); dC/drs = -C (1/lambda + 1/rs); drs/dx = dx/rs
+        rs = math.sqrt(dx * dx + dy * dy + dz * dz + eps2)
+        inv_r = 1.0 / rs
+        e = weight * math.exp(-rs * scale) * inv_r
+        f = -e * (scale + inv_r) * inv_r
+    return e, f * dx, f * dy, f * dz
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -42,55 +73,49 @@ def sample(
     z: float,
 ) -> tuple[float, float, float, float]:
     """Concentration and gradient at (x, y, z) of sources at (sx, sy, sz), each of strength
-    ``weight``; ``length`` is sigma (Gaussian) or lambda (diffusion). It is inlined into
-    ``sample_many``, the one caller, whose fast-math flags let the sum over sources vectorise."""
-    c = 0.0
-    gx = 0.0
-    gy = 0.0
-    gz = 0.0
+    ``weight``; ``length`` is sigma (Gaussian) or lambda (diffusion). Source k is summed into
+    lane k % LANES while whole rounds of lanes last, the rest into the first, and the lanes
+    are added at the end: one order on every processor, whose vector unit adds the lanes side
+    by side (with fewer sources than lanes, the order of the sources)."""
     eps2 = softening * softening
-    if model in (GAUSSIAN, SAMPLED_GAUSSIAN):
-        # eq. 2.1: rho = rho0 exp(-r^2 / 2 sigma^2); eq. 2.2: d rho/dx = -(x - x0)/sigma^2 rho
-        inv_s2 = 1.0 / (length * length)
-        for k in range(sx.shape[0]):
-            dx = x - sx[k]
-            dy = y - sy[k]
-            dz = z - sz[k]
-            e = weight * math.exp(-0.5 * (dx * dx + dy * dy + dz * dz) * inv_s2)
-            c += e
-            gx -= dx * inv_s2 * e
-            gy -= dy * inv_s2 * e
-            gz -= dz * inv_s2 * e
-    elif model == INVERSE_SQUARE:
-        # eq. 2.6: C = sum B / d^2, softened to B / (d^2 + eps^2); dC/dx = -2 B (x - xi) / s^2
-        for k in range(sx.shape[0]):
-            dx = x - sx[k]
-            dy = y - sy[k]
-            dz = z - sz[k]
-            inv = 1.0 / (dx * dx + dy * dy + dz * dz + eps2)
-            e = weight * inv
-            c += e
-            f = -2.0 * e * inv
-            gx += f * dx
-            gy += f * dy
-            gz += f * dz
-    else:
-        # steady diffusion with first-order decay: C = Q exp(-r/lambda) / (4 pi D r),
-        # r softened to rs = sqrt(r^2 + eps^2); dC/drs = -C (1/lambda + 1/rs); drs/dx = dx/rs
-        inv_l = 1.0 / length
-        for k in range(sx.shape[0]):
-            dx = x - sx[k]
-            dy = y - sy[k]
-            dz = z - sz[k]
-            rs = math.sqrt(dx * dx + dy * dy + dz * dz + eps2)
-            inv_r = 1.0 / rs
-            e = weight * math.exp(-rs * inv_l) * inv_r
-            c += e
-            f = -e * (inv_l + inv_r) * inv_r
-            gx += f * dx
-            gy += f * dy
-            gz += f * dz
-    return c, gx, gy, gz
+    scale = 1.0 / (length * length) if model in (GAUSSIAN, SAMPLED_GAUSSIAN) else 1.0 / length
+    c0 = c1 = c2 = c3 = 0.0
+    x0 = x1 = x2 = x3 = 0.0
+    y0 = y1 = y2 = y3 = 0.0
+    z0 = z1 = z2 = z3 = 0.0
+    n = sx.shape[0]
+    rounds = n // LANES * LANES
+    for k in range(0, rounds, LANES):
+        e, fx, fy, fz = _term(model, x - sx[k], y - sy[k], z - sz[k], weight, scale, eps2)
+        c0 += e
+        x0 += fx
+        y0 += fy
+        z0 += fz
+        e, fx, fy, fz = _term(model, x - sx[k + 1], y - sy[k + 1], z - sz[k + 1], weight, scale,
+                              eps2)  # fmt: skip
+        c1 += e
+        x1 += fx
+        y1 += fy
+        z1 += fz
+        e, fx, fy, fz = _term(model, x - sx[k + 2], y - sy[k + 2], z - sz[k + 2], weight, scale,
+                              eps2)  # fmt: skip
+        c2 += e
+        x2 += fx
+        y2 += fy
+        z2 += fz
+        e, fx, fy, fz = _term(model, x - sx[k + 3], y - sy[k + 3], z - sz[k + 3], weight, scale,
+                              eps2)  # fmt: skip
+        c3 += e
+        x3 += fx
+        y3 += fy
+        z3 += fz
+    for k in range(rounds, n):
+        e, fx, fy, fz = _term(model, x - sx[k], y - sy[k], z - sz[k], weight, scale, eps2)
+        c0 += e
+        x0 += fx
+        y0 += fy
+        z0 += fz
+    return c0 + c1 + c2 + c3, x0 + x1 + x2 + x3, y0 + y1 + y2 + y3, z0 + z1 + z2 + z3
 
 
 @njit(cache=True)
