@@ -486,6 +486,19 @@ class Learning(_Part):
         True,
         description="true: the swarm learns one Q-table together; false: each robot has its own.",
     )
+    decision_interval_s: float | None = Field(
+        None,
+        gt=0.0,
+        le=1e6,
+        description="active_brownian: the time between two decisions of a robot whose actions "
+        "are chosen by number (the Q-learner, or an environment's agent), s; a whole number of "
+        "physics.dt_s, at most the episode's time limit. The action holds until the next "
+        "decision: steering up the gradient or toward a cell steers again on every step's new "
+        "reading, a tumble turns once and then keeps the heading. The reward is summed over the "
+        "interval, learning.gamma discounts once per decision, and the Q update is made at "
+        "decisions only. Fixed rules decide every step. null: every step. The lattice decides "
+        "every step and refuses it.",
+    )
 
     @model_validator(mode="after")
     def _epsilon_order(self) -> Learning:
@@ -1024,6 +1037,7 @@ class Scenario(_Part):
                     "Scenario", ("learning", "max_steps"), self.learning.max_steps,
                     f"physics.time_limit_s sets it: {steps} steps of dt_s; give one of the two",
                 )  # fmt: skip
+        self._decision_interval_fits(brownian)
         if brownian:
             # a value other than the default: a resolved scenario, which lists every field,
             # validates again as it was
@@ -1041,6 +1055,50 @@ class Scenario(_Part):
                     "when their surfaces touch (physics.robot_radius_um, cell_radius_um)",
                 )  # fmt: skip
         return self
+
+    def _decision_interval_fits(self, brownian: bool) -> None:
+        """A decision interval is a whole number of steps of dt_s, from one step to the
+        episode's time limit, and only active Brownian robots take one."""
+        interval = self.learning.decision_interval_s
+        if interval is None:
+            return
+        where = ("learning", "decision_interval_s")
+        if not brownian:
+            raise _field_error(
+                "Scenario", where, interval,
+                "has no use in physics.model 'lattice': a lattice robot decides every step",
+            )  # fmt: skip
+        dt = self.physics.step_s
+        steps = interval / dt
+        whole = round(steps)
+        if steps < 1.0 - 1e-9:
+            raise _field_error(
+                "Scenario", where, interval,
+                f"is shorter than one step (physics.dt_s {dt:g} s): a robot decides at most "
+                "once a step",
+            )  # fmt: skip
+        if abs(steps - whole) > 1e-9 * max(1.0, steps):
+            below, above = math.floor(steps) * dt, math.ceil(steps) * dt
+            raise _field_error(
+                "Scenario", where, interval,
+                f"is not a whole number of steps of physics.dt_s {dt:g} s: {below:.6g} or "
+                f"{above:.6g} would do",
+            )  # fmt: skip
+        if whole > self.learning.max_steps:
+            raise _field_error(
+                "Scenario", where, interval,
+                f"is longer than the episode ({self.learning.max_steps} steps of dt_s {dt:g} s, "
+                f"{self.learning.max_steps * dt:g} s)",
+            )  # fmt: skip
+
+    @property
+    def decision_steps(self) -> int:
+        """Steps of dt_s between two decisions by action number (learning.decision_interval_s;
+        1: every step)."""
+        interval = self.learning.decision_interval_s
+        if interval is None or self.physics.model != "active_brownian":
+            return 1
+        return max(1, round(interval / self.physics.step_s))
 
     @model_validator(mode="after")
     def _communication_fits(self) -> Scenario:

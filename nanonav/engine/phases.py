@@ -47,9 +47,11 @@ from nanonav.engine.policies import (
 from nanonav.engine.qlearning import (
     AVOID_OBSTACLE,
     FOLLOW_SIGNAL,
+    KEEP_HEADING,
     STEER_TO_CELL,
     STEER_TO_SIGNAL,
     STEER_UP_GRADIENT,
+    TUMBLE,
 )
 from nanonav.engine.sensing import (
     _read,
@@ -119,6 +121,7 @@ class Percept(NamedTuple):
     way: NDArray[np.float64]  # (N, 3) where what it receives points
     reward: NDArray[np.float64]  # (N,) reward since the last decision
     clock: NDArray[np.int64]  # (CLOCK_SLOTS,)
+    held: NDArray[np.int64]  # (N,) the steering code held until the next decision
 
 
 class Sim(NamedTuple):
@@ -150,6 +153,7 @@ def percept(robots: int) -> Percept:
         way=np.zeros((robots, 3)),
         reward=np.zeros(robots),
         clock=np.zeros(CLOCK_SLOTS, dtype=np.int64),
+        held=np.zeros(robots, dtype=np.int64),
     )
 
 
@@ -357,6 +361,9 @@ def act(
     hz = s.heading[i, 2]
     path = s.path_length[i]
     if p.physics == ACTIVE_BROWNIAN:
+        # what the decision does on the steps it is held (``keep``): a tumble turns once, then
+        # the heading is kept; any other steering is done again on each step's new reading
+        pc.held[i] = KEEP_HEADING if code == TUMBLE else code
         sx = 0.0
         sy = 0.0
         sz = 0.0
@@ -429,8 +436,23 @@ def act(
         reward += p.reward_reach
         delivered(p, sim, i, target, t)
     s.returns[i] += reward
-    pc.reward[i] = reward
+    pc.reward[i] += reward
     return reward, reached
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def decides(p: KernelParams, t: int) -> bool:
+    """Whether step ``t`` takes a decision by action number (the Q-learner's, or an agent's
+    outside): every step, or in active_brownian every ``hold`` steps (the decision interval);
+    between decisions a robot ``keep``s to the last."""
+    return t % p.hold == 0
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def keep(p: KernelParams, rng: np.random.Generator, sim: Sim, i: int, t: int) -> tuple[float, bool]:
+    """Robot ``i`` carries out in step ``t`` the decision it holds (``act``'s reward and
+    arrival): a step between two decisions."""
+    return act(p, rng, sim, i, t, sim.pc.held[i], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -493,8 +515,16 @@ def respond(
     epsilon: float, learning: bool,
 ) -> None:  # fmt: skip
     """Robot ``i``, having perceived, learns its last transition, decides, acts, and learns
-    (or keeps) this one."""
+    (or keeps) this one; between decisions it keeps to the last, its reward summed into the
+    transition that waits."""
     s = sim.s
+    if not decides(p, t):
+        # between decisions: the held one again, its reward added to the waiting transition's
+        reward, reached = keep(p, rng, sim, i, t)
+        if learning:
+            learn(p, lrn, s, i, s.last_state[i], s.last_action[i], s.last_reward[i] + reward,
+                  reached)  # fmt: skip
+        return
     state = sim.pc.state[i]
     if learning:
         learn_last(p, lrn, s, i, state)

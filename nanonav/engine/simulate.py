@@ -110,6 +110,8 @@ def kernel_params(scenario: Scenario, record_bytes: int = DEFAULT_RECORD_BYTES) 
         walls=scenario.space.walls,
         robot_corner=scenario.robots.start == "corner",
         schedule=state.SCHEDULE_CODES[scenario.robots.schedule],
+        # the learner decides every decision_steps; a fixed rule, every step
+        hold=scenario.decision_steps if scenario.robots.policy == "q_learning" else 1,
     )
     if scenario.physics.model == "active_brownian":
         params = _brownian_params(scenario, params, b)

@@ -117,6 +117,9 @@ class KernelParams(NamedTuple):
     signal_dims: int = 1
     broadcast_range: float = 0.0
     schedule: int = SEQUENTIAL
+    # steps a decision by action number (the Q-learner's, or an environment's agent's) is held:
+    # the decision interval in steps (active Brownian); 1 in the lattice and for fixed rules
+    hold: int = 1
 
 
 class Swarm(NamedTuple):

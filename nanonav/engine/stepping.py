@@ -33,6 +33,8 @@ from nanonav.engine.phases import (
     act,
     advance,
     command,
+    decides,
+    keep,
     perceive,
     uncounted,
 )
@@ -74,8 +76,10 @@ def _next_turn(p: KernelParams, rng: np.random.Generator, sim: Sim, first: int) 
     while True:
         while i < n:
             if s.active[i] and perceive(p, rng, sim, i, t, True):
-                clock[CLOCK_NEXT] = i
-                return
+                if decides(p, t):
+                    clock[CLOCK_NEXT] = i
+                    return
+                keep(p, rng, sim, i, t)
             i += 1
         t += 1
         clock[CLOCK_STEP] = t
@@ -132,7 +136,9 @@ def step_world(
     """One move of a world whose episode is not over, each robot's reward of it in
     ``pc.reward`` (0 for a robot that did nothing). Simultaneous: every active robot acts on
     its action, and the next step is perceived. Sequential: the robot whose turn it is acts on
-    its action (the others' are unused), and the next turn is perceived."""
+    its action (the others' are unused), and the next turn is perceived. With a decision
+    interval (``KernelParams.hold``) a move runs on to the next decision, the robots keeping to
+    their actions, and the reward is summed over it."""
     pc = sim.pc
     s = sim.s
     clock = pc.clock
@@ -147,17 +153,24 @@ def step_world(
     for i in range(s.pos.shape[0]):
         if s.active[i]:
             _act_on(p, rng, sim, i, t, actions[i], directions)
-    t += 1
-    clock[CLOCK_STEP] = t
-    if over(p, sim.tr, s, t):
-        clock[CLOCK_OVER] = 1
-        return
-    advance(p, rng, sim, t)
-    _perceive_all(p, rng, sim, t)
-    if not s.active.any():
-        # the last robots spent step t receiving cells that drifted onto them: it counts
-        clock[CLOCK_STEP] = t + 1
-        clock[CLOCK_OVER] = 1
+    while True:
+        t += 1
+        clock[CLOCK_STEP] = t
+        if over(p, sim.tr, s, t):
+            clock[CLOCK_OVER] = 1
+            return
+        advance(p, rng, sim, t)
+        _perceive_all(p, rng, sim, t)
+        if not s.active.any():
+            # the last robots spent step t receiving cells that drifted onto them: it counts
+            clock[CLOCK_STEP] = t + 1
+            clock[CLOCK_OVER] = 1
+            return
+        if decides(p, t):
+            return
+        for i in range(s.pos.shape[0]):
+            if s.active[i]:
+                keep(p, rng, sim, i, t)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -204,7 +217,7 @@ def _recording_at(b: Recording, k: int) -> Recording:
 def _percept_at(b: Percept, k: int) -> Percept:
     return Percept(
         b.obs[k], b.state[k], b.heard[k], b.target[k], b.target_d[k], b.way[k], b.reward[k],
-        b.clock[k],
+        b.clock[k], b.held[k],
     )  # fmt: skip
 
 

@@ -158,8 +158,10 @@ class Worlds:
         self.count = count
         self.robots = scenario.robots.count
         self.schedule = schedule
+        # the agent outside decides by action number: it holds each action for the scenario's
+        # decision interval, whatever policy the scenario names
         self.params = kernel_params(scenario, _NO_HISTORY_CAP)._replace(
-            schedule=SCHEDULE_CODES[schedule]
+            schedule=SCHEDULE_CODES[schedule], hold=scenario.decision_steps
         )
         self.actions = len(action_labels(scenario))
         self.directions = np.ascontiguousarray(qlearning.DIRECTIONS)

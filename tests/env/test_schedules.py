@@ -2,7 +2,8 @@
 ``simulate``, driven from outside through the env of the scenario's schedule (``NanoNavAECEnv``
 for the sequential one, ``NanoNavParallelEnv`` for the simultaneous one), reproduces
 ``simulate``'s evaluation of the same table world for world, in every preset and every
-communication model of both physics, with noise, treatment and exclusion."""
+communication model of both physics, with noise, treatment and exclusion, and with decisions
+held over an interval."""
 
 from __future__ import annotations
 
@@ -65,6 +66,19 @@ def _cases() -> dict[str, dict[str, Any]]:
                 "cells": {"motion_std": 0.1} if physics == "lattice" else {},
             },
         )
+    # decisions held over an interval: the robots keep to their actions between decisions
+    held = {"learning": {"decision_interval_s": 0.1}}
+    cases["active_brownian decision interval, exclusion"] = _merge(
+        {"physics": {"model": "active_brownian"}}, SHORT_SI, SWARM, held,
+        {"robots": {"count": 16, "exclusion": True}, "space": {"size": 25.0}},
+    )  # fmt: skip
+    cases["active_brownian decision interval, attractant"] = _merge(
+        {"physics": {"model": "active_brownian"}}, SHORT_SI, SWARM, held,
+        {"communication": {"model": "attractant"}},
+    )  # fmt: skip
+    cases["tumour-microswimmers decision interval"] = _merge(
+        cases["tumour-microswimmers"], {"learning": {"decision_interval_s": 0.5}}
+    )
     return cases
 
 

@@ -1,0 +1,123 @@
+"""Decisions held over an interval (``learning.decision_interval_s``, active Brownian): what a
+held action does, that the reward is summed over the interval and the table updated at
+decisions only, and what a scenario may ask for."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pytest
+from pydantic import ValidationError
+
+from nanonav.engine import qlearning, simulate
+from nanonav.env.worlds import Worlds
+from nanonav.scenario import Scenario, deep_merge
+
+# a still world: no diffusion, so that a swimmer's path is its steering alone
+STILL: dict[str, Any] = {
+    "physics": {
+        "model": "active_brownian", "time_limit_s": 10.0, "diffusion_um2_s": 0.0,
+        "rotational_diffusion_s": 0.0,
+    },
+    "space": {"size": 200.0},
+    "obstacles": {"count": 0},
+    "cells": {"count": 1},
+}  # fmt: skip
+
+
+def _scenario(*parts: dict[str, Any]) -> Scenario:
+    data: dict[str, Any] = {}
+    for part in parts:
+        data = deep_merge(data, part)
+    return Scenario.model_validate(data)
+
+
+def _worlds(scenario: Scenario) -> Worlds:
+    worlds = Worlds(scenario, 1, "simultaneous")
+    worlds.seed([3])
+    worlds.step(None, np.ones(1, dtype=np.bool_))
+    return worlds
+
+
+def _action(name: str) -> np.ndarray:
+    return np.array([[qlearning.STEERING_ACTIONS.index(name)]], dtype=np.int64)
+
+
+def test_a_held_tumble_turns_once_then_keeps_its_heading() -> None:
+    scenario = _scenario(STILL, {"learning": {"decision_interval_s": 0.5}})
+    worlds = _worlds(scenario)
+    hold = scenario.decision_steps
+    assert hold == round(0.5 / scenario.physics.step_s) > 1
+    stay = np.zeros(1, dtype=np.bool_)
+    for _ in range(3):
+        start = worlds.batch.s.pos[0, 0].copy()
+        worlds.step(_action("tumble"), stay)
+        heading = worlds.batch.s.heading[0, 0]
+        # one tumble at the decision, then a straight run along the new heading
+        swim = scenario.physics.swim_speed_um_s * scenario.physics.step_s
+        np.testing.assert_allclose(worlds.batch.s.pos[0, 0] - start, hold * swim * heading,
+                                   atol=1e-9)  # fmt: skip
+        assert worlds.steps(0) % hold == 0
+
+
+def test_a_held_action_is_its_steps_one_by_one_and_its_reward_their_sum() -> None:
+    """Keeping the heading for an interval is the same world as keeping it step by step, and
+    the interval's reward is the sum of the steps' (a noisy world: the draws come in the same
+    order)."""
+    base = deep_merge(STILL, {"physics": {"diffusion_um2_s": None, "rotational_diffusion_s": None}})
+    held = _scenario(base, {"learning": {"decision_interval_s": 0.2}})
+    each = _scenario(base)
+    hold = held.decision_steps
+    a, b = _worlds(held), _worlds(each)
+    stay = np.zeros(1, dtype=np.bool_)
+    for _ in range(5):
+        a.step(_action("keep_heading"), stay)
+        summed = 0.0
+        for _ in range(hold):
+            b.step(_action("keep_heading"), stay)
+            summed += float(b.reward[0, 0])
+        assert float(a.reward[0, 0]) == pytest.approx(summed, rel=1e-12, abs=1e-12)
+        np.testing.assert_array_equal(a.obs, b.obs)
+        np.testing.assert_array_equal(a.batch.s.pos, b.batch.s.pos)
+
+
+def test_the_learner_updates_at_decisions_only() -> None:
+    """Over two training episodes and one evaluation of 10 s that no robot ends early, a
+    decision a second makes 30 choices, each counted in the table's visits; deciding every step
+    makes 100 times more."""
+    far = {"cells": {"count": 1}, "space": {"size": 400.0}, "learning": {"episodes": 2},
+           "evaluation": {"worlds": 1}}  # fmt: skip
+    every = simulate(_scenario(STILL, far))
+    held = simulate(_scenario(STILL, far, {"learning": {"decision_interval_s": 1.0}}))
+    assert every.qtable is not None and held.qtable is not None
+    assert all(row["success_rate"] == 0.0 for row in held.episodes)
+    assert int(np.sum(held.qtable.visits)) == 3 * 10
+    assert int(np.sum(every.qtable.visits)) == 3 * 1000
+
+
+@pytest.mark.parametrize(
+    ("interval", "says"),
+    [
+        (0.001, "shorter than one step"),
+        (0.015, "not a whole number of steps of physics.dt_s 0.01 s: 0.01 or 0.02 would do"),
+        (20.0, "longer than the episode"),
+    ],
+)
+def test_an_interval_that_does_not_fit_is_refused_naming_it(interval: float, says: str) -> None:
+    with pytest.raises(ValidationError) as refused:
+        _scenario(STILL, {"physics": {"dt_s": 0.01}, "learning": {"decision_interval_s": interval}})
+    assert "learning.decision_interval_s" in str(refused.value)
+    assert says in str(refused.value)
+
+
+def test_the_lattice_decides_every_step() -> None:
+    with pytest.raises(ValidationError, match="a lattice robot decides every step"):
+        _scenario({"learning": {"decision_interval_s": 1.0}})
+
+
+def test_a_resolved_scenario_with_an_interval_validates_as_it_was() -> None:
+    scenario = _scenario({"preset": "tumour-nanorobots"},
+                         {"learning": {"decision_interval_s": 0.0016 * 60}})  # fmt: skip
+    again = Scenario.model_validate(scenario.model_dump(mode="json"))
+    assert again.decision_steps == scenario.decision_steps == 60
