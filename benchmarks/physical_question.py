@@ -4,7 +4,7 @@ cell, and for robots of what size? Active Brownian robots of radius 0.2 to 5 um 
 60 s), each policy on the same seeds, paired with the robot that does not steer and with a
 passive one (speed 0).
 
-    python benchmarks/physical_question.py [--seeds N] [--worlds N] [--quick]
+    python benchmarks/physical_question.py [--seeds N] [--seeds-from S] [--worlds N] [--quick]
 
 For every radius: the Peclet numbers, the share of robots that reach the cell within the time
 limit and the time it takes (mean over seeds of each run's mean over its evaluation worlds, with
@@ -57,12 +57,16 @@ def paired(a: list[float], b: list[float]) -> str:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     parser.add_argument("--seeds", type=int, default=10)
+    parser.add_argument(
+        "--seeds-from", type=int, default=0,
+        help="the first seed (the README's figures: 0; replicate on seeds of your own)",
+    )  # fmt: skip
     parser.add_argument("--worlds", type=int, default=10, help="evaluation worlds per run")
     parser.add_argument("--episodes", type=int, default=20, help="q_learning's training")
     parser.add_argument("--radii", help="comma-separated robot radii, um (default: all five)")
     parser.add_argument("--quick", action="store_true", help="a smoke run: 2 seeds, 2 radii")
     args = parser.parse_args(argv)
-    seeds = range(2 if args.quick else args.seeds)
+    seeds = range(args.seeds_from, args.seeds_from + (2 if args.quick else args.seeds))
     radii: tuple[float, ...] = (1.0, 5.0) if args.quick else RADII
     if args.radii:
         radii = tuple(float(r) for r in args.radii.split(","))

@@ -1,7 +1,7 @@
 """What a learning nanorobot gains over plain chemotaxis, and when: the README's tables, measured
 anew by anyone, with the same seeds for every method and paired comparisons.
 
-    .venv/bin/python benchmarks/science.py [--quick] [--seeds N] [--out DIR]
+    .venv/bin/python benchmarks/science.py [--quick] [--seeds N] [--seeds-from S] [--out DIR]
 
 Sections:
 1. defaults: the learning-rate schedule and the step cost, measured on 'directions' Q-learning in
@@ -438,11 +438,16 @@ def authors_script(run: Runner, seeds: Sequence[int]) -> None:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     parser.add_argument("--seeds", type=int, default=20, help="seeds per configuration")
+    parser.add_argument(
+        "--seeds-from", type=int, default=0,
+        help="the first seed (the README's figures: 0; replicate on seeds of your own)",
+    )  # fmt: skip
     parser.add_argument("--out", type=Path, help="write the pictures here")
     parser.add_argument("--quick", action="store_true", help="a smoke run: few seeds, episodes")
     args = parser.parse_args(argv)
     quick = args.quick
-    seeds = range(3 if quick else args.seeds)
+    first = args.seeds_from
+    seeds = range(first, first + (3 if quick else args.seeds))
     episodes = {"behaviors": 5, "directions": 10} if quick else {"behaviors": 50, "directions": 200}
     if args.out is not None:
         args.out.mkdir(parents=True, exist_ok=True)
@@ -453,7 +458,7 @@ def main(argv: list[str] | None = None) -> int:
         chemotaxis_from_scratch(run, (0, 10) if quick else (0, 25, 50, 100, 200, 500), args.out)
         trained_against_untrained(run, episodes)
         settings(run, episodes, args.out)
-        authors_script(run, range(3 if quick else 30))
+        authors_script(run, range(first, first + (3 if quick else 30)))
     finally:
         run.close()
     print(f"({time.perf_counter() - started:.0f} s on {os.cpu_count()} cores)")
