@@ -1,8 +1,11 @@
-"""The strongest run and tumble in 'tumour-microswimmers' (20 robots, one tumour cell, 60 s): its
-tumble rates and the reading's memory swept on design seeds at each robot radius, against always
-steering up the sensed gradient on the same seeds.
+"""The strongest tumbling rule in 'tumour-microswimmers' (20 robots, one tumour cell, 60 s): the
+tumble rates and the reading's memory of 'run_and_tumble' (temporal sensing), or of
+'steer_and_tumble' (the same tumbles, steering up the sensed gradient between them), swept on
+design seeds at each robot radius, against always steering up the sensed gradient on the same
+seeds.
 
-    python benchmarks/run_and_tumble.py [--seeds-from S] [--seeds N] [--radii 0.5,1,2,5]
+    python benchmarks/run_and_tumble.py [--policy run_and_tumble|steer_and_tumble]
+        [--seeds-from S] [--seeds N] [--radii 0.5,1,2,5]
         [--tumble 0.5,1,2,4] [--rising 0.05,0.25,1] [--memory 0.3,1,3,10]
 
 Run on design seeds (the default, 5000 on) to choose; report on others. For every radius, the
@@ -33,18 +36,19 @@ DEFAULTS = tuple(
     for name in ("tumble_rate_s", "tumble_rate_rising_s", "memory_s")
 )
 
-# (radius, tumble_rate_s or 0 for 'gradient', tumble_rate_rising_s, memory_s, seed, worlds)
-Job = tuple[float, float, float, float, int, int]
+# (policy, radius, tumble_rate_s or 0 for 'gradient', tumble_rate_rising_s, memory_s, seed,
+# worlds)
+Job = tuple[str, float, float, float, float, int, int]
 
 
 def run_one(job: Job) -> float:
-    radius, tumble, rising, memory, seed, worlds = job
+    policy, radius, tumble, rising, memory, seed, worlds = job
     physics = {"model": "active_brownian", "time_limit_s": 60.0, "robot_radius_um": radius}
     if tumble > 0.0:
         physics.update(tumble_rate_s=tumble, tumble_rate_rising_s=rising, memory_s=memory)
     scenario = preset_scenario(
         PRESET, seed=seed, physics=physics,
-        robots={"policy": "run_and_tumble" if tumble > 0.0 else "gradient"},
+        robots={"policy": policy if tumble > 0.0 else "gradient"},
         learning={"episodes": 0}, evaluation={"worlds": worlds},
     )  # fmt: skip
     return float(simulate(scenario).summary["success_rate"])
@@ -56,6 +60,9 @@ def _floats(text: str) -> list[float]:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
+    parser.add_argument(
+        "--policy", choices=("run_and_tumble", "steer_and_tumble"), default="run_and_tumble"
+    )
     parser.add_argument("--seeds-from", type=int, default=DESIGN_SEEDS)
     parser.add_argument("--seeds", type=int, default=8)
     parser.add_argument("--worlds", type=int, default=5, help="evaluation worlds per run")
@@ -77,7 +84,7 @@ def main(argv: list[str] | None = None) -> int:
     ordered = sorted(settings)
     radii = _floats(args.radii)
     jobs = [
-        (radius, *setting, seed, args.worlds)
+        (args.policy, radius, *setting, seed, args.worlds)
         for radius in radii
         for setting in [(0.0, 0.0, 0.0), *ordered]
         for seed in seeds
@@ -87,14 +94,14 @@ def main(argv: list[str] | None = None) -> int:
         done = dict(zip(jobs, pool.map(run_one, jobs), strict=True))
     print(
         f"{PRESET}: seeds {seeds.start}-{seeds.stop - 1} x {args.worlds} worlds; the share of "
-        f"robots that reach the cell; {len(ordered)} settings of run_and_tumble a radius, the "
+        f"robots that reach the cell; {len(ordered)} settings of {args.policy} a radius, the "
         f"best {args.best} and the defaults shown, each paired with 'gradient' "
         "(* = the 95 % interval excludes 0)\n"
     )
     for radius in radii:
-        bar = [done[(radius, 0.0, 0.0, 0.0, s, args.worlds)] for s in seeds]
+        bar = [done[(args.policy, radius, 0.0, 0.0, 0.0, s, args.worlds)] for s in seeds]
         got = {
-            setting: [done[(radius, *setting, s, args.worlds)] for s in seeds]
+            setting: [done[(args.policy, radius, *setting, s, args.worlds)] for s in seeds]
             for setting in ordered
         }
         ranked = sorted(ordered, key=lambda k: -sum(got[k]))

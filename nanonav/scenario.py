@@ -49,6 +49,7 @@ Policy = Literal[
     "random",
     "uncontrolled",
     "exact_gradient",
+    "steer_and_tumble",
 ]
 AlphaSchedule = Literal["constant", "visits"]
 ActionSet = Literal["behaviors", "directions", "steering"]
@@ -59,7 +60,7 @@ CommunicationModel = Literal["none", "attractant", "attractant_repellent", "broa
 LATTICE_POLICIES = frozenset({"q_learning", "gradient", "run_and_tumble", "rule", "simple_rule",
                               "random"})  # fmt: skip
 BROWNIAN_POLICIES = frozenset({"q_learning", "uncontrolled", "run_and_tumble", "gradient",
-                               "exact_gradient"})  # fmt: skip
+                               "exact_gradient", "steer_and_tumble"})  # fmt: skip
 
 MAX_OBSTACLE_VOLUME_FRACTION = 0.3
 DENSEST_PACKING = math.pi / math.sqrt(18)  # Kepler's bound: equal spheres fill at most 74 %
@@ -393,7 +394,11 @@ class Robots(_Part):
         "sensed cell, else climbs the gradient; 'random' walks at random. With a "
         "communication model, 'rule' also follows what it receives where it senses no cell and "
         "no biomarker above the 'mid' level: up an attractant while it rises, down a "
-        "repellent, toward a message's position.",
+        "repellent, toward a message's position. In physics 'active_brownian': 'uncontrolled' "
+        "never steers; 'run_and_tumble' tumbles (physics.tumble_rate_s, tumble_rate_rising_s); "
+        "'gradient' steers up the sensed gradient; 'steer_and_tumble' steers up the sensed "
+        "gradient and tumbles as run_and_tumble does; 'exact_gradient' steers up the true "
+        "gradient (an upper bound no robot has).",
     )
     exclusion: bool = Field(
         False,
@@ -758,13 +763,15 @@ class Physics(_Part):
         1.0,
         ge=0.0,
         le=1e4,
-        description="run_and_tumble: tumbles per second while the reading does not rise.",
+        description="run_and_tumble and steer_and_tumble: tumbles per second while the reading "
+        "does not rise.",
     )
     tumble_rate_rising_s: float = Field(
         0.25,
         ge=0.0,
         le=1e4,
-        description="run_and_tumble: tumbles per second while the reading rises (fewer: runs up "
+        description="run_and_tumble and steer_and_tumble: tumbles per second while the reading "
+        "rises (fewer: runs up "
         "the gradient last longer).",
     )
     memory_s: float = Field(

@@ -33,6 +33,7 @@ from nanonav.engine.state import (
     RULE,
     RUN_AND_TUMBLE,
     SIMPLE_RULE,
+    STEER_AND_TUMBLE,
     KernelParams,
     Swarm,
     World,
@@ -188,11 +189,14 @@ def _behavior_direction(
 def _steering_baseline(p: KernelParams, rng: np.random.Generator, rising: bool) -> int:
     """A fixed active Brownian policy's steering action this step: 'uncontrolled' keeps its
     heading; 'run_and_tumble' tumbles with probability 1 - exp(-rate dt), at a lower rate while
-    the reading rises; 'gradient' and 'exact_gradient' steer up the gradient (the sensed one, or
-    the true one: an upper bound no robot can have)."""
-    if p.policy == RUN_AND_TUMBLE:
+    the reading rises; 'steer_and_tumble' tumbles so too, and otherwise steers up the gradient
+    (temporal and spatial sensing combined); 'gradient' and 'exact_gradient' steer up the
+    gradient (the sensed one, or the true one: an upper bound no robot can have)."""
+    if p.policy in (RUN_AND_TUMBLE, STEER_AND_TUMBLE):
         chance = p.tumble_rising if rising else p.tumble
-        return TUMBLE if rng.random() < chance else KEEP_HEADING
+        if rng.random() < chance:
+            return TUMBLE
+        return KEEP_HEADING if p.policy == RUN_AND_TUMBLE else STEER_UP_GRADIENT
     if p.policy == GRADIENT or p.policy == EXACT_GRADIENT:
         return STEER_UP_GRADIENT
     return KEEP_HEADING

@@ -16,9 +16,11 @@ RULE = 4
 SIMPLE_RULE = 5
 UNCONTROLLED = 6  # active Brownian: swims along its own diffusing heading, never steers
 EXACT_GRADIENT = 7  # active Brownian: steers by the true gradient (an upper bound)
+STEER_AND_TUMBLE = 8  # active Brownian: steers up the sensed gradient, tumbles as run_and_tumble
 POLICY_CODES = {"q_learning": Q_LEARNING, "gradient": GRADIENT, "run_and_tumble": RUN_AND_TUMBLE,
                 "random": RANDOM, "rule": RULE, "simple_rule": SIMPLE_RULE,
-                "uncontrolled": UNCONTROLLED, "exact_gradient": EXACT_GRADIENT}  # fmt: skip
+                "uncontrolled": UNCONTROLLED, "exact_gradient": EXACT_GRADIENT,
+                "steer_and_tumble": STEER_AND_TUMBLE}  # fmt: skip
 BEHAVIORS = 0
 DIRECTIONS = 1
 STEERING = 2

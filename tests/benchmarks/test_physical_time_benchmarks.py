@@ -30,10 +30,11 @@ def test_the_interval_sweep_prints_a_row_per_setting(capsys: pytest.CaptureFixtu
 def test_the_run_and_tumble_sweep_shows_its_best_and_the_defaults(
     capsys: pytest.CaptureFixture[str],
 ) -> None:
-    args = [*TINY, "--tumble", "0.5,2", "--rising", "0.05", "--memory", "3", "--best", "1"]
+    args = [*TINY, "--tumble", "0.5,2", "--rising", "0.05", "--memory", "3", "--best", "1",
+            "--policy", "steer_and_tumble"]  # fmt: skip
     assert run_and_tumble.main(args) == 0
     out = capsys.readouterr().out
-    assert "seeds 7100-7101 x 1 worlds" in out and "3 settings of run_and_tumble" in out
+    assert "seeds 7100-7101 x 1 worlds" in out and "3 settings of steer_and_tumble" in out
     rows = re.findall(r"^  ([\d.]+)\s+([\d.]+)\s+([\d.]+)\s+\d\.\d\d", out, re.M)
     assert len(rows) == 2 and ("1", "0.25", "1") in rows  # the best one, and the defaults
     assert out.count("(defaults)") == 1

@@ -28,6 +28,7 @@ _POLICY_NAMES = {
     "random": "the random walk",
     "uncontrolled": "the uncontrolled swimmer",
     "exact_gradient": "steering by the exact gradient",
+    "steer_and_tumble": "steering and tumbling",
 }
 # Policies that learn nothing: their episodes are independent trials of the same behaviour.
 BASELINES = frozenset(
@@ -39,6 +40,7 @@ BASELINES = frozenset(
         "random",
         "uncontrolled",
         "exact_gradient",
+        "steer_and_tumble",
     }
 )
 # The moving mean spans about an eighth of the episodes, within these bounds; runs shorter than
