@@ -36,5 +36,6 @@ def test_the_run_and_tumble_sweep_shows_its_best_and_the_defaults(
     out = capsys.readouterr().out
     assert "seeds 7100-7101 x 1 worlds" in out and "3 settings of steer_and_tumble" in out
     rows = re.findall(r"^  ([\d.]+)\s+([\d.]+)\s+([\d.]+)\s+\d\.\d\d", out, re.M)
-    assert len(rows) == 2 and ("1", "0.25", "1") in rows  # the best one, and the defaults
+    # the best one, and the defaults (once, where they are the best)
+    assert 1 <= len(rows) <= 2 and ("1", "0.25", "1") in rows
     assert out.count("(defaults)") == 1

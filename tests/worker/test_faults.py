@@ -64,7 +64,13 @@ def test_a_write_lock_held_past_the_busy_timeout_does_not_fail_the_job(
     taken = threading.Event()
 
     def hold_the_lock() -> None:
-        time.sleep(0.3)  # let the run start
+        # once the run writes progress (after any compiling, however loaded the machine)
+        waited = time.monotonic() + 120.0
+        while time.monotonic() < waited:
+            row = holder.execute("SELECT episode FROM jobs WHERE id = ?", (job.id,)).fetchone()
+            if row is not None and row[0]:
+                break
+            time.sleep(0.02)
         holder.execute("BEGIN IMMEDIATE")
         taken.set()
         time.sleep(1.0)  # several progress writes, each waiting 0.1 s and giving up
