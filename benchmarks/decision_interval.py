@@ -18,51 +18,29 @@ import argparse
 import os
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor
-from typing import Any
 
-from physical_question import paired
+from physical_question import PRESET, design_arguments, floats, in_parallel, paired, reached
 from science import mean_ci
 
-from nanonav.engine import simulate
-from nanonav.scenario import preset_scenario
-
-PRESET = "tumour-microswimmers"
-DESIGN_SEEDS = 5000
-
-# (radius, interval or None, alpha exponent, episodes, gamma, seed, worlds); interval "rule"
-# marks the gradient rule
+# (radius, interval or "none" (every step) or "gradient" (the rule), alpha exponent, episodes,
+# gamma, seed, worlds)
 Job = tuple[float, str, float, int, float, int, int]
 
 
 def run_one(job: Job) -> float:
     radius, interval, exponent, episodes, gamma, seed, worlds = job
-    rule = interval == "gradient"
-    scenario = preset_scenario(
-        PRESET, seed=seed,
-        physics={"model": "active_brownian", "time_limit_s": 60.0, "robot_radius_um": radius},
-        robots={"policy": "gradient" if rule else "q_learning"},
-        learning={
-            "episodes": 0 if rule else episodes,
-            "alpha_exponent": exponent,
-            "gamma": gamma,
-            "decision_interval_s": None if interval in ("none", "gradient") else float(interval),
-        },
-        evaluation={"worlds": worlds},
-    )  # fmt: skip
-    return float(simulate(scenario).summary["success_rate"])
-
-
-def _floats(text: str) -> list[float]:
-    return [float(v) for v in text.split(",")]
+    if interval == "gradient":
+        return reached(radius, seed, worlds, "gradient")
+    learning = {
+        "episodes": episodes, "alpha_exponent": exponent, "gamma": gamma,
+        "decision_interval_s": None if interval == "none" else float(interval),
+    }  # fmt: skip
+    return reached(radius, seed, worlds, "q_learning", learning=learning)
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
-    parser.add_argument("--seeds-from", type=int, default=DESIGN_SEEDS)
-    parser.add_argument("--seeds", type=int, default=8)
-    parser.add_argument("--worlds", type=int, default=5, help="evaluation worlds per run")
-    parser.add_argument("--radii", default="2", help="robot radii, um")
+    design_arguments(parser, radii="2")
     parser.add_argument("--intervals", default="none,0.1,0.5,1", help="s, or none (every step)")
     parser.add_argument("--exponents", default="1,0.6", help="alpha / N**exponent")
     parser.add_argument("--episodes", default="20,50")
@@ -72,26 +50,25 @@ def main(argv: list[str] | None = None) -> int:
     settings = [
         (interval, exponent, int(episodes), gamma)
         for interval in args.intervals.split(",")
-        for exponent in _floats(args.exponents)
-        for episodes in _floats(args.episodes)
-        for gamma in _floats(args.gammas)
+        for exponent in floats(args.exponents)
+        for episodes in floats(args.episodes)
+        for gamma in floats(args.gammas)
     ]
     rule = ("gradient", 1.0, 0, 0.9)
     jobs = [
         (radius, *setting, seed, args.worlds)
-        for radius in _floats(args.radii)
+        for radius in floats(args.radii)
         for setting in [rule, *settings]
         for seed in seeds
     ]
     started = time.perf_counter()
-    with ProcessPoolExecutor(os.cpu_count() or 1) as pool:
-        done: dict[Job, Any] = dict(zip(jobs, pool.map(run_one, jobs), strict=True))
+    done = in_parallel(run_one, jobs)
     print(
         f"{PRESET}: seeds {seeds.start}-{seeds.stop - 1} x {args.worlds} worlds; the share of "
         f"robots that reach the cell; {len(settings)} settings, each paired with 'gradient' "
         "(* = the 95 % interval excludes 0)\n"
     )
-    for radius in _floats(args.radii):
+    for radius in floats(args.radii):
         bar = [done[(radius, *rule, s, args.worlds)] for s in seeds]
         print(f"R = {radius} um: gradient {mean_ci(bar)}")
         print("  interval_s  alpha exponent  episodes  gamma  reached             minus gradient")

@@ -18,8 +18,9 @@ import argparse
 import os
 import sys
 import time
+from collections.abc import Callable, Hashable
 from concurrent.futures import ProcessPoolExecutor
-from typing import Any
+from typing import Any, TypeVar
 
 from science import mean_ci
 
@@ -30,6 +31,47 @@ from nanonav.scenario import preset_scenario
 RADII = (0.2, 0.5, 1.0, 2.0, 5.0)
 POLICIES = ("uncontrolled", "run_and_tumble", "gradient", "q_learning", "exact_gradient")
 PRESET = "tumour-microswimmers"
+# The sweeps that choose a setting (decision_interval.py, run_and_tumble.py) choose it on seeds
+# from here on; the README reports it on others.
+DESIGN_SEEDS = 5000
+
+J = TypeVar("J", bound=Hashable)
+R = TypeVar("R")
+
+
+def in_parallel(run: Callable[[J], R], jobs: list[J]) -> dict[J, R]:
+    """Each job's result, the jobs run on every core."""
+    with ProcessPoolExecutor(os.cpu_count() or 1) as pool:
+        return dict(zip(jobs, pool.map(run, jobs), strict=True))
+
+
+def floats(text: str) -> list[float]:
+    """Comma-separated numbers, as the sweeps take their grids."""
+    return [float(v) for v in text.split(",")]
+
+
+def design_arguments(parser: argparse.ArgumentParser, radii: str) -> None:
+    """The seeds, worlds and radii a design-seed sweep runs on."""
+    parser.add_argument("--seeds-from", type=int, default=DESIGN_SEEDS)
+    parser.add_argument("--seeds", type=int, default=8)
+    parser.add_argument("--worlds", type=int, default=5, help="evaluation worlds per run")
+    parser.add_argument("--radii", default=radii, help="robot radii, um")
+
+
+def reached(
+    radius: float, seed: int, worlds: int, policy: str, physics: dict[str, Any] | None = None,
+    learning: dict[str, Any] | None = None,
+) -> float:  # fmt: skip
+    """The share of robots that reach the cell in one run of the preset (60 s) with robots of
+    ``radius`` um, over ``worlds`` evaluation worlds."""
+    scenario = preset_scenario(
+        PRESET, seed=seed,
+        physics={"model": "active_brownian", "time_limit_s": 60.0, "robot_radius_um": radius,
+                 **(physics or {})},
+        robots={"policy": policy}, learning=learning or {"episodes": 0},
+        evaluation={"worlds": worlds},
+    )  # fmt: skip
+    return float(simulate(scenario).summary["success_rate"])
 
 
 def run_one(job: tuple[float, str, int, int, int, float]) -> dict[str, Any]:
@@ -79,8 +121,7 @@ def main(argv: list[str] | None = None) -> int:
         for seed in seeds
     ]
     started = time.perf_counter()
-    with ProcessPoolExecutor(os.cpu_count() or 1) as pool:
-        done = dict(zip(jobs, pool.map(run_one, jobs), strict=True))
+    done = in_parallel(run_one, jobs)
     print(
         f"{PRESET}: 20 robots, one tumour cell, 60 s; {len(seeds)} seeds x {worlds} worlds; "
         f"q_learning trains {episodes} episodes; * = the 95 % interval excludes 0\n"

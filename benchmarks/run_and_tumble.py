@@ -21,16 +21,12 @@ import argparse
 import os
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor
 
-from physical_question import paired
+from physical_question import PRESET, design_arguments, floats, in_parallel, paired, reached
 from science import mean_ci
 
-from nanonav.engine import simulate
-from nanonav.scenario import Physics, preset_scenario
+from nanonav.scenario import Physics
 
-PRESET = "tumour-microswimmers"
-DESIGN_SEEDS = 5000
 DEFAULTS = tuple(
     float(Physics.model_fields[name].default)  # type: ignore[arg-type]
     for name in ("tumble_rate_s", "tumble_rate_rising_s", "memory_s")
@@ -43,19 +39,10 @@ Job = tuple[str, float, float, float, float, int, int]
 
 def run_one(job: Job) -> float:
     policy, radius, tumble, rising, memory, seed, worlds = job
-    physics = {"model": "active_brownian", "time_limit_s": 60.0, "robot_radius_um": radius}
-    if tumble > 0.0:
-        physics.update(tumble_rate_s=tumble, tumble_rate_rising_s=rising, memory_s=memory)
-    scenario = preset_scenario(
-        PRESET, seed=seed, physics=physics,
-        robots={"policy": policy if tumble > 0.0 else "gradient"},
-        learning={"episodes": 0}, evaluation={"worlds": worlds},
-    )  # fmt: skip
-    return float(simulate(scenario).summary["success_rate"])
-
-
-def _floats(text: str) -> list[float]:
-    return [float(v) for v in text.split(",")]
+    if tumble == 0.0:
+        return reached(radius, seed, worlds, "gradient")
+    rates = {"tumble_rate_s": tumble, "tumble_rate_rising_s": rising, "memory_s": memory}
+    return reached(radius, seed, worlds, policy, physics=rates)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -63,10 +50,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--policy", choices=("run_and_tumble", "steer_and_tumble"), default="run_and_tumble"
     )
-    parser.add_argument("--seeds-from", type=int, default=DESIGN_SEEDS)
-    parser.add_argument("--seeds", type=int, default=8)
-    parser.add_argument("--worlds", type=int, default=5, help="evaluation worlds per run")
-    parser.add_argument("--radii", default="0.5,1,2,5", help="robot radii, um")
+    design_arguments(parser, radii="0.5,1,2,5")
     parser.add_argument("--tumble", default="0.5,1,2,4", help="tumbles/s, reading not rising")
     parser.add_argument("--rising", default="0.05,0.25,1", help="tumbles/s while it rises")
     parser.add_argument("--memory", default="0.3,1,3,10", help="the reading's memory, s")
@@ -75,14 +59,14 @@ def main(argv: list[str] | None = None) -> int:
     seeds = range(args.seeds_from, args.seeds_from + args.seeds)
     settings = {
         (tumble, rising, memory)
-        for tumble in _floats(args.tumble)
-        for rising in _floats(args.rising)
-        for memory in _floats(args.memory)
+        for tumble in floats(args.tumble)
+        for rising in floats(args.rising)
+        for memory in floats(args.memory)
         if rising <= tumble
     }
     settings.add(DEFAULTS)
     ordered = sorted(settings)
-    radii = _floats(args.radii)
+    radii = floats(args.radii)
     jobs = [
         (args.policy, radius, *setting, seed, args.worlds)
         for radius in radii
@@ -90,8 +74,7 @@ def main(argv: list[str] | None = None) -> int:
         for seed in seeds
     ]
     started = time.perf_counter()
-    with ProcessPoolExecutor(os.cpu_count() or 1) as pool:
-        done = dict(zip(jobs, pool.map(run_one, jobs), strict=True))
+    done = in_parallel(run_one, jobs)
     print(
         f"{PRESET}: seeds {seeds.start}-{seeds.stop - 1} x {args.worlds} worlds; the share of "
         f"robots that reach the cell; {len(ordered)} settings of {args.policy} a radius, the "

@@ -60,6 +60,25 @@ def _term(
 
 
 @njit(cache=True, error_model="numpy", inline="always")
+def _plus(
+    lane: tuple[float, float, float, float],
+    field: tuple[int, float, float, float],
+    sx: NDArray[np.float64],
+    sy: NDArray[np.float64],
+    sz: NDArray[np.float64],
+    k: int,
+    x: float,
+    y: float,
+    z: float,
+) -> tuple[float, float, float, float]:
+    """A lane's sums (concentration, gradient) with source k's term at (x, y, z) added;
+    ``field`` is (model, weight, scale, eps2) as ``_term`` takes them."""
+    model, weight, scale, eps2 = field
+    e, fx, fy, fz = _term(model, x - sx[k], y - sy[k], z - sz[k], weight, scale, eps2)
+    return lane[0] + e, lane[1] + fx, lane[2] + fy, lane[3] + fz
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def sample(
     model: int,
     sx: NDArray[np.float64],
@@ -79,43 +98,23 @@ def sample(
     by side (with fewer sources than lanes, the order of the sources)."""
     eps2 = softening * softening
     scale = 1.0 / (length * length) if model in (GAUSSIAN, SAMPLED_GAUSSIAN) else 1.0 / length
-    c0 = c1 = c2 = c3 = 0.0
-    x0 = x1 = x2 = x3 = 0.0
-    y0 = y1 = y2 = y3 = 0.0
-    z0 = z1 = z2 = z3 = 0.0
+    field = (model, weight, scale, eps2)
+    lane0 = lane1 = lane2 = lane3 = (0.0, 0.0, 0.0, 0.0)
     n = sx.shape[0]
     rounds = n // LANES * LANES
     for k in range(0, rounds, LANES):
-        e, fx, fy, fz = _term(model, x - sx[k], y - sy[k], z - sz[k], weight, scale, eps2)
-        c0 += e
-        x0 += fx
-        y0 += fy
-        z0 += fz
-        e, fx, fy, fz = _term(model, x - sx[k + 1], y - sy[k + 1], z - sz[k + 1], weight, scale,
-                              eps2)  # fmt: skip
-        c1 += e
-        x1 += fx
-        y1 += fy
-        z1 += fz
-        e, fx, fy, fz = _term(model, x - sx[k + 2], y - sy[k + 2], z - sz[k + 2], weight, scale,
-                              eps2)  # fmt: skip
-        c2 += e
-        x2 += fx
-        y2 += fy
-        z2 += fz
-        e, fx, fy, fz = _term(model, x - sx[k + 3], y - sy[k + 3], z - sz[k + 3], weight, scale,
-                              eps2)  # fmt: skip
-        c3 += e
-        x3 += fx
-        y3 += fy
-        z3 += fz
+        lane0 = _plus(lane0, field, sx, sy, sz, k, x, y, z)
+        lane1 = _plus(lane1, field, sx, sy, sz, k + 1, x, y, z)
+        lane2 = _plus(lane2, field, sx, sy, sz, k + 2, x, y, z)
+        lane3 = _plus(lane3, field, sx, sy, sz, k + 3, x, y, z)
     for k in range(rounds, n):
-        e, fx, fy, fz = _term(model, x - sx[k], y - sy[k], z - sz[k], weight, scale, eps2)
-        c0 += e
-        x0 += fx
-        y0 += fy
-        z0 += fz
-    return c0 + c1 + c2 + c3, x0 + x1 + x2 + x3, y0 + y1 + y2 + y3, z0 + z1 + z2 + z3
+        lane0 = _plus(lane0, field, sx, sy, sz, k, x, y, z)
+    return (
+        lane0[0] + lane1[0] + lane2[0] + lane3[0],
+        lane0[1] + lane1[1] + lane2[1] + lane3[1],
+        lane0[2] + lane1[2] + lane2[2] + lane3[2],
+        lane0[3] + lane1[3] + lane2[3] + lane3[3],
+    )
 
 
 @njit(cache=True)
