@@ -3,7 +3,7 @@
 schedule and training length, against always steering up the sensed gradient on the same seeds.
 
     python benchmarks/decision_interval.py [--seeds-from S] [--seeds N] [--radii 1,2,5]
-        [--intervals none,0.1,0.5,1] [--exponents 1,0.6] [--episodes 20,50] [--gammas 0.9]
+        [--intervals step,0.1,0.5,1] [--exponents 1,0.6] [--episodes 20,50] [--gammas 0.9]
 
 Run on design seeds (the default, 5000 on) to choose the defaults; report on others. For every
 radius, each setting's share of robots that reach the cell (mean over seeds of each run's mean
@@ -22,9 +22,19 @@ import time
 from physical_question import PRESET, design_arguments, floats, in_parallel, paired, reached
 from science import mean_ci
 
-# (radius, interval or "none" (every step) or "gradient" (the rule), alpha exponent, episodes,
-# gamma, seed, worlds)
+from nanonav.scenario import preset_scenario
+
+# (radius, interval in s or "step" (every step of dt_s) or "gradient" (the rule), alpha exponent,
+# episodes, gamma, seed, worlds)
 Job = tuple[float, str, float, int, float, int, int]
+
+
+def step_s(radius: float) -> float:
+    """The preset's step dt_s at this robot radius, s."""
+    scenario = preset_scenario(
+        PRESET, physics={"model": "active_brownian", "robot_radius_um": radius}
+    )
+    return scenario.physics.step_s
 
 
 def run_one(job: Job) -> float:
@@ -33,7 +43,7 @@ def run_one(job: Job) -> float:
         return reached(radius, seed, worlds, "gradient")
     learning = {
         "episodes": episodes, "alpha_exponent": exponent, "gamma": gamma,
-        "decision_interval_s": None if interval == "none" else float(interval),
+        "decision_interval_s": step_s(radius) if interval == "step" else float(interval),
     }  # fmt: skip
     return reached(radius, seed, worlds, "q_learning", learning=learning)
 
@@ -41,9 +51,9 @@ def run_one(job: Job) -> float:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     design_arguments(parser, radii="2")
-    parser.add_argument("--intervals", default="none,0.1,0.5,1", help="s, or none (every step)")
+    parser.add_argument("--intervals", default="step,0.1,0.5,1,2", help="s, or step (every step)")
     parser.add_argument("--exponents", default="1,0.6", help="alpha / N**exponent")
-    parser.add_argument("--episodes", default="20,50")
+    parser.add_argument("--episodes", default="50")
     parser.add_argument("--gammas", default="0.9", help="discount per decision")
     args = parser.parse_args(argv)
     seeds = range(args.seeds_from, args.seeds_from + args.seeds)

@@ -72,6 +72,11 @@ BROWNIAN_SIGNAL = ("diffusion_um2_s", "decay_rate_s", "release_molecules_s")
 # (a double, as I-JSON, RFC 7493, advises), so what a client sends is what is stored.
 MAX_EXACT_INT = 2**53 - 1
 MAX_STEPS = 1_000_000  # learning.max_steps: the longest episode
+# The active Brownian learner's defaults, chosen on design seeds 5000-5007 at robot radii 0.5, 1,
+# 2 and 5 um (benchmarks/decision_interval.py; README, "Decisions in physical time"): a decision
+# every second, and the visits schedule's exponent 0.6 (1 left the table unsettled there).
+BROWNIAN_DECISION_INTERVAL_S = 1.0
+BROWNIAN_ALPHA_EXPONENT = 0.6
 
 # What the engine's operations cost, in work units: nanoseconds of one core of the machine they
 # were fitted on (``python benchmarks/cost.py`` measures how well they track run time). Another
@@ -452,13 +457,14 @@ class Learning(_Part):
         "alpha / N(s, a)**alpha_exponent, N counting the times a was chosen in s, so that the "
         "table settles (a constant rate keeps chasing the last few noisy rewards).",
     )
-    alpha_exponent: float = Field(
-        1.0,
+    alpha_exponent: float | None = Field(
+        None,
         gt=0.5,
         le=1.0,
-        description="omega of the 'visits' schedule: 1 (the default, chosen by measurement: see "
-        "benchmarks/science.py) averages every target alike; between 0.5 and 1 later targets "
-        "weigh more.",
+        description="omega of the 'visits' schedule: 1 averages every target alike; between 0.5 "
+        "and 1 later targets weigh more. null: the default chosen by measurement for each "
+        "physics, 1 in the lattice (benchmarks/science.py) and 0.6 in active_brownian "
+        "(benchmarks/decision_interval.py).",
     )
     gamma: float = Field(0.9, ge=0.0, le=1.0, description="Discount factor gamma of eq. 2.7.")
     epsilon_start: float = Field(
@@ -501,8 +507,9 @@ class Learning(_Part):
         "decision: steering up the gradient or toward a cell steers again on every step's new "
         "reading, a tumble turns once and then keeps the heading. The reward is summed over the "
         "interval, learning.gamma discounts once per decision, and the Q update is made at "
-        "decisions only. Fixed rules decide every step. null: every step. The lattice decides "
-        "every step and refuses it.",
+        "decisions only. Fixed rules decide every step. null: 1 s (chosen by measurement: "
+        "benchmarks/decision_interval.py), or the whole episode if it is shorter; physics.dt_s "
+        "decides every step. The lattice decides every step and refuses it.",
     )
 
     @model_validator(mode="after")
@@ -521,7 +528,12 @@ class Rewards(_Part):
         10.0, ge=-1e6, le=1e6, description="Reward for reaching a cell (paper: +10)."
     )
     collision: float = Field(
-        -1.0, ge=-1e6, le=1e6, description="Reward for a move blocked by an obstacle (paper: -1)."
+        -1.0,
+        ge=-1e6,
+        le=1e6,
+        description="Reward for a move blocked by an obstacle (paper: -1). In active_brownian, "
+        "per second blocked (dt_s times it a blocked step), so that a path earns the same "
+        "whatever dt_s.",
     )
     approach: float = Field(
         1.0,
@@ -535,7 +547,8 @@ class Rewards(_Part):
         ge=-1e6,
         le=1e6,
         description="Reward for every step a robot takes (not in the paper): a small cost, so "
-        "that a return measures how quickly a cell was reached, not only that it was.",
+        "that a return measures how quickly a cell was reached, not only that it was. In "
+        "active_brownian, per second (dt_s times it a step).",
     )
 
 
@@ -1102,10 +1115,27 @@ class Scenario(_Part):
     def decision_steps(self) -> int:
         """Steps of dt_s between two decisions by action number (learning.decision_interval_s;
         1: every step)."""
-        interval = self.learning.decision_interval_s
-        if interval is None or self.physics.model != "active_brownian":
+        if self.physics.model != "active_brownian":
             return 1
+        interval = self.learning.decision_interval_s
+        if interval is None:
+            steps = round(BROWNIAN_DECISION_INTERVAL_S / self.physics.step_s)
+            return max(1, min(steps, self.learning.max_steps))
         return max(1, round(interval / self.physics.step_s))
+
+    @property
+    def alpha_exponent(self) -> float:
+        """The visits schedule's exponent: learning.alpha_exponent, or its physics' default."""
+        if self.learning.alpha_exponent is not None:
+            return self.learning.alpha_exponent
+        return BROWNIAN_ALPHA_EXPONENT if self.physics.model == "active_brownian" else 1.0
+
+    @property
+    def step_rewards(self) -> tuple[float, float]:
+        """The rewards of one step, and of one blocked step (rewards.step, rewards.collision): in
+        active_brownian they are rates, so dt_s times them."""
+        per = self.physics.step_s if self.physics.model == "active_brownian" else 1.0
+        return self.rewards.step * per, self.rewards.collision * per
 
     @model_validator(mode="after")
     def _communication_fits(self) -> Scenario:

@@ -11,6 +11,7 @@ import pytest
 from pydantic import ValidationError
 
 from nanonav.engine import qlearning, simulate
+from nanonav.engine.simulate import kernel_params
 from nanonav.env.worlds import Worlds
 from nanonav.scenario import Scenario, deep_merge
 
@@ -67,7 +68,8 @@ def test_a_held_action_is_its_steps_one_by_one_and_its_reward_their_sum() -> Non
     order)."""
     base = deep_merge(STILL, {"physics": {"diffusion_um2_s": None, "rotational_diffusion_s": None}})
     held = _scenario(base, {"learning": {"decision_interval_s": 0.2}})
-    each = _scenario(base)
+    each = _scenario(base, {"learning": {"decision_interval_s": held.physics.step_s}})
+    assert each.decision_steps == 1
     hold = held.decision_steps
     a, b = _worlds(held), _worlds(each)
     stay = np.zeros(1, dtype=np.bool_)
@@ -88,7 +90,7 @@ def test_the_learner_updates_at_decisions_only() -> None:
     makes 100 times more."""
     far = {"cells": {"count": 1}, "space": {"size": 400.0}, "learning": {"episodes": 2},
            "evaluation": {"worlds": 1}}  # fmt: skip
-    every = simulate(_scenario(STILL, far))
+    every = simulate(_scenario(STILL, far, {"learning": {"decision_interval_s": 0.01}}))
     held = simulate(_scenario(STILL, far, {"learning": {"decision_interval_s": 1.0}}))
     assert every.qtable is not None and held.qtable is not None
     assert all(row["success_rate"] == 0.0 for row in held.episodes)
@@ -121,3 +123,36 @@ def test_a_resolved_scenario_with_an_interval_validates_as_it_was() -> None:
                          {"learning": {"decision_interval_s": 0.0016 * 60}})  # fmt: skip
     again = Scenario.model_validate(scenario.model_dump(mode="json"))
     assert again.decision_steps == scenario.decision_steps == 60
+
+
+def test_an_active_brownian_learner_decides_every_second_unless_told() -> None:
+    """The defaults chosen on design seeds: a decision a second (the whole episode if shorter),
+    the visits schedule's exponent 0.6; the lattice keeps one decision a step and exponent 1."""
+    scenario = _scenario(STILL)
+    assert scenario.decision_steps == round(1.0 / scenario.physics.step_s) == 100
+    assert scenario.alpha_exponent == 0.6
+    short = _scenario(STILL, {"physics": {"time_limit_s": 0.25}})
+    assert short.decision_steps == short.learning.max_steps == 25
+    told = _scenario(STILL, {"learning": {"alpha_exponent": 0.8}})
+    assert told.alpha_exponent == 0.8
+    lattice = _scenario({"preset": "paper-swarm"})
+    assert (lattice.decision_steps, lattice.alpha_exponent) == (1, 1.0)
+
+
+@pytest.mark.parametrize("dt_s", [0.01, 0.002])
+def test_a_second_costs_the_step_reward_whatever_dt(dt_s: float) -> None:
+    """In active_brownian rewards.step and rewards.collision are per second: a robot swimming
+    for one second in open water earns rewards.step in all, at any dt_s, and a blocked step
+    costs dt_s times rewards.collision."""
+    open_water = _scenario(STILL, {
+        "physics": {"dt_s": dt_s, "time_limit_s": 2.0},
+        "learning": {"decision_interval_s": 1.0},
+        "rewards": {"approach": 0.0, "step": -0.1, "collision": -1.0},
+    })  # fmt: skip
+    worlds = _worlds(open_water)
+    worlds.step(_action("keep_heading"), np.zeros(1, dtype=np.bool_))
+    assert float(worlds.reward[0, 0]) == pytest.approx(-0.1, rel=1e-9)
+    params = kernel_params(open_water)
+    assert (params.reward_step, params.reward_collision) == pytest.approx((-0.1 * dt_s, -dt_s))
+    lattice = kernel_params(_scenario({"preset": "paper-swarm"}))
+    assert (lattice.reward_step, lattice.reward_collision) == (-0.1, -1.0)
