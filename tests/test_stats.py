@@ -360,3 +360,28 @@ def test_pairs_to_resolve_refuse_what_cannot_be_planned() -> None:
             stats.pairs_to_resolve(*bad)
     with pytest.raises(ValueError):
         stats.pairs_to_resolve(0.1, 0.1, power=1.0)
+
+
+def test_holm_adjusts_the_smallest_p_value_most_and_keeps_the_order_given() -> None:
+    # sorted 0.005, 0.01, 0.03, 0.04 -> 4 x 0.005, 3 x 0.01, 2 x 0.03, max(1 x 0.04, 0.06)
+    got = stats.holm([0.01, 0.04, 0.03, 0.005])
+    assert got == pytest.approx([0.03, 0.06, 0.06, 0.02])
+    assert stats.holm([0.5, 0.9]) == [1.0, 1.0]
+    assert stats.holm([]) == []
+
+
+def test_holm_lies_between_the_raw_p_value_and_bonferroni_and_keeps_their_ranks() -> None:
+    rng = np.random.default_rng(4)
+    for _ in range(200):
+        raw = rng.random(rng.integers(1, 12)) ** 3
+        adjusted = np.array(stats.holm(raw.tolist()))
+        assert np.all(adjusted >= raw)
+        assert np.all(adjusted <= np.minimum(1.0, len(raw) * raw) + 1e-15)
+        order = np.argsort(raw, kind="stable")
+        assert np.all(np.diff(adjusted[order]) >= 0.0)
+
+
+@pytest.mark.parametrize("bad", [[0.1, float("nan")], [1.5], [-0.1]])
+def test_holm_refuses_what_is_not_a_p_value(bad: list[float]) -> None:
+    with pytest.raises(ValueError):
+        stats.holm(bad)

@@ -71,6 +71,16 @@ _LEARNING_PANELS = (
 )
 
 
+def learning_panels(result: SimulationResult) -> tuple[_Panel, ...]:
+    """The learning curve's panels: in active_brownian an episode's length in seconds (steps
+    times dt_s), physical time being what its scenario speaks in; in the lattice, in steps."""
+    physics = result.scenario.physics
+    if physics.model != "active_brownian":
+        return _LEARNING_PANELS
+    seconds = _Panel("steps", "episode_steps", "time per episode", "time (s)", physics.step_s)
+    return (seconds, *_LEARNING_PANELS[1:])
+
+
 def smoothing_window(episodes: int) -> int:
     """Episodes in the learning curve's moving mean: about an eighth of the run (at least 2, at
     most ``MAX_SMOOTHING_WINDOW``), so a short run is smoothed a little and a long one enough;
@@ -143,7 +153,8 @@ def learning_figure(result: SimulationResult) -> Figure:
     trial_name, trials = _trials(result, evaluated)
     if not trials and not evaluated:
         raise ValueError("this result has no finished episode to draw a learning curve from")
-    panels = _LEARNING_PANELS if trials and not baseline else _LEARNING_PANELS[:3]
+    every = learning_panels(result)
+    panels = every if trials and not baseline else every[:3]
     show_evaluation = evaluated and not baseline
     planned = result.scenario.learning.episodes if trial_name == "episode" else len(trials)
     index = np.array([float(e["episode"]) for e in trials])

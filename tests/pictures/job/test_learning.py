@@ -132,3 +132,25 @@ def test_a_result_stored_without_its_trajectory_draws_the_same_learning_curve(
     stored = SimulationResult.from_stored(swarm.to_dict(), {})
     assert stored.trajectory is None
     assert learning_png(stored) == learning_png(swarm)
+
+
+def test_an_active_brownian_learner_counts_its_episodes_in_seconds() -> None:
+    run = simulate(
+        scenario(
+            seed=3,
+            robots={"count": 3, "policy": "q_learning"},
+            learning={"episodes": 2},
+            physics={"model": "active_brownian", "time_limit_s": 0.5},
+            evaluation={"worlds": 2},
+        )
+    )
+    figure = learning_figure(run)
+    assert panel_titles(figure)[0] == "time per episode"
+    seconds = figure.axes[0]
+    assert seconds.get_ylabel() == "time (s)"
+    dt = run.scenario.physics.step_s
+    drawn = seconds.lines[0].get_ydata()
+    assert list(drawn) == pytest.approx([e["steps"] * dt for e in run.episodes])
+    (bar,) = seconds.containers
+    assert isinstance(bar, ErrorbarContainer)
+    assert float(bar.lines[0].get_ydata()[0]) == pytest.approx(run.summary["episode_steps"] * dt)
