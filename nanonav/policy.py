@@ -106,6 +106,10 @@ class GreedyState:
     visits: int  # times any action was chosen in this state
     learned: bool  # False: never visited and all zeros, so no action is preferred
     ties: list[str]  # every action sharing the best value when there are several
+    # the action gap: the best Q minus the next best (0 when tied); None when unvisited or with
+    # one action. How much the choice matters to the learner: a small gap is a choice made by
+    # noise or by visits (Tallec, Blier & Ollivier 2019).
+    gap: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -115,6 +119,7 @@ class GreedyState:
             "visits": self.visits,
             "learned": self.learned,
             "ties": self.ties,
+            "gap": self.gap,
         }
 
 
@@ -164,8 +169,14 @@ def greedy_table(
             continue
         best = float(row.max())
         tied = [actions[int(a)] for a in np.flatnonzero(row == best)]
+        gap = None
+        if len(row) > 1:
+            # kept finite: a table at the float range's ends would otherwise give inf
+            gap = min(best - float(np.sort(row)[-2]), float(np.finfo(np.float64).max))
         found.append(
-            GreedyState(state, tied[0], best, state_visits, True, tied if len(tied) > 1 else [])
+            GreedyState(
+                state, tied[0], best, state_visits, True, tied if len(tied) > 1 else [], gap
+            )
         )
     return found
 

@@ -371,6 +371,11 @@ class GreedyState(BaseModel):
         description="Every action sharing the largest Q when there are several (a greedy robot "
         "picks among them at random); empty otherwise."
     )
+    gap: float | None = Field(
+        None,
+        description="The action gap: the largest Q minus the next largest (0 when actions tie); "
+        "null when unvisited. A small gap is a choice the learner barely prefers.",
+    )
 
 
 class QTable(BaseModel):
@@ -397,6 +402,7 @@ class QTable(BaseModel):
                             "visits": 17,
                             "learned": True,
                             "ties": [],
+                            "gap": 0.05,
                         },
                         {
                             "state": "conc=high|trend=falling|obstacle=near|cell=near",
@@ -405,6 +411,7 @@ class QTable(BaseModel):
                             "visits": 13,
                             "learned": True,
                             "ties": [],
+                            "gap": 2.2,
                         },
                         {
                             "state": "conc=high|trend=falling|obstacle=near|cell=sensed",
@@ -413,6 +420,7 @@ class QTable(BaseModel):
                             "visits": 0,
                             "learned": False,
                             "ties": [],
+                            "gap": None,
                         },
                     ],
                 }
@@ -708,7 +716,7 @@ NEW_POLICY_EXAMPLES: dict[str, Any] = {
 
 class GreedyChoice(BaseModel):
     """A state and the action a greedy robot takes in it, as ``GET /jobs/{id}/qtable`` lists
-    them in ``greedy``; its other keys (value, visits, learned, ties) are ignored."""
+    them in ``greedy``; its other keys (value, visits, learned, ties, gap) are ignored."""
 
     model_config = ConfigDict(extra="ignore", strict=True)
 

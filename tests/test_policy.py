@@ -52,8 +52,8 @@ def test_each_state_names_its_best_action_with_its_value_and_visits() -> None:
     values = np.array([[0.1, 2.5, -1.0], [-3.0, -2.0, -0.5], [0.0, 0.0, 0.0]])
     visits = np.array([[3, 4, 1], [0, 2, 5], [0, 0, 0]])
     table = greedy_table(STATES, ACTIONS, values, visits)
-    assert table[0] == GreedyState("s0", "b", 2.5, 8, True, [])
-    assert table[1] == GreedyState("s1", "c", -0.5, 7, True, [])
+    assert table[0] == GreedyState("s0", "b", 2.5, 8, True, [], 2.4)
+    assert table[1] == GreedyState("s1", "c", -0.5, 7, True, [], 1.5)
     assert table[1].to_dict() == {
         "state": "s1",
         "action": "c",
@@ -61,6 +61,7 @@ def test_each_state_names_its_best_action_with_its_value_and_visits() -> None:
         "visits": 7,
         "learned": True,
         "ties": [],
+        "gap": 1.5,
     }
 
 
@@ -87,7 +88,7 @@ def test_ties_name_the_first_and_list_every_tied_action() -> None:
 def test_a_row_from_another_job_is_learned_though_this_run_never_visited_it() -> None:
     values = np.array([[0.0, 0.0, 0.3], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
     table = greedy_table(STATES, ACTIONS, values, np.zeros((3, 3), dtype=np.int64))
-    assert table[0] == GreedyState("s0", "c", 0.3, 0, True, [])
+    assert table[0] == GreedyState("s0", "c", 0.3, 0, True, [], 0.3)
 
 
 def test_per_robot_tables_are_averaged_by_visits() -> None:
@@ -109,8 +110,8 @@ def test_per_robot_tables_are_averaged_by_visits() -> None:
     np.testing.assert_allclose(mean[0], [4.0, 1.25, 0.0])
     np.testing.assert_array_equal(total[0], [1, 4, 0])
     table = greedy_table(STATES, ACTIONS, values, visits)
-    assert table[0] == GreedyState("s0", "a", 4.0, 5, True, [])
-    assert table[1] == GreedyState("s1", "b", 5.0, 2, True, [])
+    assert table[0] == GreedyState("s0", "a", 4.0, 5, True, [], 2.75)
+    assert table[1] == GreedyState("s1", "b", 5.0, 2, True, [], 5.0)
     assert table[2].action == UNVISITED
 
 
@@ -133,7 +134,11 @@ def test_per_robot_tables_of_any_finite_size_have_a_finite_mean() -> None:
     weighted, _ = swarm_table(values, np.array([[[0, 0, 3]], [[0, 0, 1]]]))
     assert weighted[0, 2] == 1.5
     assert greedy_table(["s0"], ACTIONS, values, np.ones((2, 1, 3), dtype=np.int64))[0] == (
-        GreedyState("s0", "a", float(biggest), 6, True, [])
+        GreedyState("s0", "a", float(biggest), 6, True, [], float(biggest))
+    )
+    extremes = np.array([[biggest, -biggest, -biggest]])
+    assert greedy_table(["s0"], ACTIONS, extremes, np.ones((1, 3), dtype=np.int64))[0].gap == (
+        biggest  # the gap is kept finite, as JSON needs it
     )
 
 

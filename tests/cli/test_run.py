@@ -115,7 +115,7 @@ def test_out_writes_the_qtable_picture_only_for_a_policy_that_learns_a_table(
     assert cli.main(["run", "--scenario", baseline, "--out", str(tmp_path / "gradient")]) == 0
     capsys.readouterr()
     table = imread(tmp_path / "learner" / "qtable.png", format="png")
-    assert table.shape[:2] == (1500, 780)  # 72 states x 4 actions, as the service draws it
+    assert table.shape[:2] == (1500, 830)  # 72 states x 4 actions, as the service draws it
     assert not (tmp_path / "gradient" / "qtable.png").exists()
     assert (tmp_path / "gradient" / "learning.png").exists()
 

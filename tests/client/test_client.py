@@ -90,7 +90,7 @@ def test_a_job_runs_and_its_metrics_arrays_qtable_and_pictures_come_back(api: Cl
     assert np.array(qtable["values"]).shape == (len(qtable["states"]), len(qtable["actions"]))
     assert "follow_gradient" in qtable["actions"]
     assert [g["state"] for g in qtable["greedy"]] == qtable["states"]
-    assert decode_png(api.picture(job.id, "qtable")).shape[:2] == (1500, 780)
+    assert decode_png(api.picture(job.id, "qtable")).shape[:2] == (1500, 830)
 
     heatmap = decode_png(api.picture(job.id, "heatmap_xy"))
     learning = decode_png(api.picture(job.id, "learning"))

@@ -145,7 +145,7 @@ def test_the_qtable_picture_is_drawn_from_the_stored_table_and_kept(api: Api, tr
     assert response.status_code == 200, response.text
     assert response.headers["content-type"] == "image/png"
     image = imread(io.BytesIO(response.content), format="png")
-    assert image.shape[:2] == (1500, 780)  # 72 states x 4 actions: a tall picture
+    assert image.shape[:2] == (1500, 830)  # 72 states x 4 actions: a tall picture
     assert float(image[..., :3].std()) > 0.05
     assert api.store.plot(trained, "qtable") == response.content
 

@@ -61,13 +61,14 @@ with the swarm's numbers (``treatment.has_treatment``)."""
 OPTIONAL_PICTURES = frozenset({"qtable", "treatment"})
 """The pictures only some results have (``render`` refuses the others with ``ValueError``)."""
 
-VERSIONS: dict[str, int] = {"learning": 3, "trajectory": 2}
+VERSIONS: dict[str, int] = {"learning": 3, "qtable": 2, "trajectory": 2}
 """The version of each picture's drawing, for the pictures past their first (the others are at
 1). It goes up when a picture drawn before would now be drawn differently, so that a copy kept
 of the older drawing is not served again. 2: ``learning`` of a result stored without its
 trajectory shows the greedy evaluation too; ``trajectory`` of a swarm's result colours its
 robots by what they did and the signal they read, and its treated cells apart. 3: an active
-Brownian ``learning`` gives each episode's length in seconds."""
+Brownian ``learning`` gives each episode's length in seconds. ``qtable`` 2: each greedy dot's
+area is its action gap, given beside the visits."""
 
 
 def version(name: str) -> int:

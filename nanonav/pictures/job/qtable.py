@@ -1,5 +1,5 @@
 """The learned Q-table: the action values as a heatmap, a row per state and a column per
-action, with each state's greedy action and its visits."""
+action, with each state's greedy action, its action gap and its visits."""
 
 from __future__ import annotations
 
@@ -27,6 +27,20 @@ QTABLE_CHAR_IN = 0.052
 QTABLE_FONT = 6.5
 _QTABLE_CMAP = "RdBu_r"
 _UNVISITED_GREY = "0.82"
+# The greedy action's dot, in points^2: its area grows with the state's action gap from the
+# smallest (a gap of 0) to the largest (the table's largest gap).
+GAP_DOT_MIN = 6.0
+GAP_DOT_MAX = 90.0
+
+
+def gap_dot_sizes(gaps: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The greedy dots' areas: in proportion to each state's action gap over the table's
+    largest, between ``GAP_DOT_MIN`` and ``GAP_DOT_MAX``, so that a choice the learner barely
+    prefers shows as a speck and a clear one as a disc."""
+    largest = float(gaps.max()) if len(gaps) else 0.0
+    share = gaps / largest if largest > 0.0 else np.zeros_like(gaps)
+    sizes: NDArray[np.float64] = GAP_DOT_MIN + (GAP_DOT_MAX - GAP_DOT_MIN) * share
+    return sizes
 
 
 def qtable_figsize(states: list[str], actions: list[str]) -> tuple[float, float]:
@@ -36,7 +50,7 @@ def qtable_figsize(states: list[str], actions: list[str]) -> tuple[float, float]
     column = QTABLE_WIDE_COLUMN_IN if wide else QTABLE_NARROW_COLUMN_IN
     state_labels = QTABLE_CHAR_IN * max((len(s) for s in states), default=1)
     action_labels = 0.35 if wide else QTABLE_CHAR_IN * max((len(a) for a in actions), default=1)
-    width = state_labels + column * len(actions) + 1.3
+    width = state_labels + column * len(actions) + 1.8  # the right axis: visits and gap
     height = QTABLE_ROW_IN * len(states) + action_labels + 2.4
     return round(max(width, 6.0), 1), round(height, 1)
 
@@ -48,10 +62,11 @@ def qtable_figure(
     visits: NDArray[np.int64],
 ) -> Figure:
     """The Q-values as a heatmap, a row per state and a column per action, on a diverging
-    colour scale centred on 0. A dot marks each state's greedy action and squares the actions
-    tied for best (a greedy robot picks among them at random); states never visited, with
-    nothing learned, are grey; the right axis gives each state's visits. Per-robot tables are
-    shown as their visit-weighted mean (``nanonav.policy.swarm_table``)."""
+    colour scale centred on 0. A dot marks each state's greedy action, its area the action gap
+    (the best Q minus the next best: how much the choice matters to the learner), and squares
+    the actions tied for best (a greedy robot picks among them at random); states never
+    visited, with nothing learned, are grey; the right axis gives each state's visits and gap.
+    Per-robot tables are shown as their visit-weighted mean (``nanonav.policy.swarm_table``)."""
     table, counts = swarm_table(values, visits)
     greedy = greedy_table(states, actions, values, visits)
     learned = np.array([g.learned for g in greedy], dtype=bool)
@@ -92,11 +107,12 @@ def qtable_figure(
     ax.tick_params(which="minor", length=0)
     column = {a: i for i, a in enumerate(actions)}
     best = np.array([(column[g.action], i) for i, g in enumerate(greedy) if g.learned], float)
+    gaps = np.array([g.gap or 0.0 for g in greedy if g.learned], float)
     tied = np.array([(column[a], i) for i, g in enumerate(greedy) for a in g.ties], float)
     if len(best):
         ax.scatter(
-            best[:, 0], best[:, 1], s=16, color="black", edgecolors="white", linewidths=0.6,
-            label="greedy action", zorder=3,
+            best[:, 0], best[:, 1], s=gap_dot_sizes(gaps), color="black", edgecolors="white",
+            linewidths=0.6, label="greedy action", zorder=3,
         )  # fmt: skip
     if len(tied):
         ax.scatter(
@@ -109,16 +125,23 @@ def qtable_figure(
     ax.set_ylabel("state")
     right = ax.twinx()
     right.set_ylim(ax.get_ylim())
-    right.set_yticks(rows, [str(int(n)) for n in counts.sum(axis=1)], fontsize=QTABLE_FONT)
+    right.set_yticks(
+        rows,
+        [
+            f"{int(n)}" + (f"  gap {g.gap:.2g}" if g.learned and g.gap is not None else "")
+            for n, g in zip(counts.sum(axis=1), greedy, strict=True)
+        ],
+        fontsize=QTABLE_FONT,
+    )
     right.tick_params(length=0)
-    right.set_ylabel("visits")
+    right.set_ylabel("visits, action gap")
     # the pad is a fraction of the table's height: about a fifth of an inch
     pad = 0.2 / (QTABLE_ROW_IN * max(len(states), 1))
     colourbar = fig.colorbar(image, ax=[ax, right], location="top", shrink=0.7, aspect=30, pad=pad)
     colourbar.set_label("Q-value (reward units): positive red, negative blue, 0 white")
     handles: list[Artist] = [
         Line2D([], [], marker="o", linestyle="", color="black", markeredgecolor="white",
-               label="greedy action"),
+               label="greedy action (area: its gap over the next best)"),
         Line2D([], [], marker="s", linestyle="", markerfacecolor="none",
                markeredgecolor="black", label="tied for best (picked at random)"),
         Patch(facecolor=_UNVISITED_GREY, edgecolor="0.5", label="state never visited"),

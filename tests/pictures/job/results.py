@@ -22,7 +22,7 @@ EXPECTED_SIZE = {
     "trajectory": (750, 720),
     "concentration": (800, 600),
     "learning": (900, 600),
-    "qtable": (780, 1500),  # it grows with the table: this is 72 states x 4 actions (behaviors)
+    "qtable": (830, 1500),  # it grows with the table: this is 72 states x 4 actions (behaviors)
     "treatment": (900, 700),
 }
 

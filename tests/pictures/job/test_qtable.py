@@ -6,11 +6,11 @@ from matplotlib.figure import Figure
 from numpy.typing import NDArray
 
 from nanonav.engine import qlearning
-from nanonav.pictures.job.qtable import qtable_figure, qtable_png
+from nanonav.pictures.job.qtable import GAP_DOT_MAX, GAP_DOT_MIN, qtable_figure, qtable_png
 from tests.pictures.job.results import assert_picture, decode
 
 # (width, height) in pixels: the figure grows with the table.
-QTABLE_SIZE = {"behaviors": (780, 1500), "directions": (1070, 1230)}
+QTABLE_SIZE = {"behaviors": (830, 1500), "directions": (1120, 1230)}
 UNVISITED_GREY = 209  # 0.82 x 255, the grey of states never visited
 
 
@@ -73,3 +73,21 @@ def test_the_qtable_picture_of_per_robot_tables_shows_their_visit_weighted_mean(
     # mean: follow_gradient 3.0 (only robot 0 chose it), approach_cell (5 + 20) / 10 = 2.5
     assert marks(figure, "greedy action") == [(0, 0)]
     assert "mean of 2 robots' tables weighted by visits" in figure.get_suptitle()
+
+
+def test_each_greedy_dot_grows_with_its_action_gap_given_beside_the_visits() -> None:
+    states = ["s0", "s1", "s2"]
+    labels = ["a", "b", "c"]
+    # gaps 0.1, 2.0 and 0 (a tie): a speck, the largest disc, the smallest dot
+    values = np.array([[1.0, 0.9, 0.0], [-1.0, -3.0, -5.0], [0.5, 0.5, 0.0]])
+    visits = np.ones((3, 3), dtype=np.int64)
+    figure = qtable_figure(states, labels, values, visits)
+    ax, right = figure.axes[0], figure.axes[1]
+    (dots,) = [c for c in ax.collections if c.get_label() == "greedy action"]
+    sizes = dots.get_sizes()
+    assert sizes[1] == pytest.approx(GAP_DOT_MAX)
+    assert sizes[2] == pytest.approx(GAP_DOT_MIN)
+    assert sizes[0] == pytest.approx(GAP_DOT_MIN + (GAP_DOT_MAX - GAP_DOT_MIN) * 0.05)
+    texts = [t.get_text() for t in right.get_yticklabels()]
+    assert texts == ["3  gap 0.1", "3  gap 2", "3  gap 0"]
+    assert right.get_ylabel() == "visits, action gap"
