@@ -4,13 +4,15 @@ need 3 payloads, a faint short-range marker, robots that take up space), communi
 number of cells x swarm size, every combination on the same seeds; each model paired by seed
 with 'none'.
 
-    python benchmarks/swarm_question.py [--seeds N] [--worlds N] [--quick]
+    python benchmarks/swarm_question.py [--seeds N] [--seeds-from S] [--worlds N] [--quick]
 
 Per combination: the share of cells treated and the step the last was treated (the 1,000-step
 limit if one was left), the mean over seeds of each run's mean over its evaluation worlds with
 the 95 % interval, and the model minus 'none', paired by seed. Then, at 20 cells and 100 robots,
 Q-learning (which sees what it receives and may follow it) trained on each model, against the
-rule that uses the same signals, paired by seed.
+rule that uses the same signals, paired by seed. Last, each family of comparisons (treated
+minus none, steps minus none, q_learning minus rule) with Holm's adjustment over its members:
+the differences that stay resolved when the family's size is counted.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ import argparse
 import os
 import sys
 import time
+from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
 from typing import Any
 
@@ -26,6 +29,7 @@ import numpy as np
 from physical_question import paired
 from science import mean_ci
 
+from nanonav import stats
 from nanonav.engine import simulate
 from nanonav.scenario import preset_scenario
 
@@ -69,7 +73,7 @@ def idle_robots(job: tuple[str, int]) -> dict[str, float]:
     }
 
 
-def table(header: tuple[str, ...], rows: list[tuple[str, ...]]) -> None:
+def table(header: tuple[str, ...], rows: Sequence[Sequence[str]]) -> None:
     widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(header)]
     print("  " + "  ".join(h.ljust(w) for h, w in zip(header, widths, strict=True)))
     for row in rows:
@@ -77,14 +81,36 @@ def table(header: tuple[str, ...], rows: list[tuple[str, ...]]) -> None:
     print()
 
 
+def holm_resolved(family: str, members: list[tuple[str, list[float], list[float]]]) -> None:
+    """The family's comparisons whose Holm-adjusted Wilcoxon p stays below 0.05 (those with
+    every difference 0 count in the family, at p 1)."""
+    found = [stats.paired(a, b) for _, a, b in members]
+    adjusted = stats.holm([f.p_value if f.p_value is not None else 1.0 for f in found])
+    print(f"{family}: {len(members)} comparisons; resolved after Holm's adjustment:")
+    kept = [
+        f"  {where}: {f.mean_difference:+.2f} (p {f.p_value:.4f}, Holm {p:.3f})"
+        for (where, _, _), f, p in zip(members, found, adjusted, strict=True)
+        if p < 0.05 and f.mean_difference is not None and f.p_value is not None
+    ]
+    print("\n".join(kept) if kept else "  none")
+    print()
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     parser.add_argument("--seeds", type=int, default=10)
+    parser.add_argument(
+        "--seeds-from", type=int, default=0,
+        help="the first seed (the README's figures: 0; replicate on seeds of your own)",
+    )  # fmt: skip
     parser.add_argument("--worlds", type=int, default=3, help="evaluation worlds per run")
     parser.add_argument("--episodes", type=int, default=40, help="q_learning's training")
     parser.add_argument("--quick", action="store_true", help="a smoke run: 2 seeds, small")
     args = parser.parse_args(argv)
-    seeds = range(2 if args.quick else args.seeds)
+    seeds = range(args.seeds_from, args.seeds_from + (2 if args.quick else args.seeds))
+    families: dict[str, list[tuple[str, list[float], list[float]]]] = {
+        "treated minus none": [], "steps minus none": [], "q_learning minus rule": [],
+    }  # fmt: skip
     worlds = 1 if args.quick else args.worlds
     swarms = (10, 100) if args.quick else SWARMS
     episodes = 2 if args.quick else args.episodes
@@ -110,12 +136,20 @@ def main(argv: list[str] | None = None) -> int:
     for cells in CELLS:
         for robots in swarms:
             print(f"{cells} cells, {robots} robots")
-            rows = []
+            rows: list[tuple[str, ...]] = []
             base = runs("none", cells, robots)
             for model in MODELS:
                 found = runs(model, cells, robots)
                 share = [r["treated_fraction"] for r in found]
                 steps = [float(r["time_to_treat_all"]) for r in found]
+                if model != "none":
+                    where = f"{model}, {cells} cells, {robots} robots"
+                    families["treated minus none"].append(
+                        (where, share, [r["treated_fraction"] for r in base])
+                    )
+                    families["steps minus none"].append(
+                        (where, steps, [float(r["time_to_treat_all"]) for r in base])
+                    )
                 rows.append((
                     model, mean_ci(share), mean_ci(steps, 0, limit),
                     paired(share, [r["treated_fraction"] for r in base]) if model != "none" else "",
@@ -130,6 +164,9 @@ def main(argv: list[str] | None = None) -> int:
         learned = runs(model, 20, 100, "q_learning")
         rule = runs(model, 20, 100)
         share = [r["treated_fraction"] for r in learned]
+        families["q_learning minus rule"].append(
+            (model, share, [r["treated_fraction"] for r in rule])
+        )
         rows.append((
             model, mean_ci(share), mean_ci([r["treated_fraction"] for r in rule]),
             paired(share, [r["treated_fraction"] for r in rule]),
@@ -147,6 +184,8 @@ def main(argv: list[str] | None = None) -> int:
             mean_ci([f["moved"] for f in found], 1, (0.0, float("inf"))),
         ))  # fmt: skip
     table(("model", "within 10 of a treated cell", "moved in the last 200 steps"), rows)
+    for family, members in families.items():
+        holm_resolved(family, members)
     print(f"({time.perf_counter() - started:.0f} s on {os.cpu_count()} cores)")
     return 0
 
