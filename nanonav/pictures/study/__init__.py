@@ -14,7 +14,7 @@ import numpy as np
 from nanonav import stats
 from nanonav.pictures.study import charts
 from nanonav.studies.report import METRICS, PAPER_METRICS, JobOutcome
-from nanonav.studies.spec import GridValue, StudySpec
+from nanonav.studies.spec import GridValue, StudySpec, points
 
 LEARNING_PANELS = {
     "steps": "steps per episode",
@@ -25,12 +25,15 @@ PICTURES = (*METRICS, "learning")
 """Every picture a study can have; ``pictures_of`` says which a given study has."""
 EVERY_STUDYS_PICTURES = (*PAPER_METRICS, "learning")
 """The pictures every study has, whatever its jobs report."""
-VERSION = 2
+SECONDS_PANEL = "time per episode (s)"
+"""The first learning panel of a study whose every point is active Brownian: steps x dt_s."""
+VERSION = 3
 """The version of the drawing of every picture of a study: it goes up when a picture drawn
 before would now be drawn differently, so that a copy kept of the older drawing is drawn again.
 2: series and groups named in words (``robots policy: q_learning``, not
 ``robots.policy=q_learning``), and a metric's title no longer says its interval is Student t's
-(bounded metrics have others: ``nanonav.stats``)."""
+(bounded metrics have others: ``nanonav.stats``). 3: an active Brownian study's learning curves
+give each episode's length in seconds."""
 
 
 def _numeric(values: Sequence[GridValue]) -> bool:
@@ -104,8 +107,16 @@ def metric_png(spec: StudySpec, report: dict[str, Any], metric: str) -> bytes:
 def learning_png(
     spec: StudySpec, values: Sequence[dict[str, GridValue]], jobs: Sequence[JobOutcome]
 ) -> bytes:
-    """The learning curve of every grid point, averaged over its succeeded seeds, with CIs."""
-    panels: dict[str, list[charts.Series]] = {title: [] for title in LEARNING_PANELS.values()}
+    """The learning curve of every grid point, averaged over its succeeded seeds, with CIs. When
+    every point is active Brownian, an episode's length is in seconds (each point's steps times
+    its own dt_s), as its scenarios speak."""
+    step_s = [p.scenario.physics.step_s if p.scenario.physics.model == "active_brownian" else None
+              for p in points(spec)]  # fmt: skip
+    seconds = all(dt is not None for dt in step_s)
+    titles = dict(LEARNING_PANELS)
+    if seconds:
+        titles["steps"] = SECONDS_PANEL
+    panels: dict[str, list[charts.Series]] = {title: [] for title in titles.values()}
     for index, point_values in enumerate(values):
         curves = [
             job.curve
@@ -117,8 +128,10 @@ def learning_png(
         length = min(len(c["episode"]) for c in curves)
         episodes = curves[0]["episode"][:length]
         label = _label(point_values, list(spec.grid)) or "base scenario"
-        for key, title in LEARNING_PANELS.items():
+        for key, title in titles.items():
             matrix = np.array([c[key][:length] for c in curves], dtype=np.float64)
+            if key == "steps" and seconds:
+                matrix *= step_s[index] or 1.0
             described = [stats.describe(column.tolist()) for column in matrix.T]
             panels[title].append(
                 charts.Series(

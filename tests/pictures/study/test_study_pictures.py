@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from matplotlib.image import imread
 
-from nanonav.pictures.study import axis_key, charts, learning_png, metric_png
+from nanonav.pictures.study import SECONDS_PANEL, axis_key, charts, learning_png, metric_png
 from nanonav.studies.report import METRICS, JobOutcome, report
 from nanonav.studies.spec import StudySpec, point_values
 
@@ -118,3 +118,29 @@ def test_bars_are_labelled_by_readable_names_and_values(monkeypatch: pytest.Monk
     assert received.labels == [["robots policy: q_learning", "robots policy: gradient"]]
     assert received.xs == [["learning shared table: true", "learning shared table: false"] * 2]
     assert received.x_labels == [None]
+
+
+def test_an_active_brownian_studys_learning_curves_count_seconds(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Each point's steps times its own dt_s, under a panel that says seconds."""
+    drawn: dict[str, list[charts.Series]] = {}
+
+    def learning(panels: Mapping[str, Sequence[charts.Series]], **_: object) -> bytes:
+        drawn.update({k: list(v) for k, v in panels.items()})
+        return b""
+
+    monkeypatch.setattr(charts, "learning_png", learning)
+    study = StudySpec.model_validate({
+        "base": {"physics": {"model": "active_brownian", "time_limit_s": 1.0}},
+        "grid": {"physics.dt_s": [0.01, 0.002]}, "seeds": [0, 1, 2],
+    })  # fmt: skip
+    jobs = outcomes(study, True)
+    learning_png(study, point_values(study), jobs)
+    assert list(drawn) == [SECONDS_PANEL, "success rate", "mean return per robot"]
+    for point, dt in enumerate((0.01, 0.002)):
+        steps = np.array([j.curve["steps"] for j in jobs if j.point == point and j.curve])
+        assert drawn[SECONDS_PANEL][point].mean == pytest.approx(list(steps.mean(axis=0) * dt))
+    lattice = spec({"robots.policy": ["q_learning", "gradient"]}, "robots.policy")
+    learning_png(lattice, point_values(lattice), outcomes(lattice, True))
+    assert "steps per episode" in drawn
