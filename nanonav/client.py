@@ -637,7 +637,8 @@ class Client:
 
     def study_picture(self, study_id: int, name: str) -> bytes:
         """A PNG: a metric's means and CIs across the grid (``name`` is a metric, as in
-        ``Study.metrics``), or ``learning`` for the mean learning curves."""
+        ``Study.metrics``), ``learning`` for the mean learning curves, or ``policies`` for
+        what its learning points learned (when its links name it)."""
         return self._request("GET", f"/studies/{study_id}/plots/{name}.png").content
 
     # ------------------------------------------------------------ policies

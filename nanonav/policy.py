@@ -504,3 +504,50 @@ def evaluation_scenario(policy: PolicyRecord) -> dict[str, Any]:
         scenario["robots"] = {"count": policy.tables}
         learning["shared_table"] = False
     return scenario
+
+
+@dataclass(frozen=True)
+class Habit:
+    """What the tables of several runs of one scenario (a study's seeds) do in one state they
+    visit: how often it is visited, and the greedy action there counted over the tables."""
+
+    state: str
+    visit_share: float  # of every visit of every table
+    greedy: dict[str, int]  # action -> tables whose greedy action it is (learned ones only)
+    mean_gap: float | None  # the action gap, mean over those tables; None if none learned it
+
+
+def habits(tables: Sequence[Mapping[str, NDArray[Any]]], top: int) -> list[Habit]:
+    """The ``top`` states that ``tables`` (each with ``states``, ``actions``, ``values`` and
+    ``visits``, as a job keeps its Q-table) visit most, visits summed over the tables, each with
+    the greedy action counted over them: a learned policy read across seeds, which one table
+    alone cannot say (science.py's table 4b). Tables with other state labels than the first are
+    left out; none learned or none given: an empty list."""
+    usable = [t for t in tables if len(t.get("states", ())) and len(t.get("values", ()))]
+    if not usable:
+        return []
+    states = [str(s) for s in usable[0]["states"]]
+    same = [t for t in usable if [str(s) for s in t["states"]] == states]
+    rows = [
+        greedy_table(states, [str(a) for a in t["actions"]], t["values"], t["visits"]) for t in same
+    ]
+    visits = np.array([[g.visits for g in row] for row in rows], dtype=np.float64).sum(axis=0)
+    total = float(visits.sum())
+    if total <= 0.0:
+        return []
+    found = []
+    for index in np.argsort(-visits, kind="stable")[:top]:
+        learned = [row[index] for row in rows if row[index].learned]
+        counted: dict[str, int] = {}
+        for g in learned:
+            counted[g.action] = counted.get(g.action, 0) + 1
+        gaps = [g.gap for g in learned if g.gap is not None]
+        found.append(
+            Habit(
+                states[index],
+                float(visits[index]) / total,
+                dict(sorted(counted.items(), key=lambda kv: -kv[1])),
+                float(np.mean(gaps)) if gaps else None,
+            )
+        )
+    return found

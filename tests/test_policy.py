@@ -19,6 +19,7 @@ from nanonav.policy import (
     chemotaxis,
     fit_problem,
     greedy_table,
+    habits,
     learned_table,
     swarm_table,
 )
@@ -254,3 +255,30 @@ def test_a_table_of_random_greedy_moves_climbs_at_its_chance_level() -> None:
     tolerance = 4 * np.sqrt(found.chance * (1 - found.chance) / found.states)
     assert abs(found.share - found.chance) < tolerance
     assert found.strict_share < 0.2
+
+
+# ---------------------------------------------------------------- habits over seeds
+
+
+def _kept(values: list[list[float]], visits: list[list[int]]) -> dict[str, np.ndarray]:
+    return {
+        "states": np.array(STATES, dtype=np.str_),
+        "actions": np.array(ACTIONS, dtype=np.str_),
+        "values": np.array(values, dtype=np.float64),
+        "visits": np.array(visits, dtype=np.int64),
+    }
+
+
+def test_habits_count_each_tables_greedy_action_in_the_most_visited_states() -> None:
+    one = _kept([[1.0, 0.0, 0.0], [0.0, 2.0, 0.5], [0.0, 0.0, 0.0]],
+                [[5, 0, 0], [10, 10, 10], [0, 0, 0]])  # fmt: skip
+    two = _kept([[0.0, 0.0, 3.0], [0.0, 1.0, 0.9], [0.0, 0.0, 0.0]],
+                [[1, 1, 3], [20, 0, 0], [0, 0, 0]])  # fmt: skip
+    other = {**_kept([[9.0] * 3] * 3, [[9] * 3] * 3), "states": np.array(["x", "y", "z"])}
+    found = habits([one, two, other], top=2)
+    assert [h.state for h in found] == ["s1", "s0"]  # 50 visits, then 10 (s2: none)
+    assert found[0].visit_share == pytest.approx(50 / 60)
+    assert found[0].greedy == {"b": 2}
+    assert found[0].mean_gap == pytest.approx((1.5 + 0.1) / 2)
+    assert found[1].greedy == {"a": 1, "c": 1}
+    assert habits([], top=3) == [] and habits([other], top=3)[0].state in {"x", "y", "z"}

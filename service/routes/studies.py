@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
+import json
 from collections.abc import Mapping
 from dataclasses import dataclass
-from functools import cache, partial
+from functools import cache, lru_cache, partial
 from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Body, Path, Query, Response
@@ -13,6 +14,7 @@ from pydantic import ValidationError
 
 from nanonav.pictures import study as pictures
 from nanonav.store import (
+    JobStore,
     StudyJob,
     StudyJobState,
     StudyNotFound,
@@ -68,7 +70,8 @@ PictureName = Annotated[
     str,
     Path(
         pattern="^(" + "|".join(pictures.PICTURES) + ")$",
-        description="A metric (" + ", ".join(pictures.PICTURES[:-1]) + ") or 'learning'.",
+        description="A metric (" + ", ".join(pictures.PICTURES[:-2]) + "), 'learning', or "
+        "'policies' (a study whose points learn Q-tables).",
     ),
 ]
 FINISHED = frozenset({"succeeded", "failed", "cancelled"})
@@ -298,30 +301,48 @@ def get_results(
     responses={**PNG, **problems(404, 422, 503)},
 )
 async def get_study_plot(
-    study_id: StudyId, name: PictureName, studies: StudiesDep, drawer: DrawerDep
+    study_id: StudyId, name: PictureName, studies: StudiesDep, store: StoreDep, drawer: DrawerDep
 ) -> Response:
     """A metric against the swept numeric parameter with CI bars, a line per compared method
-    (grouped bars when no swept parameter is numeric), or the mean learning curves. 404 for one
-    of the swarm's metrics while no job of the study has it (its links name those it has)."""
+    (grouped bars when no swept parameter is numeric), the mean learning curves, or the
+    policies its points learned (the greedy action in their most visited states, counted over
+    seeds, with the action gap). 404 for one of the swarm's metrics while no job of the study
+    has it, and for policies where no point learns (its links name those it has)."""
     png = await run_in_threadpool(studies.plot, study_id, kept_name(name, pictures.VERSION))
     if png is not None:
         return Response(png, media_type="image/png", headers=IMMUTABLE)
-    return await _draw(drawer, studies, study_id, name)
+    return await _draw(drawer, studies, store, study_id, name)
 
 
-async def _draw(drawer: Drawer, studies: StudyStore, study_id: int, name: str) -> Response:
+async def _draw(
+    drawer: Drawer, studies: StudyStore, store: JobStore, study_id: int, name: str
+) -> Response:
     finished: list[bool] = []
     png = await drawer.draw(
-        ("study", study_id, name), partial(_draw_now, studies, study_id, name, finished)
+        ("study", study_id, name), partial(_draw_now, studies, store, study_id, name, finished)
     )
     headers = IMMUTABLE if finished and finished[0] else {"Cache-Control": "no-cache"}
     return Response(png, media_type="image/png", headers=headers)
 
 
-def _draw_now(studies: StudyStore, study_id: int, name: str, finished: list[bool]) -> bytes:
+def _draw_now(
+    studies: StudyStore, store: JobStore, study_id: int, name: str, finished: list[bool]
+) -> bytes:
     loaded = _Loaded.of(studies, studies.get(study_id), curves=name == "learning")
     if name == "learning":
         png = pictures.learning_png(loaded.spec, point_values(loaded.spec), loaded.outcomes)
+    elif name == "policies":
+        learning = set(pictures.learning_points(loaded.spec))
+        if not learning:
+            raise NoMetric(
+                f"no point of study {study_id} learns a Q-table: only q_learning trained for "
+                "at least one episode does"
+            )
+        tables: dict[int, list[dict[str, Any]]] = {}
+        for job in loaded.outcomes:
+            if job.point in learning and job.status == "succeeded":
+                tables.setdefault(job.point, []).append(store.qtable(job.job_id))
+        png = pictures.policies_png(loaded.spec, point_values(loaded.spec), tables)
     else:
         found = loaded.report(studies)
         if name not in pictures.pictures_of(found):
@@ -402,7 +423,7 @@ def study_answer(studies: StudyStore, reports: Reports, record: StudyRecord) -> 
         jobs=JobCounts.of(counts),
         progress=found.work_done / max(total, 1),
         spec=record.spec,
-        links=_links(record.id, pictures.pictures_of(statistics)),
+        links=_links(record.id, pictures.pictures_of(statistics, learns(record.spec))),
         **statistics,
     )
 
@@ -419,6 +440,17 @@ def _policy_blame(spec: StudySpec, values: Mapping[str, Any]) -> tuple[tuple[str
     others = {k: v for k, v in values.items() if k != "policy_from"}
     where = f"at the grid point {others}: " if others else ""
     return loc, where
+
+
+def learns(spec: Mapping[str, Any]) -> bool:
+    """Whether a point of the study ``spec`` learns a Q-table (it has a policies picture)."""
+    return _learns(json.dumps(spec, sort_keys=True))
+
+
+@lru_cache(maxsize=256)
+def _learns(spec: str) -> bool:
+    # a study's spec never changes: its points are validated once, not on every poll
+    return bool(pictures.learning_points(StudySpec.model_validate(json.loads(spec))))
 
 
 def _links(study_id: int, plots: tuple[str, ...]) -> StudyLinks:

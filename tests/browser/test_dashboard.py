@@ -268,6 +268,8 @@ def test_a_studys_tables_fit_a_1400_pixel_window(page: Page, site: Site) -> None
     page.set_viewport_size({"width": 1400, "height": 900})
     page.goto(f"{site.url}/ui/studies/{study_id}")
     expect(page.locator("#comparisons-table tbody tr")).to_have_count(2)
+    # its q_learning points learn: the page shows what they learned
+    expect(page.locator("img[src*='/plots/policies.png']")).to_have_count(1)
     widths = page.evaluate(
         "Array.from(document.querySelectorAll('.study-table')).map((table) =>"
         " [table.id, table.scrollWidth, table.parentElement.clientWidth])"

@@ -171,7 +171,8 @@ def test_a_study_runs_and_its_statistics_match_the_jobs(
         for metric in METRICS:
             assert row[metric] == float(csv_row[metric])
 
-    for name in (*METRICS, "duration_s", "learning"):
+    assert "policies" in study["links"]["plots"]  # its q_learning points learn tables
+    for name in (*METRICS, "duration_s", "learning", "policies"):
         response = api.client.get(f"/studies/{study['id']}/plots/{name}.png")
         assert response.status_code == 200, response.text
         image = decode_png(response.content)
@@ -235,6 +236,10 @@ def test_a_physical_study_over_robot_radius_runs_with_a_fitting_step_at_each(
     for name in ("success_rate", "learning"):
         response = api.client.get(f"/studies/{study['id']}/plots/{name}.png")
         assert response.status_code == 200 and response.content.startswith(b"\x89PNG"), name
+    # no point learns (no training episode): no policies to show
+    assert "policies" not in study["links"]["plots"]
+    missing = api.client.get(f"/studies/{study['id']}/plots/policies.png")
+    assert missing.status_code == 404 and "learns a Q-table" in missing.text
 
 
 def test_a_swarm_study_over_communication_reports_the_cells_treated(

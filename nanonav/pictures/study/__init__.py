@@ -1,18 +1,20 @@
 """A study's pictures: one metric against the swept numeric parameter (a line per compared
-method, CI bars), or grouped bars when no swept parameter is numeric; and the mean learning
-curves of every grid point with CI bands. This module picks what goes on which axis; drawing is
-``charts``'s."""
+method, CI bars), or grouped bars when no swept parameter is numeric; the mean learning
+curves of every grid point with CI bands; and what the learners of each grid point learned.
+This module picks what goes on which axis; drawing is ``charts``'s."""
 
 from __future__ import annotations
 
 import numbers
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from nanonav import stats
 from nanonav.pictures.study import charts
+from nanonav.policy import habits
 from nanonav.studies.report import METRICS, PAPER_METRICS, JobOutcome
 from nanonav.studies.spec import GridValue, StudySpec, points
 
@@ -21,8 +23,10 @@ LEARNING_PANELS = {
     "success_rate": "success rate",
     "mean_return": "mean return per robot",
 }
-PICTURES = (*METRICS, "learning")
+PICTURES = (*METRICS, "learning", "policies")
 """Every picture a study can have; ``pictures_of`` says which a given study has."""
+HABIT_STATES = 3
+"""The most visited states the policies picture shows for each grid point that learns."""
 EVERY_STUDYS_PICTURES = (*PAPER_METRICS, "learning")
 """The pictures every study has, whatever its jobs report."""
 SECONDS_PANEL = "time per episode (s)"
@@ -64,11 +68,49 @@ def _label(values: dict[str, GridValue], keys: Sequence[str]) -> str:
     return ", ".join(f"{readable_key(k)}: {_readable_value(values[k])}" for k in keys)
 
 
-def pictures_of(report: dict[str, Any]) -> tuple[str, ...]:
+def pictures_of(report: dict[str, Any], learns: bool = False) -> tuple[str, ...]:
     """The pictures of the study ``report`` describes: a chart of each metric it reports (the
-    swarm's only once a job has them: ``nanonav.studies.report.reported_metrics``), and the
-    learning curves."""
-    return (*(m for m in METRICS if m in report["metrics"]), "learning")
+    swarm's only once a job has them: ``nanonav.studies.report.reported_metrics``), the
+    learning curves, and if any of its points ``learns`` (``learning_points``), its policies."""
+    found = (*(m for m in METRICS if m in report["metrics"]), "learning")
+    return (*found, "policies") if learns else found
+
+
+def learning_points(spec: StudySpec) -> list[int]:
+    """The grid points whose robots learn a Q-table (q_learning trained for at least an
+    episode): those the policies picture shows."""
+    return [
+        p.index
+        for p in points(spec)
+        if p.scenario.robots.policy == "q_learning" and p.scenario.learning.episodes > 0
+    ]
+
+
+def policies_png(
+    spec: StudySpec,
+    values: Sequence[dict[str, GridValue]],
+    tables: Mapping[int, Sequence[Mapping[str, NDArray[Any]]]],
+) -> bytes:
+    """What the learners of every grid point learned: the ``HABIT_STATES`` states its seeds'
+    tables visit most, each as a bar of the greedy action counted over seeds, with its share of
+    visits and the mean action gap beside it. ``tables`` holds each point's succeeded jobs'
+    Q-tables (``nanonav.policy.habits``)."""
+    rows = []
+    for index, point_values_ in enumerate(values):
+        found = tables.get(index, [])
+        label = _label(point_values_, list(spec.grid)) or "base scenario"
+        for habit in habits(found, HABIT_STATES):
+            seeds = max(sum(habit.greedy.values()), 1)
+            gap = "" if habit.mean_gap is None else f", mean gap {habit.mean_gap:.2g}"
+            rows.append(
+                charts.HabitRow(
+                    f"{label}\n{habit.state}",
+                    {a: n / seeds for a, n in habit.greedy.items()},
+                    f"{habit.visit_share:.0%} of visits{gap}, {seeds} seeds",
+                )
+            )
+    title = f"{spec.name or 'Study'}: greedy action in the most visited states, over seeds"
+    return charts.habits_png(rows, title=title)
 
 
 def metric_png(spec: StudySpec, report: dict[str, Any], metric: str) -> bytes:

@@ -1,5 +1,5 @@
 """Pictures of a batch study, as PNG bytes: one metric across the swept values of a parameter,
-and the mean learning curves of several scenarios.
+the mean learning curves of several scenarios, and what their learners learned.
 
 The numbers arrive already summarised (means and confidence bounds, see ``nanonav.stats``); this
 module only draws them, so it reads no result, job or database (``nanonav.pictures.study`` turns
@@ -407,4 +407,52 @@ def learning_png(panels: Mapping[str, Sequence[Series]], *, title: str | None = 
         )
     else:
         axes[-1].set_xticks([])
+    return png(fig)
+
+
+# The habits picture: inches per row (one state of one grid point) and for the fixed parts.
+HABIT_ROW_IN = 0.42
+HABIT_FIXED_IN = 2.2
+HABITS_WIDTH = 10.0
+
+
+@dataclass(frozen=True)
+class HabitRow:
+    """One bar of the habits picture: a state of a grid point, the share of seeds whose greedy
+    action is each action there, and what to say beside it."""
+
+    label: str  # the grid point and the state
+    shares: Mapping[str, float]  # action -> share of the point's seeds, summing to at most 1
+    note: str  # its visits and action gap
+
+
+def habits_png(rows: Sequence[HabitRow], *, title: str | None = None) -> bytes:
+    """A horizontal bar per row, split by greedy action (a colour per action, the same in every
+    row) in proportion to the seeds that chose it, the note at the bar's end. No row: a panel
+    that says so."""
+    fig = new_figure(HABITS_WIDTH, HABIT_FIXED_IN + HABIT_ROW_IN * max(len(rows), 1))
+    ax = fig.add_subplot()
+    _style_axes(ax)
+    if not rows:
+        _say_no_data(ax)
+        ax.set_yticks([])
+    actions: list[str] = []
+    for row in rows:
+        actions.extend(a for a in row.shares if a not in actions)
+    colours = {a: SERIES_COLOURS[i % len(SERIES_COLOURS)] for i, a in enumerate(actions)}
+    for y, row in enumerate(rows):
+        left = 0.0
+        for action, share in row.shares.items():
+            ax.barh(y, share, left=left, color=colours[action], edgecolor="white", height=0.7)
+            left += share
+        ax.text(1.01, y, row.note, va="center", fontsize=_LEGEND_SIZE)
+    if rows:
+        ax.set_yticks(range(len(rows)), [r.label for r in rows], fontsize=_LEGEND_SIZE)
+        ax.set_ylim(len(rows) - 0.5, -0.5)
+    ax.set_xlim(0.0, 1.5)  # room for the notes right of the bars
+    ax.set_xticks([0.0, 0.25, 0.5, 0.75, 1.0])
+    ax.set_xlabel("share of seeds whose greedy action it is", fontsize=_LABEL_SIZE)
+    if title:
+        fig.suptitle(title, fontsize=_TITLE_SIZE)
+    _legend(fig, [Patch(facecolor=colours[a], label=a) for a in actions])
     return png(fig)

@@ -9,7 +9,15 @@ import numpy as np
 import pytest
 from matplotlib.image import imread
 
-from nanonav.pictures.study import SECONDS_PANEL, axis_key, charts, learning_png, metric_png
+from nanonav.pictures.study import (
+    SECONDS_PANEL,
+    axis_key,
+    charts,
+    learning_png,
+    learning_points,
+    metric_png,
+    policies_png,
+)
 from nanonav.studies.report import METRICS, JobOutcome, report
 from nanonav.studies.spec import StudySpec, point_values
 
@@ -144,3 +152,32 @@ def test_an_active_brownian_studys_learning_curves_count_seconds(
     lattice = spec({"robots.policy": ["q_learning", "gradient"]}, "robots.policy")
     learning_png(lattice, point_values(lattice), outcomes(lattice, True))
     assert "steps per episode" in drawn
+
+
+def test_the_policies_picture_shows_each_learning_points_habits(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A bar per most visited state of each point, split by the seeds' greedy actions; a real
+    PNG with no table says it has no data."""
+    states = np.array(["s0", "s1"], dtype=np.str_)
+    actions = np.array(["a", "b"], dtype=np.str_)
+
+    def table(best: int) -> dict[str, np.ndarray]:
+        values = np.zeros((2, 2))
+        values[:, best] = 1.0
+        return {"states": states, "actions": actions, "values": values,
+                "visits": np.array([[3, 1], [0, 0]])}  # fmt: skip
+
+    study = spec({"robots.policy": ["q_learning", "gradient"]}, "robots.policy")
+    assert learning_points(study) == [0]
+    empty = decode(policies_png(study, point_values(study), {}))
+    assert empty.shape[:2] == (262, 1000) and empty[..., :3].std() > 0.01
+    rows: list[charts.HabitRow] = []
+    monkeypatch.setattr(charts, "habits_png", lambda drawn, **_: rows.extend(drawn) or b"")
+    policies_png(study, point_values(study), {0: [table(0), table(0), table(1)]})
+    assert [r.label for r in rows] == [
+        "robots policy: q_learning\ns0",
+        "robots policy: q_learning\ns1",
+    ]
+    assert rows[0].shares == pytest.approx({"a": 2 / 3, "b": 1 / 3})
+    assert rows[0].note == "100% of visits, mean gap 1, 3 seeds"
