@@ -197,7 +197,12 @@ def list_studies(
                 created_at=record.created_at,
                 cancel_requested=record.cancel_requested,
                 jobs=jobs,
-                links=_links(record.id, pictures.EVERY_STUDYS_PICTURES),
+                links=_links(
+                    record.id,
+                    (*pictures.EVERY_STUDYS_PICTURES, "policies")
+                    if learns(record.spec)
+                    else pictures.EVERY_STUDYS_PICTURES,
+                ),
             )
         )
     next_cursor = None if page.next_before_id is None else encode_cursor(page.next_before_id)

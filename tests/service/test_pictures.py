@@ -214,7 +214,7 @@ def test_a_learning_curve_kept_from_an_older_drawing_is_drawn_again(
     job_id = succeeded_job(api.store, api_settings)
     api.store.save_plot(job_id, "learning", b"kept before the curve showed its evaluation")
     link = api.client.get(f"/jobs/{job_id}").json()["links"]["plots"]["learning"]
-    assert link == f"/jobs/{job_id}/plots/learning.png?v=2"
+    assert link == f"/jobs/{job_id}/plots/learning.png?v=3"
     bodies = set()
     for url in (link, link, f"/jobs/{job_id}/plots/learning.png"):
         served = api.client.get(url)

@@ -140,14 +140,14 @@ def test_an_unknown_qtable_format_is_a_422_naming_it(api: Api, trained: int) -> 
 
 def test_the_qtable_picture_is_drawn_from_the_stored_table_and_kept(api: Api, trained: int) -> None:
     job = api.client.get(f"/jobs/{trained}").json()
-    assert job["links"]["plots"]["qtable"] == f"/jobs/{trained}/plots/qtable.png"
+    assert job["links"]["plots"]["qtable"] == f"/jobs/{trained}/plots/qtable.png?v=2"
     response = api.client.get(job["links"]["plots"]["qtable"])
     assert response.status_code == 200, response.text
     assert response.headers["content-type"] == "image/png"
     image = imread(io.BytesIO(response.content), format="png")
     assert image.shape[:2] == (1500, 830)  # 72 states x 4 actions: a tall picture
     assert float(image[..., :3].std()) > 0.05
-    assert api.store.plot(trained, "qtable") == response.content
+    assert api.store.plot(trained, "qtable.v2") == response.content
 
 
 def test_the_qtable_picture_of_a_baseline_job_is_404_saying_why(

@@ -58,7 +58,8 @@ def test_a_papers_study_shows_none_of_them(api: Api) -> None:
     study_id = finished_study(api, PAPER_METRICS)
     study = api.client.get(f"/studies/{study_id}").json()
     assert study["metrics"] == list(PAPER_METRICS)
-    assert set(study["links"]["plots"]) == {*PAPER_METRICS, "learning"}
+    # its points learn (q_learning, the default): it has their policies picture
+    assert set(study["links"]["plots"]) == {*PAPER_METRICS, "learning", "policies"}
     listed = api.client.get("/studies").json()["studies"][0]["links"]["plots"]
     assert listed == study["links"]["plots"]
     header = next(csv.reader(io.StringIO(api.client.get(f"/studies/{study_id}/results.csv").text)))
