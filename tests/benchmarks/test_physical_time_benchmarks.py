@@ -18,13 +18,13 @@ TINY = ["--seeds-from", "7100", "--seeds", "2", "--worlds", "1", "--radii", "2"]
 
 
 def test_the_interval_sweep_prints_a_row_per_setting(capsys: pytest.CaptureFixture[str]) -> None:
-    args = [*TINY, "--intervals", "none,0.5", "--exponents", "0.6", "--episodes", "1"]
+    args = [*TINY, "--intervals", "step,0.5", "--exponents", "0.6", "--episodes", "1"]
     assert decision_interval.main(args) == 0
     out = capsys.readouterr().out
     assert "seeds 7100-7101 x 1 worlds" in out
     assert re.search(r"^R = 2.0 um: gradient \d", out, re.M)
-    rows = re.findall(r"^  (none|0\.5)\s+0\.6\s+1\s+0\.9\s+\d\.\d\d .*[+-]\d\.\d\d \[", out, re.M)
-    assert rows == ["none", "0.5"]
+    rows = re.findall(r"^  (step|0\.5)\s+0\.6\s+1\s+0\.9\s+\d\.\d\d .*[+-]\d\.\d\d \[", out, re.M)
+    assert rows == ["step", "0.5"]
 
 
 def test_the_run_and_tumble_sweep_shows_its_best_and_the_defaults(
