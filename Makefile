@@ -21,8 +21,14 @@ $(VENV)/.installed: pyproject.toml | $(BIN)/python
 	$(BIN)/python -m pip install --quiet -e .
 	touch $@
 
-$(VENV)/.installed-test: $(VENV)/.installed
-	$(BIN)/python -m pip install --quiet -e '.[test]'
+# The `rl` extra's learners need torch: this exact version is a CPU build on these machines'
+# disk, where a looser spec would download a CUDA one of several GB, so it goes in first.
+$(VENV)/.installed-torch: | $(BIN)/python
+	$(BIN)/python -m pip install --quiet torch==2.13.0
+	touch $@
+
+$(VENV)/.installed-test: $(VENV)/.installed $(VENV)/.installed-torch
+	$(BIN)/python -m pip install --quiet -e '.[test,rl]'
 	touch $@
 
 # A PostgreSQL DATABASE_URL needs the driver of the `postgres` extra.

@@ -4,7 +4,8 @@ perceiving, then every robot acting) and ``NanoNavAECEnv`` (the swarm taking tur
 ``simulate`` steps it by default). Importing this package registers ``NanoNav-v0``, so
 ``gymnasium.make("NanoNav-v0", scenario={...})`` and ``gymnasium.make_vec("NanoNav-v0",
 num_envs=N, vectorization_mode="vector_entry_point")`` work (or, without the import,
-``gymnasium.make("nanonav.env:NanoNav-v0")``)."""
+``gymnasium.make("nanonav.env:NanoNav-v0")``). Stable-Baselines3's ``NanoNavVecEnv`` lives in
+``nanonav.env.baselines`` (the ``rl`` extra), imported only where it is used."""
 
 from __future__ import annotations
 

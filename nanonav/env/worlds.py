@@ -221,6 +221,18 @@ class Worlds:
         )
         raise_for_layout(status, self.scenario)
 
+    def redraw(self, fresh: NDArray[np.bool_]) -> None:
+        """Draw a fresh world where ``fresh`` and leave every other world as it is, outputs
+        included (Stable-Baselines3's same-step reset): the others are held as over for the
+        call, which leaves an over world untouched, then given back their clocks."""
+        clock = self.batch.pc.clock
+        held = ~fresh & (clock[:, phases.CLOCK_OVER] == 0)
+        clock[held, phases.CLOCK_OVER] = 1
+        try:
+            self.step(None, fresh)
+        finally:
+            clock[held, phases.CLOCK_OVER] = 0
+
     def in_action_set(self, actions: NDArray[Any]) -> bool:
         """Whether every one of ``actions`` is an integer of the action set."""
         return actions.dtype.kind in "iu" and (

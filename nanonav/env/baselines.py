@@ -1,0 +1,140 @@
+"""NanoNav for Stable-Baselines3: ``NanoNavVecEnv``, many worlds of one robot stepped in one
+compiled call, as SB3's own vectorised environments behave. Needs the ``rl`` extra
+(``pip install 'nanonav[rl]'``).
+
+A room of its own because SB3's ``VecEnv`` is not Gymnasium's ``VectorEnv``: SB3 resets a
+finished world within the step that ended it, returns its last observation in
+``infos[k]["terminal_observation"]``, marks a time limit in ``"TimeLimit.truncated"`` and takes
+its seeds through ``seed()`` before ``reset()``. ``NanoNavVectorEnv`` keeps Gymnasium's
+next-step reset; both step the same worlds (``nanonav.env.worlds``).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium
+import numpy as np
+from gymnasium import spaces
+from numpy.typing import NDArray
+from stable_baselines3.common.vec_env import VecEnv
+from stable_baselines3.common.vec_env.base_vec_env import VecEnvIndices, VecEnvStepReturn
+
+from nanonav.env.robot import ScenarioLike
+from nanonav.env.worlds import (
+    Worlds,
+    action_labels,
+    as_scenario,
+    observation_of,
+    state_labels,
+    with_robots,
+)
+
+
+class NanoNavVecEnv(VecEnv):
+    """``num_envs`` worlds of one robot (as ``NanoNavEnv``), an SB3 ``VecEnv``.
+
+    Observations are float32 (what SB3's policies and an exported ONNX model take), bounded as
+    ``NanoNavEnv``'s; actions are the scenario's action set by number, each held for the
+    scenario's decision interval (``learning.decision_interval_s`` in active_brownian), its
+    rewards summed. ``seed(s)`` makes the next ``reset()`` draw world k from seed s + k (as
+    ``NanoNavVectorEnv.reset(seed=s)``: the same worlds); without a seed, ``reset()`` draws
+    the next worlds of each one's stream. Each info holds the world's tabular ``state``.
+    """
+
+    render_mode = None
+
+    def __init__(self, num_envs: int = 1, scenario: ScenarioLike = None) -> None:
+        if num_envs < 1:
+            raise ValueError("num_envs must be at least 1")
+        self.scenario = with_robots(as_scenario(scenario), 1)
+        self._worlds = Worlds(self.scenario, num_envs, "simultaneous")
+        self._seen = observation_of(self.scenario)
+        self.observation_labels = self._seen.labels
+        self.action_labels = action_labels(self.scenario)
+        self.state_labels = state_labels(self.scenario)
+        observations = spaces.Box(
+            self._seen.low.astype(np.float32), self._seen.high.astype(np.float32),
+            dtype=np.float32,
+        )  # fmt: skip
+        super().__init__(num_envs, observations, spaces.Discrete(self._worlds.actions))
+        self._actions = np.zeros((num_envs, 1), dtype=np.int64)
+        self._all = np.ones(num_envs, dtype=np.bool_)
+        self._none = np.zeros(num_envs, dtype=np.bool_)
+
+    def reset(self) -> NDArray[np.float32]:
+        seeds = self._seeds
+        if all(s is not None for s in seeds):
+            self._worlds.seed([int(s) for s in seeds if s is not None])
+        self._worlds.step(None, self._all)
+        self._reset_seeds()
+        self._reset_options()
+        self.reset_infos = [{"state": int(s)} for s in self._worlds.state[:, 0]]
+        return self._observed()
+
+    def step_async(self, actions: NDArray[Any]) -> None:
+        given = np.asarray(actions).reshape(self.num_envs, 1)
+        self._worlds.check(given, (self.num_envs, 1))
+        self._actions[:] = given
+
+    def step_wait(self) -> VecEnvStepReturn:
+        w = self._worlds
+        w.step(self._actions, self._none, checked=True)
+        terminated = ~w.active[:, 0]
+        truncated = w.over & ~terminated
+        done = terminated | truncated
+        observed = self._observed()
+        rewards = w.reward[:, 0].astype(np.float32)
+        infos: list[dict[str, Any]] = [
+            {"state": int(state), "TimeLimit.truncated": bool(cut)}
+            for state, cut in zip(w.state[:, 0], truncated, strict=True)
+        ]
+        if done.any():
+            ended = np.flatnonzero(done)
+            for k in ended:
+                infos[k]["terminal_observation"] = observed[k].copy()
+            w.redraw(done)
+            fresh = self._observed()
+            observed[ended] = fresh[ended]
+            for k in ended:
+                self.reset_infos[k] = {"state": int(w.state[k, 0])}
+        return observed, rewards, done, infos
+
+    def _observed(self) -> NDArray[np.float32]:
+        observed: NDArray[np.float32] = self._worlds.obs[:, 0][:, self._seen.columns].astype(
+            np.float32
+        )
+        return observed
+
+    def close(self) -> None:
+        """Nothing to release: the worlds are arrays of this process."""
+
+    def _indices(self, indices: VecEnvIndices) -> list[int]:
+        if indices is None:
+            return list(range(self.num_envs))
+        if isinstance(indices, int):
+            return [indices]
+        return list(indices)
+
+    def get_attr(self, attr_name: str, indices: VecEnvIndices = None) -> list[Any]:
+        """The attribute, once per world asked for: every world shares this object's."""
+        return [getattr(self, attr_name) for _ in self._indices(indices)]
+
+    def set_attr(self, attr_name: str, value: Any, indices: VecEnvIndices = None) -> None:
+        """Set on this object, which every world shares."""
+        setattr(self, attr_name, value)
+
+    def env_method(
+        self, method_name: str, *method_args: Any, indices: VecEnvIndices = None,
+        **method_kwargs: Any,
+    ) -> list[Any]:  # fmt: skip
+        """This object's method, called once per world asked for."""
+        method = getattr(self, method_name)
+        return [method(*method_args, **method_kwargs) for _ in self._indices(indices)]
+
+    def env_is_wrapped(
+        self, wrapper_class: type[gymnasium.Wrapper[Any, Any, Any, Any]],
+        indices: VecEnvIndices = None,
+    ) -> list[bool]:  # fmt: skip
+        """No world is wrapped: they are arrays, not Gymnasium environments."""
+        return [False for _ in self._indices(indices)]
