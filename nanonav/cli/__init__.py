@@ -4,9 +4,9 @@ Each subcommand is one ``add_<name>`` function that declares its arguments and s
 to the function that runs it: ``run`` in ``run.py`` runs a scenario here; ``api``, ``worker`` and
 ``migrate`` in ``service.py`` run the job service; ``submit``, ``study``, ``fetch``, ``jobs`` and
 ``delete`` in ``remote.py``, and ``policy`` and ``policies`` in ``policies.py``, talk to a running
-API. ``main`` parses, dispatches and turns the errors a user can cause into a message on stderr
-and an exit code. Adding a subcommand means adding one such function and one line in
-``build_parser``.
+API; ``train`` in ``train.py`` trains a deep learner here. ``main`` parses, dispatches and
+turns the errors a user can cause into a message on stderr and an exit code. Adding a
+subcommand means adding one such function and one line in ``build_parser``.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ import os
 import sys
 from collections.abc import Callable
 
-from nanonav.cli import policies, remote, run, service
+from nanonav.cli import policies, remote, run, service, train
 from nanonav.cli.common import (
     EXIT_FAILED,
     EXIT_INTERRUPTED,
@@ -53,6 +53,7 @@ def build_parser() -> argparse.ArgumentParser:
     remote.add_delete(subcommands)
     policies.add_policy(subcommands)
     policies.add_policies(subcommands)
+    train.add_train(subcommands)
     return parser
 
 
