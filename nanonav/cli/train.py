@@ -28,9 +28,10 @@ def add_train(subcommands: Subcommands) -> None:
         help="train a deep learner (Stable-Baselines3) on a scenario's worlds",
         description="Train PPO, recurrent PPO or DQN on one robot per world of the scenario, "
         "--envs worlds stepped together (world k drawn from seed + k), for --steps decisions "
-        "in all. Writes model.zip (Stable-Baselines3's own file, for your own use), "
-        "checkpoints/, tensorboard/ (tensorboard --logdir DIR/tensorboard), scenario.json and "
-        f"training.json into --out. Needs the rl extra ({RL_EXTRA}).",
+        "in all. Writes model.zip (Stable-Baselines3's own file, for your own use), policy.onnx "
+        "(observation -> action logits; PPO and DQN), checkpoints/, tensorboard/ (tensorboard "
+        "--logdir DIR/tensorboard), scenario.json and training.json into --out. "
+        f"Needs the rl extra ({RL_EXTRA}).",
     )
     train.add_argument("--preset", choices=sorted(PRESETS), help="base values of the scenario")
     train.add_argument("--scenario", type=Path, metavar="FILE.json", help="scenario as JSON")
@@ -70,7 +71,7 @@ def _train(args: argparse.Namespace) -> int:
     try:
         from stable_baselines3.common.callbacks import CheckpointCallback
 
-        from nanonav.env.baselines import NanoNavVecEnv
+        from nanonav.env.baselines import NanoNavVecEnv, export_onnx
     except ImportError as missing:
         raise UsageError([f"training needs the rl extra ({RL_EXTRA}): {missing}"]) from None
     out: Path = args.out
@@ -90,12 +91,16 @@ def _train(args: argparse.Namespace) -> int:
     )  # fmt: skip
     seconds = time.perf_counter() - started
     model.save(out / "model.zip")
+    exported = None
+    if args.algo != "recurrent-ppo":  # its memory would be an input too: not exported yet
+        export_onnx(model, out / "policy.onnx")
+        exported = "policy.onnx"
     (out / "scenario.json").write_text(scenario.model_dump_json(indent=1) + "\n")
     done = int(model.num_timesteps)
     report = {
         "algo": args.algo, "decisions": done, "envs": args.envs, "seed": scenario.seed,
         "seconds": round(seconds, 3), "decisions_per_s": round(done / max(seconds, 1e-9), 1),
-        "decision_interval_steps": scenario.decision_steps,
+        "decision_interval_steps": scenario.decision_steps, "onnx": exported,
     }  # fmt: skip
     (out / "training.json").write_text(json.dumps(report, indent=1) + "\n")
     print(

@@ -11,6 +11,8 @@ next-step reset; both step the same worlds (``nanonav.env.worlds``).
 
 from __future__ import annotations
 
+import warnings
+from pathlib import Path
 from typing import Any
 
 import gymnasium
@@ -138,3 +140,49 @@ class NanoNavVecEnv(VecEnv):
     ) -> list[bool]:  # fmt: skip
         """No world is wrapped: they are arrays, not Gymnasium environments."""
         return [False for _ in self._indices(indices)]
+
+
+ONNX_OPSET = 17
+"""The ONNX opset ``export_onnx`` writes: one onnxruntime has run since 2022."""
+
+
+def export_onnx(model: Any, path: Path) -> None:
+    """Write ``model``'s greedy decision as ONNX, the exchange format of neural networks: one
+    float32 input ``observation`` (batch x the env's observation width) and one output
+    ``logits`` (batch x actions; the greedy action is its argmax). PPO gives its policy's
+    action logits, DQN its Q-values. A recurrent policy is refused (``ValueError``): its memory
+    would be an input too. The file is data, not code: onnxruntime runs it with no Python of
+    the model's, unlike SB3's own zip, which holds pickles."""
+    import torch
+    from stable_baselines3 import DQN, PPO
+
+    policy = model.policy
+    head: torch.nn.Module
+    if isinstance(model, PPO):
+
+        class Logits(torch.nn.Module):
+            def __init__(self, actor: Any) -> None:
+                super().__init__()
+                self.actor = actor  # a submodule: its weights are the graph's, not constants
+
+            def forward(self, observation: torch.Tensor) -> torch.Tensor:
+                actor = self.actor
+                features = actor.extract_features(observation, actor.pi_features_extractor)
+                logits: torch.Tensor = actor.action_net(actor.mlp_extractor.forward_actor(features))
+                return logits
+
+        head = Logits(policy)
+    elif isinstance(model, DQN):
+        head = policy.q_net
+    else:
+        raise ValueError(f"{type(model).__name__} cannot be exported: only PPO and DQN")
+    width = int(model.observation_space.shape[0])
+    head = head.to("cpu").eval()
+    with warnings.catch_warnings():
+        # the TorchScript exporter: torch's newer one needs onnxscript, which nothing else does
+        warnings.simplefilter("ignore", DeprecationWarning)
+        torch.onnx.export(
+            head, (torch.zeros(1, width),), str(path), input_names=["observation"],
+            output_names=["logits"], opset_version=ONNX_OPSET, dynamo=False,
+            dynamic_axes={"observation": {0: "batch"}, "logits": {0: "batch"}},
+        )  # fmt: skip

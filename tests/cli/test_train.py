@@ -7,6 +7,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+import onnxruntime as ort
 import pytest
 from sb3_contrib import RecurrentPPO
 from stable_baselines3 import DQN, PPO
@@ -40,9 +41,21 @@ def test_a_learner_trains_and_leaves_what_it_learned(
     assert json.loads((out / "scenario.json").read_text())["seed"] == 5000
     model = LOADERS[algo].load(out / "model.zip", device="cpu")
     env = NanoNavVecEnv(2, {"preset": "paper-single", "seed": 9000})
-    actions, _ = model.predict(env.reset(), deterministic=True)
+    obs = env.reset()
+    actions, _ = model.predict(obs, deterministic=True)
     assert np.asarray(actions).shape == (2,)
     assert all(0 <= a < len(env.action_labels) for a in np.asarray(actions))
+    if algo == "recurrent-ppo":
+        assert report["onnx"] is None and not (out / "policy.onnx").exists()
+        return
+    # the exported policy, run by onnxruntime, decides as the model does
+    assert report["onnx"] == "policy.onnx"
+    session = ort.InferenceSession(str(out / "policy.onnx"), providers=["CPUExecutionProvider"])
+    (given,) = session.get_inputs()
+    assert given.name == "observation" and given.shape[1] == obs.shape[1]
+    (logits,) = session.run(["logits"], {"observation": obs})
+    assert logits.shape == (2, len(env.action_labels))
+    np.testing.assert_array_equal(logits.argmax(axis=1), actions)
 
 
 def test_a_scenario_that_is_not_one_is_refused_naming_the_field(
