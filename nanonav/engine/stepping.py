@@ -242,12 +242,15 @@ def step_worlds(
     actions: NDArray[np.int64],
     fresh: NDArray[np.bool_],
     directions: NDArray[np.float64],
+    advance: bool,
 ) -> int:
     """Every world k of ``batches[0]`` (its arrays shaped worlds x ...) one move
     (``step_world``) on ``actions[k]`` (one per robot), or, where ``fresh[k]``, into a fresh
     world (its actions unused); a world whose episode is over and is not fresh stays as it
-    is. What each world's robots perceived and got is then in its ``pc``. Returns the first
-    non-zero ``draw_world`` status, or 0. (The parameters and the batch come in lists of one:
+    is, and so does every world not fresh unless ``advance`` (a reset of some worlds alone,
+    as Stable-Baselines3 resets a finished world within the step that ended it). What each
+    world's robots perceived and got is then in its ``pc``. Returns the first non-zero
+    ``draw_world`` status, or 0. (The parameters and the batch come in lists of one:
     a list crosses into compiled code at once, where a tuple of many arrays is checked array
     by array each call.)"""
     p = params[0]
@@ -258,6 +261,8 @@ def step_worlds(
             status = reset_world(p, world_rngs[k], rngs[k], _sim_at(batch, k))
             if status != 0:
                 return status
+    if not advance:
+        return 0
     last = worlds - 1
     for start in range(0, worlds, CHUNK):
         # CHUNK worlds' generators (the last world's again where the batch runs out)

@@ -111,16 +111,9 @@ class NanoNavVecEnv(VecEnv):
     def close(self) -> None:
         """Nothing to release: the worlds are arrays of this process."""
 
-    def _indices(self, indices: VecEnvIndices) -> list[int]:
-        if indices is None:
-            return list(range(self.num_envs))
-        if isinstance(indices, int):
-            return [indices]
-        return list(indices)
-
     def get_attr(self, attr_name: str, indices: VecEnvIndices = None) -> list[Any]:
         """The attribute, once per world asked for: every world shares this object's."""
-        return [getattr(self, attr_name) for _ in self._indices(indices)]
+        return [getattr(self, attr_name) for _ in self._get_indices(indices)]
 
     def set_attr(self, attr_name: str, value: Any, indices: VecEnvIndices = None) -> None:
         """Set on this object, which every world shares."""
@@ -132,14 +125,14 @@ class NanoNavVecEnv(VecEnv):
     ) -> list[Any]:  # fmt: skip
         """This object's method, called once per world asked for."""
         method = getattr(self, method_name)
-        return [method(*method_args, **method_kwargs) for _ in self._indices(indices)]
+        return [method(*method_args, **method_kwargs) for _ in self._get_indices(indices)]
 
     def env_is_wrapped(
         self, wrapper_class: type[gymnasium.Wrapper[Any, Any, Any, Any]],
         indices: VecEnvIndices = None,
     ) -> list[bool]:  # fmt: skip
         """No world is wrapped: they are arrays, not Gymnasium environments."""
-        return [False for _ in self._indices(indices)]
+        return [False for _ in self._get_indices(indices)]
 
 
 ONNX_OPSET = 17

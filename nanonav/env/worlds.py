@@ -210,28 +210,19 @@ class Worlds:
         elif not checked:
             self.check(actions, (self.count, self.robots))
             actions = actions.astype(np.int64, copy=False)  # one compiled signature
-        status = stepping.step_worlds(
-            self._params,
-            self.world_rngs,
-            self.rngs,
-            self._batches,
-            actions,
-            fresh,
-            self.directions,
-        )
-        raise_for_layout(status, self.scenario)
+        self._call(actions, fresh, advance=True)
 
     def redraw(self, fresh: NDArray[np.bool_]) -> None:
         """Draw a fresh world where ``fresh`` and leave every other world as it is, outputs
-        included (Stable-Baselines3's same-step reset): the others are held as over for the
-        call, which leaves an over world untouched, then given back their clocks."""
-        clock = self.batch.pc.clock
-        held = ~fresh & (clock[:, phases.CLOCK_OVER] == 0)
-        clock[held, phases.CLOCK_OVER] = 1
-        try:
-            self.step(None, fresh)
-        finally:
-            clock[held, phases.CLOCK_OVER] = 0
+        included (Stable-Baselines3's same-step reset)."""
+        self._call(self._no_actions, fresh, advance=False)
+
+    def _call(self, actions: NDArray[np.int64], fresh: NDArray[np.bool_], advance: bool) -> None:
+        status = stepping.step_worlds(
+            self._params, self.world_rngs, self.rngs, self._batches, actions, fresh,
+            self.directions, advance,
+        )  # fmt: skip
+        raise_for_layout(status, self.scenario)
 
     def in_action_set(self, actions: NDArray[Any]) -> bool:
         """Whether every one of ``actions`` is an integer of the action set."""

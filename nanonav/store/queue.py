@@ -327,6 +327,19 @@ class JobStore:
             blob: bytes | None = _result_column(session, job_id, JobResult.qtable, kept=True)
         return unpack(blob) if blob is not None else {}
 
+    def qtables(self, job_ids: Sequence[int]) -> dict[int, dict[str, NDArray[Any]]]:
+        """The Q-tables of a list of jobs, in one query for the whole list: those that kept one
+        (a study's learning points, say); a job without one is left out."""
+        if not job_ids:
+            return {}
+        with unit_of_work(self._sessions) as session:
+            rows = session.execute(
+                select(JobResult.job_id, JobResult.qtable).where(
+                    JobResult.job_id.in_(list(job_ids)), JobResult.qtable.is_not(None)
+                )
+            ).all()
+        return {int(job_id): unpack(blob) for job_id, blob in rows if blob is not None}
+
     def plot(self, job_id: int, name: str, *, kept: bool = False) -> bytes | None:
         """The PNG ``name`` of a succeeded job (or, if ``kept``, of a cancelled job that kept
         its episodes) if it has been drawn, else None."""

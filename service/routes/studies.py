@@ -199,9 +199,7 @@ def list_studies(
                 jobs=jobs,
                 links=_links(
                     record.id,
-                    (*pictures.EVERY_STUDYS_PICTURES, "policies")
-                    if learns(record.spec)
-                    else pictures.EVERY_STUDYS_PICTURES,
+                    (*pictures.EVERY_STUDYS_PICTURES, *pictures.policies_of(learns(record.spec))),
                 ),
             )
         )
@@ -343,10 +341,11 @@ def _draw_now(
                 f"no point of study {study_id} learns a Q-table: only q_learning trained for "
                 "at least one episode does"
             )
+        learned = [j for j in loaded.outcomes if j.point in learning and j.status == "succeeded"]
+        kept = store.qtables([j.job_id for j in learned])
         tables: dict[int, list[dict[str, Any]]] = {}
-        for job in loaded.outcomes:
-            if job.point in learning and job.status == "succeeded":
-                tables.setdefault(job.point, []).append(store.qtable(job.job_id))
+        for job in learned:
+            tables.setdefault(job.point, []).append(kept.get(job.job_id, {}))
         png = pictures.policies_png(loaded.spec, point_values(loaded.spec), tables)
     else:
         found = loaded.report(studies)

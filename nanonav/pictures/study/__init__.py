@@ -72,8 +72,12 @@ def pictures_of(report: dict[str, Any], learns: bool = False) -> tuple[str, ...]
     """The pictures of the study ``report`` describes: a chart of each metric it reports (the
     swarm's only once a job has them: ``nanonav.studies.report.reported_metrics``), the
     learning curves, and if any of its points ``learns`` (``learning_points``), its policies."""
-    found = (*(m for m in METRICS if m in report["metrics"]), "learning")
-    return (*found, "policies") if learns else found
+    return (*(m for m in METRICS if m in report["metrics"]), "learning", *policies_of(learns))
+
+
+def policies_of(learns: bool) -> tuple[str, ...]:
+    """The policies picture, for a study any of whose points learns (``learning_points``)."""
+    return ("policies",) if learns else ()
 
 
 def learning_points(spec: StudySpec) -> list[int]:
