@@ -165,7 +165,9 @@ def test_a_study_launched_from_the_form_fills_in_its_table(page: Page, site: Sit
     expect(first_row).to_contain_text("q_learning")
     expect(first_row).to_contain_text("3/3")
     images = wait_for_images(page)
-    assert len(images) == 4 and all(int(str(i["width"])) > 0 for i in images), images
+    # a picture for each shown metric, the learning curves and the learned policies
+    assert len(images) == 5 and all(int(str(i["width"])) > 0 for i in images), images
+    assert any("/plots/policies.png" in str(i["src"]) for i in images), images
     study_id = page.url.rsplit("/", 1)[1]
     table = httpx.get(f"{site.url}/studies/{study_id}/results.csv").text
     assert len(table.splitlines()) == 1 + 12
