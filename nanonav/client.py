@@ -18,8 +18,10 @@ the worker, nor the engine.
 
 from __future__ import annotations
 
+import base64
 import csv
 import io
+import os
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import MISSING, Field, dataclass, field, fields
@@ -332,8 +334,8 @@ class Study(StudySummary):
 
 @dataclass(frozen=True, kw_only=True)
 class Policy:
-    """A policy as ``POST /policies`` answers it and ``GET /policies`` lists it: a Q-table made
-    elsewhere, that a scenario evaluates by naming ``policy_from``."""
+    """A policy as ``POST /policies`` answers it and ``GET /policies`` lists it: a Q-table or a
+    network (``kind``) made elsewhere, that a scenario evaluates by naming ``policy_from``."""
 
     id: int
     policy_from: str  # what a scenario's policy_from names it by: "policy-<id>"
@@ -347,6 +349,7 @@ class Policy:
     created_at: datetime
     links: dict[str, Any]
     raw: dict[str, Any] = field(repr=False, compare=False)
+    kind: str = "table"  # or "network": an ONNX model, whose state_count is its input width
 
     @classmethod
     def of(cls, data: dict[str, Any]) -> Policy:
@@ -363,6 +366,7 @@ class Policy:
             created_at=datetime.fromisoformat(data["created_at"]),
             links=data.get("links") or {},
             raw=data,
+            kind=str(data.get("kind", "table")),
         )
 
 
@@ -671,8 +675,34 @@ class Client:
             body["name"] = name
         return Policy.of(self._json("POST", "/policies", json=body, key=idempotency_key))
 
+    def send_network(
+        self,
+        model: bytes | str | os.PathLike[str],
+        *,
+        observation: Sequence[str] | None = None,
+        actions: Sequence[str] | None = None,
+        name: str | None = None,
+        idempotency_key: str | None = None,
+    ) -> Policy:
+        """Send a network: ``model`` is an ONNX model (its bytes, or a file's path) that takes
+        a float32 batch of observations and gives action logits or actions. ``observation``
+        and ``actions`` name its input columns and its actions (an environment's
+        ``observation_labels`` and ``action_labels``); leave them out when the model's metadata
+        names them, as ``nanonav train``'s policy.onnx does. The service checks the model and
+        runs it once before it keeps it (``ApiError`` 422 saying what is wrong)."""
+        data = model if isinstance(model, bytes) else Path(model).read_bytes()
+        body: dict[str, Any] = {"onnx": base64.b64encode(data).decode("ascii")}
+        if observation is not None:
+            body["observation"] = list(observation)
+        if actions is not None:
+            body["actions"] = list(actions)
+        if name is not None:
+            body["name"] = name
+        return Policy.of(self._json("POST", "/policies", json=body, key=idempotency_key))
+
     def policy(self, policy_id: int) -> dict[str, Any]:
-        """A policy with its table: ``states``, ``actions``, ``values`` and ``greedy``."""
+        """A policy with its table: ``states``, ``actions``, ``values`` and ``greedy``; or a
+        network's ``observation``, ``actions`` and ``model_bytes``."""
         return self._json("GET", f"/policies/{policy_id}")
 
     def policies(self, *, limit: int | None = None) -> Iterator[Policy]:

@@ -17,10 +17,17 @@ import numpy as np
 from numpy.typing import NDArray
 
 from nanonav.engine import qlearning
+from nanonav.engine.worlds import OBSERVATION_LABELS, observation_of
 from nanonav.scenario import ActionSet, CommunicationModel, Scenario
 from nanonav.store.errors import JobNotFound, ResultsUnavailable
 from nanonav.store.models import JobStatus
-from nanonav.store.policies import PolicyNotFound, PolicyRecord, PolicySource, policy_number
+from nanonav.store.policies import (
+    NETWORK,
+    PolicyNotFound,
+    PolicyRecord,
+    PolicySource,
+    policy_number,
+)
 
 UNVISITED = "unvisited"
 ACTION_SETS: tuple[ActionSet, ...] = get_args(ActionSet)
@@ -196,6 +203,8 @@ def fit_problem(
     shared or per-robot learners (every robot starts from it), a per-robot table needs
     per-robot learners and the same number of robots."""
     name, verb = _named(source)
+    if "model" in table:
+        return _network_problem(scenario, name, table)
     if "values" not in table:
         return f"{name} learned no Q-table: only q_learning jobs do"
     wanted = scenario.learning.actions
@@ -244,12 +253,55 @@ def fit_problem(
     return None
 
 
-def learned_table(scenario: Scenario, read: TableReader) -> NDArray[np.float64]:
-    """The values of the Q-table ``scenario.policy_from`` names, for ``simulate(policy=)``.
+def _network_problem(
+    scenario: Scenario, name: str, table: Mapping[str, NDArray[Any]]
+) -> str | None:
+    """Why a network cannot decide for ``scenario``'s robots, or None when it can: it must
+    choose among the scenario's actions, from what its robots observe."""
+    wanted = scenario.learning.actions
+    communication = scenario.communication.model
+    actions = qlearning.labels(wanted, communication)[1]
+    given = table["actions"].tolist()
+    if given != actions:
+        same = [layout for layout in LAYOUTS if list(layout.action_labels) == given]
+        if same and same[0].actions != wanted:
+            return (
+                f"{name} chooses among the '{same[0].actions}' actions and this scenario uses "
+                f"'{wanted}': learning.actions must be the same"
+            )
+        models = sorted({model for layout in same for model in layout.communication})
+        return (
+            f"{name} chooses among actions laid out for communication.model "
+            f"{_either(models or ['another version'])} and this scenario's is "
+            f"'{communication}': communication.model must be the same"
+        )
+    observed = list(observation_of(scenario).labels)
+    reads = table["observation"].tolist()
+    if reads != observed:
+        return (
+            f"{name} reads ({', '.join(reads)}) and this scenario's robots observe "
+            f"({', '.join(observed)}): physics.model and communication.model must be those "
+            "it was trained in"
+        )
+    return None
+
+
+@dataclass(frozen=True)
+class Network:
+    """A network a ``policy_from`` names: its ONNX model and what it reads and chooses."""
+
+    model: bytes
+    observation: tuple[str, ...]
+    actions: tuple[str, ...]
+
+
+def learned_policy(scenario: Scenario, read: TableReader) -> NDArray[np.float64] | Network:
+    """What ``scenario.policy_from`` names: the values of a Q-table, for ``simulate(policy=)``,
+    or a network, for ``rl.evaluate``.
 
     ``read`` is how a stored table is read (``JobStore.qtable``, which reads a job's or a
     policy's). Raises ``UnusablePolicy`` when the job or policy does not exist, the job has not
-    succeeded, or the table does not fit."""
+    succeeded, or the table or network does not fit."""
     source = scenario.policy_from
     if source is None:
         raise ValueError("the scenario names no policy_from")
@@ -267,6 +319,12 @@ def learned_table(scenario: Scenario, read: TableReader) -> NDArray[np.float64]:
     problem = fit_problem(scenario, source, table)
     if problem is not None:
         raise UnusablePolicy(problem)
+    if "model" in table:
+        return Network(
+            table["model"].tobytes(),
+            tuple(table["observation"].tolist()),
+            tuple(table["actions"].tolist()),
+        )
     values: NDArray[np.float64] = np.asarray(table["values"], dtype=np.float64)
     return values
 
@@ -424,6 +482,68 @@ def greedy_values(layout: Layout, choices: Sequence[tuple[str, str]]) -> NDArray
     return table
 
 
+# ---------------------------------------------------------------- a network made elsewhere
+
+
+@dataclass(frozen=True)
+class NetworkLayout:
+    """What a network decides from and among: the observation columns it reads (an
+    environment's ``observation_labels``) and the actions it chooses (``action_labels``), and
+    the action set and communication models whose scenarios give both."""
+
+    actions: ActionSet
+    communication: tuple[CommunicationModel, ...]
+    observation: tuple[str, ...]
+    action_labels: tuple[str, ...]
+
+
+def observed_communication(observation: Sequence[str]) -> tuple[CommunicationModel, ...]:
+    """The communication models whose robots observe the signal columns ``observation`` has:
+    a net signal and its change (the chemical ones), the signal alone (broadcast), or neither."""
+    if "signal_change" in observation:
+        return ("attractant", "attractant_repellent")
+    return ("broadcast",) if "signal" in observation else ("none",)
+
+
+def observed_physics(observation: Sequence[str]) -> str:
+    """The physics whose robots observe ``observation``: only the lattice's sense a gradient
+    without steering up it."""
+    return "lattice" if "gradient_x" in observation else "active_brownian"
+
+
+def network_layout(observation: Sequence[str], actions: Sequence[str]) -> NetworkLayout:
+    """The layout of a network that reads ``observation`` and chooses among ``actions``, in
+    order; ``InvalidPolicy`` at ``observation`` or ``actions`` saying what would be.
+
+    An observation is some of ``OBSERVATION_LABELS``, in their order (a scenario leaves out
+    the columns it never fills); which are there is checked against each scenario that names
+    the network."""
+    observation, actions = list(observation), list(actions)
+    same_actions = [layout for layout in LAYOUTS if list(layout.action_labels) == actions]
+    if not same_actions:
+        raise InvalidPolicy(("actions",), _actions_problem(actions), LAYOUT_RULE)
+    order = {label: i for i, label in enumerate(OBSERVATION_LABELS)}
+    places = [order.get(label, -1) for label in observation]
+    if -1 in places or places != sorted(set(places)):
+        detail = (
+            f"({', '.join(observation)}) is no robot's observation: an environment's "
+            f"observation_labels are some of ({', '.join(OBSERVATION_LABELS)}), in that order"
+        )
+        raise InvalidPolicy(("observation",), detail, LAYOUT_RULE)
+    if "signal_change" in observation and "signal" not in observation:
+        detail = "a robot that observes signal_change observes the signal too"
+        raise InvalidPolicy(("observation",), detail, LAYOUT_RULE)
+    heard = observed_communication(observation)
+    models = [m for layout in same_actions for m in layout.communication if m in heard]
+    if not models:
+        detail = (
+            f"robots that observe ({', '.join(observation)}) communicate by {_either(heard)}, "
+            f"and the actions are those of {_actions_title(same_actions)}"
+        )
+        raise InvalidPolicy(("observation",), detail, LAYOUT_RULE)
+    return NetworkLayout(same_actions[0].actions, tuple(models), tuple(observation), tuple(actions))
+
+
 @dataclass(frozen=True)
 class Chemotaxis:
     """How many states that sense a gradient move up it: of ``states`` such visited states of a
@@ -490,16 +610,23 @@ def chemotaxis(
     )
 
 
-def evaluation_scenario(policy: PolicyRecord) -> dict[str, Any]:
+def evaluation_scenario(
+    policy: PolicyRecord, observation: Sequence[str] | None = None
+) -> dict[str, Any]:
     """The smallest scenario that evaluates ``policy`` without learning: its action set
     (steering, in active_brownian physics), its first communication model, and with a table per
-    robot, as many robots each with its own; the rest is left to defaults."""
+    robot, as many robots each with its own; a network's physics from its ``observation``, its
+    robots deciding at once; the rest is left to defaults."""
     learning: dict[str, Any] = {"episodes": 0, "actions": policy.action_set}
     scenario: dict[str, Any] = {"policy_from": policy.policy_from, "learning": learning}
-    if policy.action_set == "steering":
+    if policy.action_set == "steering" or (
+        observation is not None and observed_physics(observation) == "active_brownian"
+    ):
         scenario["physics"] = {"model": "active_brownian"}
     if policy.communication[0] != "none":
         scenario["communication"] = {"model": policy.communication[0]}
+    if policy.kind == NETWORK:
+        scenario["robots"] = {"schedule": "simultaneous"}  # every robot decided at once
     if policy.per_robot:
         scenario["robots"] = {"count": policy.tables}
         learning["shared_table"] = False

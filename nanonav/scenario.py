@@ -1001,12 +1001,16 @@ class Scenario(_Part):
         | None
     ) = Field(
         None,
-        description="The table this run starts from, to evaluate it in this scenario's worlds "
-        "without training (learning.episodes must be 0 and robots.policy q_learning): the id of "
-        "a succeeded Q-learning job, whose learned table it is, or 'policy-<id>', a table made "
-        "elsewhere and sent to POST /policies. Its action set and state layout must be this "
-        "scenario's (learning.actions, communication.model); a shared table may drive robots "
-        "that each learn their own, a per-robot table needs as many robots.",
+        description="The learned policy this run evaluates in this scenario's worlds without "
+        "training (learning.episodes must be 0 and robots.policy q_learning, the learner whose "
+        "policy it is): the id of a succeeded Q-learning job, whose learned table it is, or "
+        "'policy-<id>', a table or a network made elsewhere and sent to POST /policies. A "
+        "table's action set and state layout must be this scenario's (learning.actions, "
+        "communication.model); a shared table may drive robots that each learn their own, a "
+        "per-robot table needs as many robots. A network must choose among this scenario's "
+        "actions from what its robots observe (the physics and communication.model it was "
+        "trained in); it decides for every robot of every evaluation world in one call, each "
+        "decision held for learning.decision_interval_s.",
     )
 
     @field_validator("policy_from", mode="wrap")
@@ -1222,12 +1226,12 @@ class Scenario(_Part):
         if self.robots.policy != "q_learning":
             raise _field_error(
                 "Scenario", ("robots", "policy"), self.robots.policy,
-                "policy_from needs q_learning: only a Q-table can be evaluated",
+                "policy_from needs q_learning: only a learned policy can be evaluated",
             )  # fmt: skip
         if self.learning.episodes != 0:
             raise _field_error(
                 "Scenario", ("learning", "episodes"), self.learning.episodes,
-                "must be 0 with policy_from: a learned table is evaluated, not trained further",
+                "must be 0 with policy_from: a learned policy is evaluated, not trained further",
             )  # fmt: skip
         return self
 

@@ -350,6 +350,14 @@ class Settings(BaseSettings):
         "queued and running, by default ten full-budget jobs; a submit past it gets 429, one "
         "that alone is larger gets 422. 0: no limit.",
     )
+    policy_model_max_bytes: int = Field(
+        700_000,
+        ge=1024,
+        validation_alias=_aliases("policy_model_max_bytes"),
+        description="Largest ONNX model a policy may be, bytes (POST /policies sends it in "
+        "base64, a third larger, within max_body_bytes). A network of two hidden layers of 64 "
+        "takes about 25 kB.",
+    )
     quota_policies: int = Field(
         1000,
         ge=0,

@@ -9,7 +9,7 @@ from typing import Any, cast
 
 from numpy.typing import NDArray
 
-from nanonav.policy import TableReader, UnusablePolicy, learned_table
+from nanonav.policy import TableReader, UnusablePolicy, learned_policy
 from nanonav.scenario import Scenario
 from nanonav.store import PolicyNotFound
 from service.problems import InvalidInput, field_error
@@ -27,7 +27,7 @@ def check_policy_from(
     if scenario.policy_from is None:
         return
     try:
-        learned_table(scenario, cast(TableReader, read))
+        learned_policy(scenario, cast(TableReader, read))
     except UnusablePolicy as error:
         raise _unusable(loc, f"{where}{error}") from None
 

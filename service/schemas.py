@@ -8,6 +8,7 @@ from datetime import datetime
 from typing import Annotated, Any, Literal
 
 from pydantic import (
+    Base64Bytes,
     BaseModel,
     ConfigDict,
     Field,
@@ -18,6 +19,7 @@ from pydantic import (
 from pydantic_core import ErrorDetails, PydanticCustomError
 
 from nanonav.engine import qlearning
+from nanonav.engine.worlds import OBSERVATION_LABELS
 from nanonav.pictures import job as job_pictures
 from nanonav.policy import MAX_ACTIONS, MAX_Q, MAX_STATES, MAX_TABLES, UNVISITED
 from nanonav.scenario import ActionSet, CommunicationModel
@@ -727,11 +729,19 @@ class GreedyChoice(BaseModel):
 
 
 class NewPolicy(BaseModel):
-    """A Q-table made elsewhere (say, by training on NanoNav's Gymnasium or PettingZoo
-    environments), for scenarios to evaluate. ``states`` and ``actions`` are the labels of its
-    rows and columns, in order: exactly those the engine has for one action set and
-    communication model (an environment's ``state_labels`` and ``action_labels``). The table
-    is ``values`` or ``greedy``, exactly one of them."""
+    """A Q-table or a network made elsewhere (say, by training on NanoNav's Gymnasium or
+    PettingZoo environments), for scenarios to evaluate.
+
+    A table: ``states`` and ``actions`` are the labels of its rows and columns, in order:
+    exactly those the engine has for one action set and communication model (an environment's
+    ``state_labels`` and ``action_labels``). The table is ``values`` or ``greedy``, exactly
+    one of them.
+
+    A network: ``onnx``, an ONNX model in base64, that takes a float32 batch of observations
+    (batch x the columns ``observation`` names, an environment's ``observation_labels``) and
+    gives the logits of ``actions`` (batch x actions) or the action numbers (batch);
+    ``observation`` and ``actions`` may be left out when the model's metadata names them
+    (``nanonav train`` writes them)."""
 
     model_config = ConfigDict(
         extra="forbid",
@@ -740,11 +750,34 @@ class NewPolicy(BaseModel):
     )
 
     name: str | None = Field(None, max_length=200, description="What to call it in lists.")
-    states: list[Label] = Field(
-        min_length=1, max_length=MAX_STATES, description="The state of each row, in order."
+    states: list[Label] | None = Field(
+        None,
+        min_length=1,
+        max_length=MAX_STATES,
+        description="A table's: the state of each row, in order.",
     )
-    actions: list[Label] = Field(
-        min_length=1, max_length=MAX_ACTIONS, description="The action of each column, in order."
+    actions: list[Label] | None = Field(
+        None,
+        min_length=1,
+        max_length=MAX_ACTIONS,
+        description="The action of each column of a table, or of each logit of a network, in "
+        "order (for a network, the model's metadata may name them instead).",
+    )
+    observation: list[Label] | None = Field(
+        None,
+        min_length=1,
+        max_length=len(OBSERVATION_LABELS),
+        description="A network's: the observation column of each input, in order (an "
+        "environment's observation_labels; the model's metadata may name them instead).",
+    )
+    onnx: Base64Bytes | None = Field(
+        None,
+        strict=False,  # base64 text decodes to the model's bytes
+        description="A network: the ONNX model's bytes in base64 (at most "
+        "NANONAV_POLICY_MODEL_MAX_BYTES decoded). It is checked before it is kept: one float32 "
+        "input (batch x observation), a first output of logits (batch x actions) or actions "
+        "(batch), the standard operator sets only, weights inside the model, no loops, every "
+        "computed value of a fixed size per observation, and one trial run.",
     )
     values: Table | Tables | None = Field(
         None,
@@ -808,6 +841,7 @@ POLICY_EXAMPLE: dict[str, Any] = {
     "action_count": 4,
     "table_count": 1,
     "per_robot": False,
+    "kind": "table",
     "created_at": "2026-12-03T10:00:00Z",
     "links": {"self": "/policies/3"},
 }
@@ -833,6 +867,10 @@ class PolicySummary(BaseModel):
         "scenario that evaluates it needs as many robots, each learning its own."
     )
     per_robot: bool = Field(description="Whether values is [robot][state][action].")
+    kind: Literal["table", "network"] = Field(
+        description="'table': a Q-table; 'network': an ONNX model (its state_count is the "
+        "width of its observation)."
+    )
     created_at: datetime
     links: PolicyLinks
 
@@ -848,6 +886,7 @@ class PolicySummary(BaseModel):
             "action_count": record.actions,
             "table_count": record.tables,
             "per_robot": record.per_robot,
+            "kind": record.kind,
             "created_at": record.created_at,
             "links": PolicyLinks(self_=f"/policies/{record.id}"),
         }
@@ -858,15 +897,24 @@ class PolicySummary(BaseModel):
 
 
 class Policy(PolicySummary):
-    """A policy with its table: labels, values and the greedy action of every state."""
+    """A policy with its table (labels, values and the greedy action of every state), or a
+    network with what it reads and chooses."""
 
-    states: list[str]
+    states: list[str] | None = Field(None, description="A table's rows.")
     actions: list[str]
-    values: list[Any] = Field(description="[state][action], or [robot][state][action].")
-    greedy: list[GreedyState] = Field(
-        description="A row per state, as GET /jobs/{id}/qtable gives it (visits are 0: nothing "
-        "was visited here); for per-robot tables, the greedy table of their plain mean."
+    values: list[Any] | None = Field(
+        None, description="A table's: [state][action], or [robot][state][action]."
     )
+    greedy: list[GreedyState] | None = Field(
+        None,
+        description="A table's: a row per state, as GET /jobs/{id}/qtable gives it (visits are "
+        "0: nothing was visited here); for per-robot tables, the greedy table of their plain "
+        "mean.",
+    )
+    observation: list[str] | None = Field(
+        None, description="A network's: the observation column of each input."
+    )
+    model_bytes: int | None = Field(None, description="A network's: its ONNX model's size.")
 
 
 class PolicyPage(BaseModel):

@@ -20,7 +20,7 @@ from nanonav.policy import (
     fit_problem,
     greedy_table,
     habits,
-    learned_table,
+    learned_policy,
     swarm_table,
 )
 from nanonav.scenario import Cells, Learning, Rewards, Robots, Scenario
@@ -201,7 +201,7 @@ def test_no_table_or_a_table_of_other_labels_or_shape_does_not_fit() -> None:
     assert "the shape (72, 3)" in str(fit_problem(scenario(), 7, wrong_shape))
 
 
-def test_learned_table_reads_the_named_job_and_says_why_it_cannot() -> None:
+def test_learned_policy_reads_the_named_job_and_says_why_it_cannot() -> None:
     table = stored("behaviors", fill=1.5)
 
     def read(job_id: int) -> dict[str, NDArray[Any]]:
@@ -211,14 +211,14 @@ def test_learned_table_reads_the_named_job_and_says_why_it_cannot() -> None:
             raise ResultsUnavailable(8, JobStatus.FAILED)
         raise JobNotFound(job_id)
 
-    values = learned_table(scenario(), read)
+    values = learned_policy(scenario(), read)
     assert values.shape == (72, 4) and float(values[0, 0]) == 1.5
     with pytest.raises(UnusablePolicy, match=r"^there is no job 9$"):
-        learned_table(scenario(policy_from=9), read)
+        learned_policy(scenario(policy_from=9), read)
     with pytest.raises(UnusablePolicy, match="job 8 is failed: only a succeeded job's table"):
-        learned_table(scenario(policy_from=8), read)
+        learned_policy(scenario(policy_from=8), read)
     with pytest.raises(UnusablePolicy, match="'behaviors' actions and this scenario uses"):
-        learned_table(scenario(learning={"episodes": 0, "actions": "directions"}), read)
+        learned_policy(scenario(learning={"episodes": 0, "actions": "directions"}), read)
 
 
 def test_chemotaxis_counts_visited_gradient_states_whose_greedy_move_climbs() -> None:

@@ -21,7 +21,9 @@ from sqlalchemy.exc import SQLAlchemyError
 
 from nanonav.engine import Progress, SimulationResult, simulate
 from nanonav.finite import finite
-from nanonav.policy import UnusablePolicy, learned_table
+from nanonav.policy import Network, UnusablePolicy, learned_policy
+from nanonav.rl.evaluate import PolicyFailed, evaluate
+from nanonav.rl.onnx_policy import InvalidModel, NetworkPolicy
 from nanonav.scenario import Scenario
 from nanonav.settings import Settings
 from nanonav.store import Claim, JobRecord, JobStore, LeaseLost, Outcome
@@ -120,19 +122,25 @@ def run_job(
         scenario = Scenario.model_validate(claim.job.scenario)
     except ValidationError as error:
         return store.fail(claim, f"the stored scenario is no longer valid: {error}")
-    policy = None
+    policy: NDArray[np.float64] | NetworkPolicy | None = None
     if scenario.policy_from is not None:
-        # checked at submit too; the run uses the table as the store holds it now, a job's or
-        # a policy's (either may have been deleted since: the job fails, saying which is gone)
+        # checked at submit too; the run uses the table or network as the store holds it now,
+        # a job's or a policy's (either may have been deleted since: the job fails, saying
+        # which is gone)
         try:
-            policy = learned_table(scenario, store.qtable)
-        except UnusablePolicy as error:
+            policy = _loaded(learned_policy(scenario, store.qtable), settings)
+        except (UnusablePolicy, InvalidModel) as error:
             return _fail(store, claim, f"policy_from: {error}")
     watch = Watch(store, claim, settings, shutdown)
     started = time.perf_counter()
     try:
         with heartbeat(store, claim, settings):
-            result = simulate(scenario, watch, policy=policy)
+            if isinstance(policy, NetworkPolicy):
+                result = evaluate(scenario, policy, watch)
+            else:
+                result = simulate(scenario, watch, policy=policy)
+    except PolicyFailed as error:
+        return _fail(store, claim, f"policy_from: {error}")
     except SQLAlchemyError as error:
         logger.error("job %d: the store refused its progress: %s", job_id, reason(error))
         return _fail(store, claim, f"the store refused the job's progress: {reason(error)}")
@@ -170,6 +178,21 @@ def run_job(
         time.perf_counter() - stored,
     )
     return record
+
+
+def _loaded(
+    policy: NDArray[np.float64] | Network, settings: Settings
+) -> NDArray[np.float64] | NetworkPolicy:
+    """A table as it is; a network's model checked again and loaded (``InvalidModel`` if this
+    worker's ONNX Runtime cannot run it)."""
+    if not isinstance(policy, Network):
+        return policy
+    return NetworkPolicy(
+        policy.model,
+        len(policy.observation),
+        len(policy.actions),
+        max_bytes=settings.policy_model_max_bytes,
+    )
 
 
 def outcome(result: SimulationResult) -> Outcome:

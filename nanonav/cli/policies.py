@@ -1,5 +1,9 @@
-"""``nanonav policy`` and ``nanonav policies``: Q-tables made elsewhere, sent to a running API
-for scenarios to evaluate (``policy_from``), and listed.
+"""``nanonav policy`` and ``nanonav policies``: Q-tables and networks made elsewhere, sent to a
+running API for scenarios to evaluate (``policy_from``), and listed.
+
+A network is an ONNX model (``.onnx``: ``nanonav train``'s policy.onnx, or one exported by
+torch), sent as it is; the labels of its observation and actions come from its metadata or from
+``--observation`` and ``--actions``.
 
 A table is read from a file as the service and the environments write one: a JSON object with
 ``states``, ``actions`` and ``values`` or ``greedy`` (a ``POST /policies`` body, a job's
@@ -35,14 +39,27 @@ SENT = ("states", "actions", "values", "greedy", "name")
 def add_policy(subcommands: Subcommands) -> None:
     policy = subcommands.add_parser(
         "policy",
-        help="send a Q-table made elsewhere, for scenarios to evaluate",
-        description="Send the Q-table in FILE to a running API and print the policy_from "
-        "that names it (policy-<id>): a job or a study evaluates it with that policy_from and "
-        "learning.episodes 0. FILE is JSON with 'states', 'actions' and 'values' or 'greedy' "
-        "(a POST /policies body, or a qtable.json or policy.json that `nanonav fetch` wrote: "
-        "their values are sent), or an .npz with the arrays states, actions and values.",
+        help="send a Q-table or a network made elsewhere, for scenarios to evaluate",
+        description="Send the Q-table or network in FILE to a running API and print the "
+        "policy_from that names it (policy-<id>): a job or a study evaluates it with that "
+        "policy_from and learning.episodes 0. FILE is JSON with 'states', 'actions' and "
+        "'values' or 'greedy' (a POST /policies body, or a qtable.json or policy.json that "
+        "`nanonav fetch` wrote: their values are sent), an .npz with the arrays states, "
+        "actions and values, or an .onnx model (observation -> action logits or actions; "
+        "`nanonav train` writes one, policy.onnx).",
     )
-    policy.add_argument("file", type=Path, metavar="FILE", help="the table, .json or .npz")
+    policy.add_argument(
+        "file", type=Path, metavar="FILE", help="the table, .json or .npz, or the network, .onnx"
+    )
+    policy.add_argument(
+        "--observation", metavar="LABELS",
+        help="an .onnx model's input columns, comma-separated (an environment's "
+        "observation_labels; default: the model's metadata)",
+    )  # fmt: skip
+    policy.add_argument(
+        "--actions", metavar="LABELS",
+        help="an .onnx model's actions, comma-separated (default: the model's metadata)",
+    )  # fmt: skip
     policy.add_argument("--name", metavar="NAME", help="what lists call it (default: FILE's)")
     policy.add_argument(
         "--idempotency-key",
@@ -54,6 +71,10 @@ def add_policy(subcommands: Subcommands) -> None:
 
 
 def _policy(args: argparse.Namespace) -> int:
+    if args.file.suffix == ".onnx":
+        return _network(args)
+    if args.observation is not None or args.actions is not None:
+        raise UsageError(["--observation and --actions are an .onnx model's"])
     table = read_table(args.file)
     if args.name is not None:
         table["name"] = args.name
@@ -70,6 +91,30 @@ def _policy(args: argparse.Namespace) -> int:
     print(
         f"policy {sent.id}: policy_from {sent.policy_from!r} ({sent.action_set} actions, "
         f"{sent.state_count} states x {sent.action_count} actions{robots})"
+    )
+    return EXIT_OK
+
+
+def _network(args: argparse.Namespace) -> int:
+    try:
+        model = args.file.read_bytes()
+    except OSError as error:
+        raise UsageError([f"cannot read {args.file}: {error.strerror}"]) from None
+
+    def labels(text: str | None) -> list[str] | None:
+        return None if text is None else [part.strip() for part in text.split(",")]
+
+    with connect(args) as api:
+        sent = api.send_network(
+            model,
+            observation=labels(args.observation),
+            actions=labels(args.actions),
+            name=args.name or args.file.stem,
+            idempotency_key=args.idempotency_key,
+        )
+    print(
+        f"policy {sent.id}: policy_from {sent.policy_from!r} (a network: {sent.state_count} "
+        f"observation columns -> {sent.action_count} {sent.action_set} actions)"
     )
     return EXIT_OK
 

@@ -216,12 +216,14 @@ def format_policies(policies: Sequence[Policy]) -> str:
             policy.name or "-",
             policy.action_set,
             ",".join(policy.communication),
-            f"{policy.state_count}x{policy.action_count}"
+            f"network {policy.state_count}->{policy.action_count}"
+            if policy.kind == "network"
+            else f"{policy.state_count}x{policy.action_count}"
             + (f" x{policy.table_count} robots" if policy.per_robot else ""),
             _when(policy.created_at),
         )
         for policy in policies
     ]
-    columns = ("id", "policy_from", "name", "actions", "communication", "table", "created")
+    columns = ("id", "policy_from", "name", "actions", "communication", "policy", "created")
     right = (True, False, False, False, False, False, False)
     return "\n".join(text_table(columns, rows, align_right=right))

@@ -93,7 +93,10 @@ def _train(args: argparse.Namespace) -> int:
     model.save(out / "model.zip")
     exported = None
     if args.algo != "recurrent-ppo":  # its memory would be an input too: not exported yet
-        export_onnx(model, out / "policy.onnx")
+        export_onnx(
+            model, out / "policy.onnx", observation=env.observation_labels,
+            actions=env.action_labels,
+        )  # fmt: skip
         exported = "policy.onnx"
     (out / "scenario.json").write_text(scenario.model_dump_json(indent=1) + "\n")
     done = int(model.num_timesteps)

@@ -162,7 +162,7 @@ def over(p: KernelParams, tr: Treatment, s: Swarm, t: int) -> bool:
 
 
 @njit(cache=True, error_model="numpy")
-def _evaluated(
+def tally_evaluation(
     s: Swarm, so: Social, tr: Treatment, out: NDArray[np.float64], cells: NDArray[np.int64]
 ) -> None:
     """Every robot's tallies of an evaluation episode that has ended, into ``out[robot]``, and
@@ -249,7 +249,7 @@ def run(
         curve[episode, CURVE_TREATED] = tr.treated_at.shape[0] - treatment.untreated(tr.treated_at)
         counters[EPISODE_START] = counters[ROBOT_STEPS]
         if evaluating:
-            _evaluated(s, sim.so, tr, evaluation[episode - training],
+            tally_evaluation(s, sim.so, tr, evaluation[episode - training],
                        cell_tallies[episode - training])  # fmt: skip
         episode += 1
         t = 0

@@ -94,7 +94,12 @@ FEATURES = 9
 CLOCK_STEP = 0  # the step the world is at
 CLOCK_OVER = 1  # 1 once its episode is over
 CLOCK_NEXT = 2  # sequential schedule, driven from outside: the robot whose turn it is (-1: none)
-CLOCK_SLOTS = 3
+# driven from outside: 0 measures nothing (an env's worlds); MEASURED adds each step's true field
+# and distance to the robots' sums as an evaluation does; RECORDED also keeps the history rows
+CLOCK_MEASURE = 3
+MEASURED = 1
+RECORDED = 2
+CLOCK_SLOTS = 4
 
 _F = TypeVar("_F", bound=Callable[..., Any])
 

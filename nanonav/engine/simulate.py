@@ -396,6 +396,29 @@ def episode_arrays(scenario: Scenario) -> EpisodeArrays:
     )  # fmt: skip
 
 
+def empty_recording(scenario: Scenario, stride: int) -> Recording:
+    """The arrays of an evaluation world's history, a row every ``stride`` steps."""
+    n = scenario.robots.count
+    cells = scenario.cells.count
+    obstacles = scenario.obstacles.count
+    rows = history_rows(scenario.learning.max_steps, stride)
+    brownian = scenario.physics.model == "active_brownian"
+    signalled = scenario.communication.model != "none"
+    return Recording(
+        pos=np.zeros((rows, n, 3)),
+        cells=np.zeros((rows, cells, 3)),
+        obstacles=np.zeros((rows if obstacles_move(scenario) else 1, obstacles, 3)),
+        conc=np.zeros((rows, n)),
+        dist=np.zeros((rows, n)),
+        step=np.zeros(rows, dtype=np.int64),
+        offsets=np.zeros((cells * scenario.biomarker.emitters_per_cell, 3)),
+        heading=np.zeros((rows if brownian else 0, n, 3)),
+        sensed=np.zeros((rows if brownian else 0, n)),
+        load=np.zeros((rows, cells), dtype=np.int64),
+        signal=np.zeros((rows if signalled else 0, n)),
+    )
+
+
 class _Run:
     """The arrays of one run, allocated once and reused by every episode, and the two
     generators: one draws the worlds (so every policy faces the same ones), one the dynamics."""
@@ -420,7 +443,6 @@ class _Run:
         self.rng = stream(scenario.seed, DYNAMICS_STREAM)
         n = scenario.robots.count
         cells = scenario.cells.count
-        obstacles = scenario.obstacles.count
         arrays = episode_arrays(scenario)
         self.world = arrays.world
         self.treatment = arrays.treatment
@@ -431,22 +453,7 @@ class _Run:
         self.everyone = arrays.everyone
         self.found = arrays.found
         self.signals = arrays.signals
-        comm = scenario.communication.model
-        rows = history_rows(params.max_steps, params.record_stride)
-        brownian = scenario.physics.model == "active_brownian"
-        self.recording = Recording(
-            pos=np.zeros((rows, n, 3)),
-            cells=np.zeros((rows, cells, 3)),
-            obstacles=np.zeros((rows if obstacles_move(scenario) else 1, obstacles, 3)),
-            conc=np.zeros((rows, n)),
-            dist=np.zeros((rows, n)),
-            step=np.zeros(rows, dtype=np.int64),
-            offsets=np.zeros_like(self.world.offsets),
-            heading=np.zeros((rows if brownian else 0, n, 3)),
-            sensed=np.zeros((rows if brownian else 0, n)),
-            load=np.zeros((rows, cells), dtype=np.int64),
-            signal=np.zeros((rows if comm != "none" else 0, n)),
-        )
+        self.recording = empty_recording(scenario, params.record_stride)
         self.sim = phases.Sim(
             self.world, self.swarm, self.social, self.treatment, self.near, self.radio,
             self.everyone, self.found, self.signals.conc, self.signals.scratch, self.recording,
@@ -495,56 +502,75 @@ class _Run:
         ]
 
     def evaluated(self, duration_s: float) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
-        """Every evaluation world's summary, and the first world's per-robot rows; the wall
-        time is shared out over the worlds by their robot-steps."""
-        training = self.scenario.learning.episodes
-        max_steps = self.scenario.learning.max_steps
-        curve = self.curve[training:]
-        robot_steps = curve[:, state.CURVE_ROBOT_STEPS]
-        shares = robot_steps / max(float(robot_steps.sum()), 1.0)
-        worlds = [
-            metrics.world_summary(
-                tallies, max_steps, int(row[state.CURVE_STEPS]), duration_s * float(share)
-            )
-            for tallies, row, share in zip(self.evaluation, curve, shares, strict=True)
-        ]
-        if swarm_metrics(self.scenario):
-            for world, tallies, cells in zip(
-                worlds, self.evaluation, self.cell_tallies, strict=True
-            ):
-                world.update(
-                    metrics.swarm_summary(tallies, cells, self.scenario.cells.capacity, max_steps)
-                )
-        rows = metrics.robot_rows(
-            self.evaluation[0], max_steps, duration_s * float(shares[0]),
-            int(curve[0, state.CURVE_STEPS]),
+        """Every evaluation world's summary, and the first world's per-robot rows."""
+        curve = self.curve[self.scenario.learning.episodes :]
+        return evaluated_worlds(
+            self.scenario, self.evaluation, self.cell_tallies,
+            curve[:, state.CURVE_STEPS].astype(np.int64), curve[:, state.CURVE_ROBOT_STEPS],
+            duration_s,
         )  # fmt: skip
-        return worlds, rows
 
     def trajectory(self) -> Trajectory:
         """The first evaluation world's history (valid once it has ended)."""
         length = int(self.curve[self.scenario.learning.episodes, state.CURVE_STEPS])
-        stride = self.params.record_stride
-        rows = history_rows(length, stride)
-        r = self.recording
-        return Trajectory(
-            step=r.step[:rows].copy(),
-            robots=r.pos[:rows].copy(),
-            cells=r.cells[:rows].copy(),
-            obstacles=r.obstacles[:rows].copy(),
-            concentration=r.conc[:rows].copy(),
-            distance=r.dist[:rows].copy(),
-            robot_steps=self.evaluation[0, :, state.EV_STEPS].astype(np.int64),
-            reached=self.evaluation[0, :, state.EV_REACHED] > 0.0,
-            emitter_offsets=r.offsets.reshape(self.scenario.cells.count, -1, 3).copy(),
-            obstacle_radius=self.scenario.obstacles.radius,
-            stride=stride,
-            headings=r.heading[:rows].copy() if r.heading.shape[0] else None,
-            sensed=r.sensed[:rows].copy() if r.sensed.shape[0] else None,
-            cell_loads=r.load[:rows].copy(),
-            delivered_to=self.evaluation[0, :, state.EV_CELL].astype(np.int64),
-            signals=r.signal[:rows].copy() if r.signal.shape[0] else None,
+        return recorded_trajectory(
+            self.scenario, self.recording, self.evaluation[0], length, self.params.record_stride
         )
+
+
+def evaluated_worlds(
+    scenario: Scenario,
+    tallies: NDArray[np.float64],
+    cell_tallies: NDArray[np.int64],
+    steps: NDArray[np.int64],
+    robot_steps: NDArray[np.float64],
+    duration_s: float,
+) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+    """Every evaluation world's summary from its robots' ``tallies`` (worlds x robots x
+    ``state.EV_COLUMNS``), its cells' and its length in ``steps``, and the first world's
+    per-robot rows; the wall time is shared out over the worlds by their ``robot_steps``."""
+    max_steps = scenario.learning.max_steps
+    shares = robot_steps / max(float(robot_steps.sum()), 1.0)
+    worlds = [
+        metrics.world_summary(world, max_steps, int(length), duration_s * float(share))
+        for world, length, share in zip(tallies, steps, shares, strict=True)
+    ]
+    if swarm_metrics(scenario):
+        for world, robots, cells in zip(worlds, tallies, cell_tallies, strict=True):
+            world.update(metrics.swarm_summary(robots, cells, scenario.cells.capacity, max_steps))
+    rows = metrics.robot_rows(tallies[0], max_steps, duration_s * float(shares[0]), int(steps[0]))
+    return worlds, rows
+
+
+def recorded_trajectory(
+    scenario: Scenario,
+    recording: Recording,
+    tallies: NDArray[np.float64],
+    length: int,
+    stride: int,
+) -> Trajectory:
+    """The history of a recorded world whose episode ended after ``length`` steps, with its
+    robots' ``tallies`` (robots x ``state.EV_COLUMNS``)."""
+    rows = history_rows(length, stride)
+    r = recording
+    return Trajectory(
+        step=r.step[:rows].copy(),
+        robots=r.pos[:rows].copy(),
+        cells=r.cells[:rows].copy(),
+        obstacles=r.obstacles[:rows].copy(),
+        concentration=r.conc[:rows].copy(),
+        distance=r.dist[:rows].copy(),
+        robot_steps=tallies[:, state.EV_STEPS].astype(np.int64),
+        reached=tallies[:, state.EV_REACHED] > 0.0,
+        emitter_offsets=r.offsets.reshape(scenario.cells.count, -1, 3).copy(),
+        obstacle_radius=scenario.obstacles.radius,
+        stride=stride,
+        headings=r.heading[:rows].copy() if r.heading.shape[0] else None,
+        sensed=r.sensed[:rows].copy() if r.sensed.shape[0] else None,
+        cell_loads=r.load[:rows].copy(),
+        delivered_to=tallies[:, state.EV_CELL].astype(np.int64),
+        signals=r.signal[:rows].copy() if r.signal.shape[0] else None,
+    )
 
 
 _compiled = False

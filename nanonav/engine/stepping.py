@@ -23,11 +23,13 @@ from numba.typed import List
 from numpy.typing import NDArray
 
 from nanonav.engine.contacts import CellList
-from nanonav.engine.kernel import begin_episode, over
+from nanonav.engine.kernel import begin_episode, observe, over
 from nanonav.engine.phases import (
+    CLOCK_MEASURE,
     CLOCK_NEXT,
     CLOCK_OVER,
     CLOCK_STEP,
+    RECORDED,
     Percept,
     Sim,
     act,
@@ -64,6 +66,23 @@ def _perceive_all(p: KernelParams, rng: np.random.Generator, sim: Sim, t: int) -
 
 
 @njit(cache=True, error_model="numpy", inline="always")
+def _ended(p: KernelParams, sim: Sim, t: int) -> bool:
+    """Step ``t`` has been reached: measure it if the world is measured (as ``simulate``'s
+    evaluation does after each step, the last one recorded), and end the episode if it is
+    over."""
+    clock = sim.pc.clock
+    measure = clock[CLOCK_MEASURE]
+    if measure:
+        observe(p, sim, t, False, measure == RECORDED)
+    if not over(p, sim.tr, sim.s, t):
+        return False
+    if measure == RECORDED and t % p.record_stride:
+        observe(p, sim, t, True, True)
+    clock[CLOCK_OVER] = 1
+    return True
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def _next_turn(p: KernelParams, rng: np.random.Generator, sim: Sim, first: int) -> None:
     """The sequential schedule: the first active robot from ``first`` on that perceives (one a
     drifting cell reaches spends its turn so) gets the turn; when a step's robots have all had
@@ -83,8 +102,7 @@ def _next_turn(p: KernelParams, rng: np.random.Generator, sim: Sim, first: int) 
             i += 1
         t += 1
         clock[CLOCK_STEP] = t
-        if over(p, sim.tr, s, t):
-            clock[CLOCK_OVER] = 1
+        if _ended(p, sim, t):
             clock[CLOCK_NEXT] = -1
             return
         advance(p, rng, sim, t)
@@ -104,7 +122,8 @@ def reset_world(
     sim.pc.reward[:] = 0.0
     sim.pc.state[:] = 0
     sim.pc.obs[:] = 0.0
-    status = begin_episode(p, world_rng, rng, sim, False, False)
+    measure = clock[CLOCK_MEASURE]
+    status = begin_episode(p, world_rng, rng, sim, measure != 0, measure == RECORDED)
     if status != 0:
         clock[CLOCK_OVER] = 1
         return status
@@ -114,8 +133,9 @@ def reset_world(
         return 0
     _perceive_all(p, rng, sim, 0)
     if not sim.s.active.any():
+        # every robot spent step 0 receiving a cell that drifted onto it
         clock[CLOCK_STEP] = 1
-        clock[CLOCK_OVER] = 1
+        _ended(p, sim, 1)
     return 0
 
 
@@ -156,15 +176,14 @@ def step_world(
     while True:
         t += 1
         clock[CLOCK_STEP] = t
-        if over(p, sim.tr, s, t):
-            clock[CLOCK_OVER] = 1
+        if _ended(p, sim, t):
             return
         advance(p, rng, sim, t)
         _perceive_all(p, rng, sim, t)
         if not s.active.any():
             # the last robots spent step t receiving cells that drifted onto them: it counts
             clock[CLOCK_STEP] = t + 1
-            clock[CLOCK_OVER] = 1
+            _ended(p, sim, t + 1)
             return
         if decides(p, t):
             return

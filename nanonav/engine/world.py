@@ -29,10 +29,12 @@ DYNAMICS_STREAM = 1
 EVALUATION_STREAM = 2  # the evaluation's worlds: the same for every policy run with a seed
 
 
-def stream(seed: int, which: int) -> np.random.Generator:
+def stream(seed: int, which: int, *more: int) -> np.random.Generator:
     """One of a seed's independent generators: ``WORLD_STREAM`` draws nothing but the worlds, so
-    the same seed gives the same world for each episode whatever happens in the episodes."""
-    return np.random.Generator(np.random.PCG64(np.random.SeedSequence(seed, spawn_key=(which,))))
+    the same seed gives the same world for each episode whatever happens in the episodes.
+    ``more`` names further independent ones within ``which`` (one per world of a batch)."""
+    key = (which, *more)
+    return np.random.Generator(np.random.PCG64(np.random.SeedSequence(seed, spawn_key=key)))
 
 
 @njit(cache=True, error_model="numpy")

@@ -11,10 +11,10 @@ from __future__ import annotations
 
 import gymnasium
 
+from nanonav.engine.worlds import OBSERVATION_LABELS
 from nanonav.env.robot import NanoNavEnv, NanoNavVectorEnv
 from nanonav.env.swarm import NanoNavParallelEnv
 from nanonav.env.turns import NanoNavAECEnv
-from nanonav.env.worlds import OBSERVATION_LABELS
 
 ENV_ID = "NanoNav-v0"
 

@@ -6,12 +6,14 @@ A room of its own because SB3's ``VecEnv`` is not Gymnasium's ``VectorEnv``: SB3
 finished world within the step that ended it, returns its last observation in
 ``infos[k]["terminal_observation"]``, marks a time limit in ``"TimeLimit.truncated"`` and takes
 its seeds through ``seed()`` before ``reset()``. ``NanoNavVectorEnv`` keeps Gymnasium's
-next-step reset; both step the same worlds (``nanonav.env.worlds``).
+next-step reset; both step the same worlds (``nanonav.engine.worlds``).
 """
 
 from __future__ import annotations
 
+import json
 import warnings
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -22,8 +24,7 @@ from numpy.typing import NDArray
 from stable_baselines3.common.vec_env import VecEnv
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvIndices, VecEnvStepReturn
 
-from nanonav.env.robot import ScenarioLike
-from nanonav.env.worlds import (
+from nanonav.engine.worlds import (
     Worlds,
     action_labels,
     as_scenario,
@@ -31,6 +32,8 @@ from nanonav.env.worlds import (
     state_labels,
     with_robots,
 )
+from nanonav.env.robot import ScenarioLike
+from nanonav.rl.onnx_policy import METADATA_ACTIONS, METADATA_OBSERVATION
 
 
 class NanoNavVecEnv(VecEnv):
@@ -139,13 +142,23 @@ ONNX_OPSET = 17
 """The ONNX opset ``export_onnx`` writes: one onnxruntime has run since 2022."""
 
 
-def export_onnx(model: Any, path: Path) -> None:
+def export_onnx(
+    model: Any,
+    path: Path,
+    *,
+    observation: Sequence[str] | None = None,
+    actions: Sequence[str] | None = None,
+) -> None:
     """Write ``model``'s greedy decision as ONNX, the exchange format of neural networks: one
     float32 input ``observation`` (batch x the env's observation width) and one output
     ``logits`` (batch x actions; the greedy action is its argmax). PPO gives its policy's
     action logits, DQN its Q-values. A recurrent policy is refused (``ValueError``): its memory
     would be an input too. The file is data, not code: onnxruntime runs it with no Python of
-    the model's, unlike SB3's own zip, which holds pickles."""
+    the model's, unlike SB3's own zip, which holds pickles.
+
+    ``observation`` and ``actions`` (the env's ``observation_labels`` and ``action_labels``)
+    are written into the model's metadata (``METADATA_OBSERVATION``, ``METADATA_ACTIONS``, as
+    JSON lists), where ``POST /policies`` reads them when the request does not name them."""
     import torch
     from stable_baselines3 import DQN, PPO
 
@@ -179,3 +192,12 @@ def export_onnx(model: Any, path: Path) -> None:
             output_names=["logits"], opset_version=ONNX_OPSET, dynamo=False,
             dynamic_axes={"observation": {0: "batch"}, "logits": {0: "batch"}},
         )  # fmt: skip
+    if observation is not None or actions is not None:
+        import onnx
+
+        exported = onnx.load(str(path))
+        for key, labels in ((METADATA_OBSERVATION, observation), (METADATA_ACTIONS, actions)):
+            if labels is not None:
+                entry = exported.metadata_props.add()
+                entry.key, entry.value = key, json.dumps(list(labels))
+        onnx.save(exported, str(path))

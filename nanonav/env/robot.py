@@ -12,7 +12,7 @@ from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, VectorEnv
 from numpy.typing import NDArray
 
-from nanonav.env.worlds import (
+from nanonav.engine.worlds import (
     Worlds,
     action_labels,
     as_scenario,

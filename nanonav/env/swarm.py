@@ -11,14 +11,14 @@ from gymnasium import spaces
 from numpy.typing import NDArray
 from pettingzoo import ParallelEnv
 
-from nanonav.env.robot import ScenarioLike
-from nanonav.env.worlds import (
+from nanonav.engine.worlds import (
     Worlds,
     action_labels,
     as_scenario,
     observation_of,
     state_labels,
 )
+from nanonav.env.robot import ScenarioLike
 from nanonav.scenario import Schedule
 
 

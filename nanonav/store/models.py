@@ -242,7 +242,8 @@ class Delivery(Base):
 
 
 class Policy(Base):
-    """A Q-table made elsewhere and sent, for scenarios to evaluate (``policy_from``)."""
+    """A Q-table or a network (an ONNX model) made elsewhere and sent, for scenarios to
+    evaluate (``policy_from``)."""
 
     __tablename__ = "policies"
     __table_args__ = (
@@ -261,12 +262,15 @@ class Policy(Base):
     # sha256 of the request that used the key: the same key with another request is refused.
     request_digest: Mapped[str | None] = mapped_column(String(64))
     created_at: Mapped[datetime] = mapped_column(UTCDateTime())
+    # 'table' (a Q-table) or 'network' (an ONNX model)
+    kind: Mapped[str] = mapped_column(String(16), default="table", server_default="table")
     action_set: Mapped[str] = mapped_column(String(16))
     # The communication models whose state layout its rows are (several share one).
     communication: Mapped[list[str]] = mapped_column(JSON)
-    states: Mapped[int] = mapped_column(Integer)
+    states: Mapped[int] = mapped_column(Integer)  # a network's: its observation's columns
     actions: Mapped[int] = mapped_column(Integer)
     tables: Mapped[int] = mapped_column(Integer)
     per_robot: Mapped[bool] = mapped_column(Boolean)
-    # ``.npz``: the arrays ``states`` and ``actions`` (labels) and ``values``.
+    # ``.npz``: a table's arrays ``states`` and ``actions`` (labels) and ``values``; a
+    # network's ``observation`` and ``actions`` (labels) and ``model`` (the ONNX bytes).
     table: Mapped[bytes] = mapped_column(LargeBinary)

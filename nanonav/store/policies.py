@@ -1,4 +1,5 @@
-"""Every query about policies: Q-tables made elsewhere and sent, that scenarios evaluate.
+"""Every query about policies: Q-tables and networks (ONNX models) made elsewhere and sent, that
+scenarios evaluate.
 
 A scenario names one as ``policy_from: "policy-<id>"``, as it names a job's learned table by the
 job's id. Each public method of :class:`PolicyStore` is one transaction. The store keeps what it
@@ -7,9 +8,10 @@ is given: the labels and values were checked by whoever sent them (``nanonav.pol
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from datetime import datetime
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -30,6 +32,8 @@ POLICY_PREFIX = "policy-"
 WITHOUT_TABLE = defer(Policy.table)
 # The jobs a refused delete names (it counts them all).
 SHOWN_JOBS = 5
+TABLE = "table"
+NETWORK = "network"
 
 
 def policy_name(policy_id: int) -> str:
@@ -53,7 +57,7 @@ class PolicyNotFound(StoreError):
 
 @dataclass(frozen=True)
 class PolicyRecord:
-    """A policy as its row says, without its table."""
+    """A policy as its row says, without its table or model."""
 
     id: int
     name: str | None
@@ -61,10 +65,11 @@ class PolicyRecord:
     created_at: datetime
     action_set: str
     communication: tuple[str, ...]
-    states: int
+    states: int  # a network's: the columns of its observation
     actions: int
-    tables: int  # 1 for a table every robot starts from, else one per robot
+    tables: int  # 1 for a table every robot starts from, else one per robot; 1 for a network
     per_robot: bool
+    kind: str = TABLE  # TABLE or NETWORK
 
     @property
     def policy_from(self) -> str:
@@ -83,6 +88,7 @@ class PolicyRecord:
             actions=row.actions,
             tables=row.tables,
             per_robot=row.per_robot,
+            kind=row.kind,
         )
 
 
@@ -124,31 +130,83 @@ class PolicyStore:
                 "values": np.asarray(values, dtype=np.float64),
             }
         )
+        row = partial(
+            Policy,
+            name=name,
+            owner=owner,
+            kind=TABLE,
+            action_set=action_set,
+            communication=list(communication),
+            states=len(states),
+            actions=len(actions),
+            tables=1 if values.ndim == 2 else int(values.shape[0]),
+            per_robot=values.ndim == 3,
+            table=table,
+        )
+        return self._insert(row, owner, idempotency, limit)
+
+    def add_network(
+        self,
+        *,
+        action_set: str,
+        communication: tuple[str, ...],
+        observation: list[str],
+        actions: list[str],
+        model: bytes,
+        name: str | None = None,
+        owner: str = "",
+        idempotency: Idempotency | None = None,
+        limit: int = 0,
+    ) -> PolicyRecord:
+        """Keep a network, an ONNX ``model`` checked already, that decides among ``actions``
+        from the ``observation`` columns it names; keys and limits as ``add``."""
+        blob = pack(
+            {
+                "observation": np.array(observation, dtype=np.str_),
+                "actions": np.array(actions, dtype=np.str_),
+                "model": np.frombuffer(model, dtype=np.uint8),
+            }
+        )
+        row = partial(
+            Policy,
+            name=name,
+            owner=owner,
+            kind=NETWORK,
+            action_set=action_set,
+            communication=list(communication),
+            states=len(observation),
+            actions=len(actions),
+            tables=1,
+            per_robot=False,
+            table=blob,
+        )
+        return self._insert(row, owner, idempotency, limit)
+
+    def _insert(
+        self,
+        make: Callable[..., Policy],
+        owner: str,
+        idempotency: Idempotency | None,
+        limit: int,
+    ) -> PolicyRecord:
+        """Insert the row ``make`` makes once under ``owner``'s key, within ``owner``'s
+        limit."""
 
         def insert(session: Session, now: datetime) -> Policy:
             _check_limit(session, owner, limit)
-            row = Policy(
-                name=name,
-                owner=owner,
+            row = make(
                 idempotency_key=None if idempotency is None else idempotency.key,
                 request_digest=None if idempotency is None else idempotency.digest,
                 created_at=now,
-                action_set=action_set,
-                communication=list(communication),
-                states=len(states),
-                actions=len(actions),
-                tables=1 if values.ndim == 2 else int(values.shape[0]),
-                per_robot=values.ndim == 3,
-                table=table,
             )
             session.add(row)
             session.flush()
             return row
 
-        row = insert_once(
+        kept = insert_once(
             self._sessions, Policy, idempotency, insert, owner=owner, reads_first=limit > 0
         )
-        return PolicyRecord.of(row)
+        return PolicyRecord.of(kept)
 
     def get(self, policy_id: int) -> PolicyRecord:
         with unit_of_work(self._sessions) as session:
@@ -161,8 +219,9 @@ class PolicyStore:
             return owner
 
     def table(self, policy_id: int) -> dict[str, NDArray[Any]]:
-        """The policy's ``states`` and ``actions`` labels and its ``values``, as a job's
-        Q-table is read (without visits: it was not learned here)."""
+        """A table's ``states`` and ``actions`` labels and its ``values``, as a job's Q-table
+        is read (without visits: it was not learned here); a network's ``observation`` and
+        ``actions`` labels and its ``model`` (the ONNX bytes, as uint8)."""
         with unit_of_work(self._sessions) as session:
             blob = session.scalar(select(Policy.table).where(Policy.id == policy_id))
         if blob is None:

@@ -41,6 +41,7 @@ from nanonav.store import (
     PolicyRecord,
     StudyNotFound,
 )
+from nanonav.store.policies import NETWORK
 from nanonav.store.queue import PRESENCE_WINDOW_S
 from nanonav.studies.spec import GRID_KEYS
 from service.deps import ReportsDep, SettingsDep, StoreDep, StudiesDep
@@ -133,7 +134,13 @@ def index(
     source_id, policy_id = positive_int(from_), positive_int(policy)
     source = None if source_id is None else _visible_job(store, caller, source_id)
     evaluated = None if policy_id is None else _visible_policy(store, caller, policy_id)
-    form = evaluation_scenario(evaluated) if evaluated else source.scenario if source else None
+    form = (
+        evaluation_scenario(evaluated, _observation(store, evaluated))
+        if evaluated
+        else source.scenario
+        if source
+        else None
+    )
     page = store.page(status=None, limit=10, before_id=None, owner=caller.only, standalone=True)
     jobs = [Job.of(j) for j in page.jobs]
     recent = list_studies(studies, caller, limit=5).studies
@@ -142,6 +149,17 @@ def index(
         evaluated=evaluated, headlines=store.headlines([j.id for j in jobs]),
         form_json=json.dumps(form, indent=2) if form else "{}", **_form_choices(),
     )  # fmt: skip
+
+
+def _observation(store: JobStore, policy: PolicyRecord) -> list[str] | None:
+    """What a network observes (None for a table, or one deleted since it was read)."""
+    if policy.kind != NETWORK:
+        return None
+    try:
+        labels: list[str] = store.policies.table(policy.id)["observation"].tolist()
+    except PolicyNotFound:
+        return None
+    return labels
 
 
 def _visible_policy(store: JobStore, caller: Caller, policy_id: int) -> PolicyRecord | None:

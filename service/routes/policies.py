@@ -9,14 +9,19 @@ from fastapi import APIRouter, Body, Query, Request, Response
 from numpy.typing import NDArray
 
 from nanonav.policy import (
+    LAYOUT_RULE,
     TABLE_RULE,
     InvalidPolicy,
     Layout,
     greedy_table,
     greedy_values,
     layout_of,
+    network_layout,
     policy_values,
 )
+from nanonav.rl.onnx_policy import RULE as MODEL_RULE
+from nanonav.rl.onnx_policy import InvalidModel, check_model, model_labels
+from nanonav.store import PolicyRecord
 from service.deps import JsonBody, SettingsDep, StoreDep
 from service.idempotency import IdempotencyDep
 from service.ids import PolicyId
@@ -40,6 +45,8 @@ from service.schemas import (
 from service.security import SCRIPTED_ONLY, CallerDep
 
 router = APIRouter(prefix="/policies", tags=["policies"])
+# The rule a body breaks that mixes a table's fields and a network's
+KIND = "policy_kind"
 
 
 @router.post(
@@ -57,23 +64,34 @@ def send_policy(
     response: Response,
     idempotency: IdempotencyDep,
 ) -> PolicySummary:
-    """Keep a Q-table made elsewhere; a scenario evaluates it as ``policy_from: "policy-<id>"``.
+    """Keep a Q-table or a network (an ONNX model) made elsewhere; a scenario evaluates it as
+    ``policy_from: "policy-<id>"``.
 
     A body the schema allows may still be refused with 422, each error typed by its rule:
     ``policy_layout`` (``states`` or ``actions`` that are not, in order, the labels of one of
-    the engine's action sets and communication models; the detail says which would be),
+    the engine's action sets and communication models; a network's ``observation`` that is
+    no robot's, or ``actions`` and ``observation`` that no scenario gives together; the
+    detail says which would be), ``policy_model`` (a network the service cannot run: not
+    ONNX, too large, external data, other operator sets, an input or output of the wrong
+    shape or type, values of no fixed size, or a failing trial run; the detail says which),
+    ``policy_kind`` (a table's fields and a network's mixed),
     ``policy_table`` (both or neither of ``values`` and ``greedy``; values not shaped states x
     actions, or not finite numbers within +-1e30; a greedy state or action the layout does not
     have, or a state given twice), ``idempotency_key``, ``idempotency_key_reused`` and
     ``nul_character`` (U+0000 in any string of the body, key or value, or in the key: the
     store cannot keep it). A key that keeps ``NANONAV_QUOTA_POLICIES`` policies already gets
     409 ``policy-limit``."""
+    if policy.onnx is not None:
+        record = _keep_network(policy, policy.onnx, store, settings, caller, idempotency)
+        response.headers["Location"] = f"/policies/{record.id}"
+        return PolicySummary.of(record)
     try:
-        layout = layout_of(policy.states, policy.actions)
+        layout = layout_of(_given(policy.states, "states"), _given(policy.actions, "actions"))
+        if policy.observation is not None:
+            raise InvalidPolicy(("observation",), "a table has states, not an observation", KIND)
         values = _values(policy, layout)
     except InvalidPolicy as error:
-        problem = field_error(["body", *error.loc], str(error), error.rule)
-        raise InvalidInput(f"{problem.pointer}: {problem.detail}", [problem]) from None
+        raise _refused(error) from None
     record = store.policies.add(
         action_set=layout.actions,
         communication=layout.communication,
@@ -87,6 +105,63 @@ def send_policy(
     )
     response.headers["Location"] = f"/policies/{record.id}"
     return PolicySummary.of(record)
+
+
+def _refused(error: InvalidPolicy | InvalidModel, loc: tuple[str, ...] = ()) -> InvalidInput:
+    """A 422 at the field ``error`` names (or at ``loc``)."""
+    where = loc or error.loc if isinstance(error, InvalidPolicy) else loc
+    rule = error.rule if isinstance(error, InvalidPolicy) else MODEL_RULE
+    problem = field_error(["body", *where], str(error), rule)
+    return InvalidInput(f"{problem.pointer}: {problem.detail}", [problem])
+
+
+def _given(labels: list[str] | None, field: str) -> list[str]:
+    if labels is None:
+        detail = f"a table needs {field} (a network is sent as onnx)"
+        raise InvalidPolicy((field,), detail, KIND)
+    return labels
+
+
+def _keep_network(
+    policy: NewPolicy,
+    model: bytes,
+    store: StoreDep,
+    settings: SettingsDep,
+    caller: CallerDep,
+    idempotency: IdempotencyDep,
+) -> PolicyRecord:
+    """Check and keep a network: its labels (given, or its metadata's), then the model."""
+    limit = settings.policy_model_max_bytes
+    try:
+        for field in ("states", "values", "greedy"):
+            if getattr(policy, field) is not None:
+                detail = f"a network is sent as onnx, observation and actions; {field} is a table's"
+                raise InvalidPolicy((field,), detail, KIND)
+        observation, actions = model_labels(model, max_bytes=limit)
+        observation = policy.observation or observation
+        actions = policy.actions or actions
+        for labels, field in ((observation, "observation"), (actions, "actions")):
+            if labels is None:
+                detail = f"a network needs {field}: the model's metadata names none"
+                raise InvalidPolicy((field,), detail, LAYOUT_RULE)
+        assert observation is not None and actions is not None
+        layout = network_layout(observation, actions)
+        check_model(model, len(observation), len(actions), max_bytes=limit)
+    except InvalidPolicy as error:
+        raise _refused(error) from None
+    except InvalidModel as error:
+        raise _refused(error, ("onnx",)) from None
+    return store.policies.add_network(
+        action_set=layout.actions,
+        communication=layout.communication,
+        observation=list(layout.observation),
+        actions=list(layout.action_labels),
+        model=model,
+        name=policy.name,
+        owner=caller.owner,
+        idempotency=idempotency,
+        limit=settings.quota_policies,
+    )
 
 
 def _values(policy: NewPolicy, layout: Layout) -> NDArray[np.float64]:
@@ -121,9 +196,17 @@ def list_policies(
 
 @router.get("/{policy_id}", response_model=Policy, responses=problems(404, 422))
 def get_policy(policy_id: PolicyId, store: StoreDep) -> Policy:
-    """A policy with its table and the greedy action of every state."""
+    """A policy with its table and the greedy action of every state, or a network with the
+    labels of its observation and actions."""
     record = store.policies.get(policy_id)
     table = store.policies.table(policy_id)
+    if "model" in table:
+        return Policy(
+            **PolicySummary.fields_of(record),
+            actions=table["actions"].tolist(),
+            observation=table["observation"].tolist(),
+            model_bytes=int(table["model"].size),
+        )
     states, actions = table["states"].tolist(), table["actions"].tolist()
     values = table["values"]
     unvisited = np.zeros(values.shape, dtype=np.int64)

@@ -55,7 +55,7 @@ def test_a_fetched_jobs_table_is_sent_listed_evaluated_fetched_and_deleted(
         assert main(["policies", "--limit", "5", *url]) == 0
         listed = capsys.readouterr().out.splitlines()
         assert listed[0].split() == [
-            "id", "policy_from", "name", "actions", "communication", "table", "created"
+            "id", "policy_from", "name", "actions", "communication", "policy", "created"
         ]  # fmt: skip
         assert listed[2].split()[:5] == [str(policy_id), policy_from, "job", "31", "behaviors"]
         assert listed[2].split()[5:7] == ["none", "72x4"]

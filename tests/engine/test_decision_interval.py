@@ -12,7 +12,7 @@ from pydantic import ValidationError
 
 from nanonav.engine import qlearning, simulate
 from nanonav.engine.simulate import kernel_params
-from nanonav.env.worlds import Worlds
+from nanonav.engine.worlds import Worlds
 from nanonav.scenario import Scenario, deep_merge
 
 # a still world: no diffusion, so that a swimmer's path is its steering alone

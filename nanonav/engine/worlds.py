@@ -1,8 +1,9 @@
 """Many worlds of one scenario, driven from outside: the arrays, the generators and the one
-compiled call (``engine.stepping.step_worlds``) that every environment here steps them with.
+compiled call (``engine.stepping.step_worlds``) that every environment (``nanonav.env``) and
+every policy run from outside (``nanonav.rl``) steps them with.
 
 What the observation means, its units and its bounds are written once here, for the
-environments' spaces and the README alike.
+environments' spaces, the policies sent as ONNX models and the README alike.
 """
 
 from __future__ import annotations
@@ -15,7 +16,12 @@ from numba.typed import List
 from numpy.typing import NDArray
 
 from nanonav.engine import phases, qlearning, stepping
-from nanonav.engine.simulate import episode_arrays, kernel_params
+from nanonav.engine.simulate import (
+    DEFAULT_RECORD_BYTES,
+    empty_recording,
+    episode_arrays,
+    kernel_params,
+)
 from nanonav.engine.state import SCHEDULE_CODES, KernelParams, Recording
 from nanonav.engine.world import DYNAMICS_STREAM, EVALUATION_STREAM, raise_for_layout, stream
 from nanonav.scenario import Scenario, Schedule
@@ -151,7 +157,18 @@ class Worlds:
     evaluated here with seed s meets what the service would evaluate it in: train on other seeds.
     """
 
-    def __init__(self, scenario: Scenario, count: int, schedule: Schedule) -> None:
+    def __init__(
+        self,
+        scenario: Scenario,
+        count: int,
+        schedule: Schedule,
+        *,
+        measure: int = 0,
+        record_bytes: int = DEFAULT_RECORD_BYTES,
+    ) -> None:
+        """``measure``: 0 for an environment's worlds; ``phases.MEASURED`` to tally them as
+        ``simulate``'s evaluation does, ``phases.RECORDED`` to record their history too, in at
+        most ``record_bytes`` a world (``simulate``'s rows)."""
         if count < 1:
             raise ValueError("count must be at least 1")
         self.scenario = scenario
@@ -160,9 +177,10 @@ class Worlds:
         self.schedule = schedule
         # the agent outside decides by action number: it holds each action for the scenario's
         # decision interval, whatever policy the scenario names
-        self.params = kernel_params(scenario, _NO_HISTORY_CAP)._replace(
-            schedule=SCHEDULE_CODES[schedule], hold=scenario.decision_steps
-        )
+        recorded = measure == phases.RECORDED
+        self.params = kernel_params(
+            scenario, record_bytes if recorded else _NO_HISTORY_CAP
+        )._replace(schedule=SCHEDULE_CODES[schedule], hold=scenario.decision_steps)
         self.actions = len(action_labels(scenario))
         self.directions = np.ascontiguousarray(qlearning.DIRECTIONS)
         arrays = episode_arrays(scenario)
@@ -170,7 +188,11 @@ class Worlds:
         one = phases.Sim(
             arrays.world, arrays.swarm, arrays.social, arrays.treatment, arrays.near,
             arrays.radio, arrays.everyone, arrays.found, arrays.signals.conc,
-            arrays.signals.scratch, _empty_recording(n, scenario.cells.count), phases.percept(n),
+            arrays.signals.scratch,
+            empty_recording(scenario, self.params.record_stride)
+            if recorded
+            else _empty_recording(n, scenario.cells.count),
+            phases.percept(n),
         )  # fmt: skip
         self.batch: phases.Sim = _stacked(one, count)
         self._batches: List[phases.Sim] = List([self.batch])
@@ -186,6 +208,7 @@ class Worlds:
         self.reward = pc.reward
         self.active = self.batch.s.active
         pc.clock[:, phases.CLOCK_OVER] = 1
+        pc.clock[:, phases.CLOCK_MEASURE] = measure
         self._no_actions = np.zeros((count, self.robots), dtype=np.int64)
 
     def seed(self, seeds: Sequence[int]) -> None:

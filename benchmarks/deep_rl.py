@@ -1,0 +1,244 @@
+"""Deep learners in physical time: does PPO (Stable-Baselines3) or recurrent PPO (sb3-contrib)
+beat the strongest fixed rule, or the tabular learner, for robots of what size?
+
+    python benchmarks/deep_rl.py [--decisions N] [--recurrent-decisions N] [--seeds N]
+                                 [--seeds-from S] [--worlds N] [--radii R,...] [--quick]
+
+The 'tumour-microswimmers' world (one tumour cell among 40 tissue obstacles, 20 robots
+swimming at 10 um/s for 60 s), robots of radius 0.5, 1, 2 and 5 um. Every robot decides once a
+second (the physics' default decision interval) and holds its action; the robots decide
+together (the simultaneous schedule), for every policy alike.
+
+- Training, on design seeds (world k of the 16 trained together drawn from seed 5000 + k):
+  PPO (MlpPolicy, the library's default hyperparameters) through ``NanoNavVecEnv``, one robot
+  a world, for ``--decisions`` decisions, exported to ONNX; recurrent PPO (MlpLstmPolicy) for
+  ``--recurrent-decisions``.
+- Evaluation, on fresh seeds (9400 on), ``--worlds`` evaluation worlds a seed, every policy in
+  the same worlds: the ONNX network by the service's own path (``nanonav.rl.evaluate`` with
+  onnxruntime, as a worker runs a ``policy_from`` network); recurrent PPO by the same path
+  with the model's own ``predict`` carrying each robot's memory; 'gradient' (steer up the
+  sensed gradient: the strongest fixed rule, README "the physical question") and 'q_learning'
+  (the tabular learner, its default 50 training episodes a seed) by ``simulate``.
+
+Printed: the share of robots that reach the cell (mean over seeds, 95 % interval), each deep
+learner minus 'gradient' and minus 'q_learning' paired by seed, with Wilcoxon's p and Holm's
+over every comparison the table makes; and the training rate, decisions/s and robot-steps/s,
+beside PPO's on CartPole-v1 with as many environments in the same run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import tempfile
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from science import mean_ci
+
+from nanonav import stats
+from nanonav.engine import simulate
+from nanonav.engine.worlds import action_labels, observation_of
+from nanonav.rl.evaluate import evaluate
+from nanonav.rl.onnx_policy import NetworkPolicy
+from nanonav.scenario import Scenario, preset_scenario
+
+PRESET = "tumour-microswimmers"
+RADII = (0.5, 1.0, 2.0, 5.0)
+DESIGN_SEEDS = 5000
+FRESH_SEEDS = 9400
+ENVS = 16
+LEARNERS = ("ppo", "recurrent-ppo")
+BASELINES = ("gradient", "q_learning")
+
+
+def scenario(radius: float, seed: int, policy: str, worlds: int, episodes: int = 0) -> Scenario:
+    """The preset with robots of ``radius`` um, 60 s, deciding together."""
+    return preset_scenario(
+        PRESET, seed=seed,
+        physics={"model": "active_brownian", "time_limit_s": 60.0, "robot_radius_um": radius},
+        robots={"policy": policy, "schedule": "simultaneous"},
+        learning={"episodes": episodes}, evaluation={"worlds": worlds},
+    )  # fmt: skip
+
+
+def _quiet_torch() -> None:
+    import torch
+
+    torch.set_num_threads(1)
+
+
+def train(job: tuple[str, float, int, str]) -> dict[str, Any]:
+    """Train ``algo`` at ``radius`` for ``decisions`` on the design seeds; returns its rate and
+    where the trained policy is (an ONNX file, or the recurrent model's zip)."""
+    algo, radius, decisions, out = job
+    _quiet_torch()
+    from sb3_contrib import RecurrentPPO
+    from stable_baselines3 import PPO
+
+    from nanonav.env.baselines import NanoNavVecEnv, export_onnx
+
+    world = scenario(radius, DESIGN_SEEDS, "q_learning", 1)
+    env = NanoNavVecEnv(ENVS, world)
+    env.seed(DESIGN_SEEDS)
+    if algo == "ppo":
+        model: Any = PPO("MlpPolicy", env, seed=DESIGN_SEEDS, device="cpu")
+    else:
+        model = RecurrentPPO("MlpLstmPolicy", env, seed=DESIGN_SEEDS, device="cpu")
+    started = time.perf_counter()
+    model.learn(total_timesteps=decisions)
+    seconds = time.perf_counter() - started
+    path = Path(out) / f"{algo}-{radius}"
+    if algo == "ppo":
+        export_onnx(model, path.with_suffix(".onnx"), observation=env.observation_labels,
+                    actions=env.action_labels)  # fmt: skip
+        where = str(path.with_suffix(".onnx"))
+    else:
+        model.save(path.with_suffix(".zip"))
+        where = str(path.with_suffix(".zip"))
+    done = int(model.num_timesteps)
+    return {"decisions": done, "seconds": seconds, "steps_per_decision": world.decision_steps,
+            "where": where}  # fmt: skip
+
+
+class Remembering:
+    """Recurrent PPO deciding for the rows ``evaluate`` hands it, each row one robot of one
+    world in a fixed order (the simultaneous schedule), its LSTM state carried from call to
+    call, fresh at the first."""
+
+    def __init__(self, model: Any) -> None:
+        self.model = model
+        self.state: Any = None
+        self.start: np.ndarray[Any, Any] | None = None
+
+    def __call__(self, rows: np.ndarray[Any, Any]) -> np.ndarray[Any, Any]:
+        if self.start is None or self.start.shape[0] != rows.shape[0]:
+            self.state, self.start = None, np.ones(rows.shape[0], dtype=bool)
+        actions, self.state = self.model.predict(
+            rows.astype(np.float32), state=self.state, episode_start=self.start,
+            deterministic=True,
+        )  # fmt: skip
+        self.start = np.zeros(rows.shape[0], dtype=bool)
+        return np.asarray(actions, dtype=np.int64)
+
+
+def run_one(job: tuple[str, float, int, int, str]) -> float:
+    """The share of robots that reach the cell in one evaluation run."""
+    policy, radius, seed, worlds, where = job
+    if policy in BASELINES:
+        episodes = 50 if policy == "q_learning" else 0
+        return float(
+            simulate(scenario(radius, seed, policy, worlds, episodes)).summary["success_rate"]
+        )
+    s = scenario(radius, seed, "q_learning", worlds)
+    if policy == "ppo":
+        model = Path(where).read_bytes()
+        width = observation_of(s).columns.size
+        actions = len(action_labels(s))
+        decide: Any = NetworkPolicy(model, width, actions, max_bytes=len(model))
+    else:
+        _quiet_torch()
+        from sb3_contrib import RecurrentPPO
+
+        decide = Remembering(RecurrentPPO.load(where, device="cpu"))
+    return float(evaluate(s, decide).summary["success_rate"])
+
+
+def cartpole_rate(decisions: int) -> float:
+    """PPO's training decisions/s on CartPole-v1 with ``ENVS`` environments (SB3's own
+    DummyVecEnv, the ecosystem's usual case)."""
+    _quiet_torch()
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.env_util import make_vec_env
+
+    env = make_vec_env("CartPole-v1", n_envs=ENVS, seed=0)
+    model = PPO("MlpPolicy", env, seed=0, device="cpu")
+    started = time.perf_counter()
+    model.learn(total_timesteps=decisions)
+    return int(model.num_timesteps) / (time.perf_counter() - started)
+
+
+def _paired(treated: list[float], baseline: list[float]) -> stats.PairedComparison:
+    return stats.paired(treated, baseline)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
+    parser.add_argument("--decisions", type=int, default=300_000, help="PPO's training")
+    parser.add_argument("--recurrent-decisions", type=int, default=100_000)
+    parser.add_argument("--seeds", type=int, default=20)
+    parser.add_argument("--seeds-from", type=int, default=FRESH_SEEDS)
+    parser.add_argument("--worlds", type=int, default=5, help="evaluation worlds per run")
+    parser.add_argument("--radii", help="comma-separated robot radii, um (default: 0.5,1,2,5)")
+    parser.add_argument("--quick", action="store_true", help="a smoke run")
+    args = parser.parse_args(argv)
+    radii = tuple(float(r) for r in args.radii.split(",")) if args.radii else RADII
+    decisions = {"ppo": args.decisions, "recurrent-ppo": args.recurrent_decisions}
+    seeds = range(args.seeds_from, args.seeds_from + args.seeds)
+    worlds = args.worlds
+    if args.quick:
+        radii, seeds, worlds = radii[:1], range(args.seeds_from, args.seeds_from + 2), 1
+        decisions = {"ppo": 2048, "recurrent-ppo": 256}
+    started = time.perf_counter()
+    with tempfile.TemporaryDirectory() as out, ProcessPoolExecutor(os.cpu_count() or 1) as pool:
+        training_jobs = [(algo, r, decisions[algo], out) for algo in LEARNERS for r in radii]
+        trained = dict(zip(training_jobs, pool.map(train, training_jobs), strict=True))
+        where = {(algo, r): trained[(algo, r, decisions[algo], out)]["where"]
+                 for algo in LEARNERS for r in radii}  # fmt: skip
+        jobs = [
+            (policy, r, seed, worlds, where.get((policy, r), ""))
+            for r in radii
+            for policy in (*BASELINES, *LEARNERS)
+            for seed in seeds
+        ]
+        reached = dict(zip(jobs, pool.map(run_one, jobs), strict=True))
+        cartpole = pool.submit(cartpole_rate, min(decisions["ppo"], 100_000)).result()
+    print(
+        f"{PRESET}: 20 robots, one tumour cell, 60 s, a decision a second; trained on design "
+        f"seeds {DESIGN_SEEDS}.. ({ENVS} worlds of one robot), evaluated on seeds "
+        f"{seeds.start}..{seeds.stop - 1} x {worlds} worlds; * = the 95 % interval excludes 0\n"
+    )
+    print("Training rate (one core each):")
+    for (algo, r, _, _), found in trained.items():
+        rate = found["decisions"] / found["seconds"]
+        robot_steps = rate * found["steps_per_decision"]
+        print(f"  {algo:14} R = {r:g} um: {found['decisions']:,} decisions in "
+              f"{found['seconds']:.0f} s, {rate:,.0f} decisions/s ({robot_steps:,.0f} "
+              "robot-steps/s)")  # fmt: skip
+    print(f"  PPO on CartPole-v1 ({ENVS} envs, DummyVecEnv): {cartpole:,.0f} decisions/s\n")
+
+    def shares(policy: str, r: float) -> list[float]:
+        return [reached[(policy, r, seed, worlds, where.get((policy, r), ""))] for seed in seeds]
+
+    comparisons = [(r, learner, base) for r in radii for learner in LEARNERS for base in BASELINES]
+    found = {c: _paired(shares(c[1], c[0]), shares(c[2], c[0])) for c in comparisons}
+    adjusted = dict(
+        zip(comparisons, stats.holm([found[c].p_value or 1.0 for c in comparisons]), strict=True)
+    )
+    print(f"Share reached, and each deep learner minus each baseline ({len(comparisons)} "
+          "comparisons; Holm's p over all of them):")  # fmt: skip
+    for r in radii:
+        cells = "  ".join(f"{p} {mean_ci(shares(p, r))}" for p in (*BASELINES, *LEARNERS))
+        print(f"R = {r:g} um: {cells}")
+        for learner in LEARNERS:
+            for base in BASELINES:
+                d = found[(r, learner, base)]
+                if d.mean_difference is None or d.ci_low is None or d.ci_high is None:
+                    continue
+                mark = "*" if d.ci_low > 0 or d.ci_high < 0 else " "
+                print(f"  {learner} - {base}: {d.mean_difference:+.2f} [{d.ci_low:+.2f}, "
+                      f"{d.ci_high:+.2f}]{mark} p {d.p_value:.3g}, Holm "
+                      f"{adjusted[(r, learner, base)]:.3g}")  # fmt: skip
+    print(f"\n({time.perf_counter() - started:.0f} s on {os.cpu_count()} cores)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,178 @@
+"""A policy from outside the engine (a trained network, say) evaluated as a job evaluates a
+learned table: the scenario's evaluation worlds, measured and the first recorded, into the same
+``SimulationResult`` that ``simulate`` returns.
+
+The worlds are those ``simulate`` evaluates in for the scenario's seed (drawn one after another
+from its evaluation stream), so a network and a rule evaluated with one seed meet the same
+worlds and pair by seed; the first world also runs on ``simulate``'s dynamics stream, the
+others each on one of their own. Every world steps at once: one call of ``decide`` a decision
+takes the observations of every robot of every world (one row each; under the sequential
+schedule, of the robot whose turn it is in each world).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+
+import numpy as np
+from numpy.typing import NDArray
+
+from nanonav.engine import metrics, phases, state
+from nanonav.engine.kernel import tally_evaluation
+from nanonav.engine.result import SimulationResult
+from nanonav.engine.simulate import (
+    DEFAULT_RECORD_BYTES,
+    Progress,
+    ProgressCallback,
+    derived_physics,
+    evaluated_worlds,
+    recorded_trajectory,
+)
+from nanonav.engine.state import Social, Swarm, Treatment
+from nanonav.engine.world import DYNAMICS_STREAM, EVALUATION_STREAM, stream
+from nanonav.engine.worlds import Worlds, observation_of
+from nanonav.scenario import Scenario, ScenarioError
+
+# (rows, observation width) float64 in the scenario's units -> (rows,) action numbers
+Decide = Callable[[NDArray[np.float64]], NDArray[np.int64]]
+# Seconds of work between progress reports
+PROGRESS_EVERY_S = 0.1
+
+
+class PolicyFailed(RuntimeError):
+    """The outside policy answered what no robot can do (or raised); the message says what."""
+
+
+def _views(batch: phases.Sim, k: int) -> tuple[Swarm, Social, Treatment]:
+    """World ``k`` of a batch's swarm, social and treatment arrays."""
+    return (
+        Swarm(*(a[k] for a in batch.s)),
+        Social(*(a[k] for a in batch.so)),
+        Treatment(*(a[k] for a in batch.tr)),
+    )
+
+
+def evaluate(
+    scenario: Scenario,
+    decide: Decide,
+    progress: ProgressCallback | None = None,
+    *,
+    record_bytes: int = DEFAULT_RECORD_BYTES,
+) -> SimulationResult:
+    """Evaluate ``decide`` in ``scenario``'s ``evaluation.worlds`` worlds (it trains nothing:
+    ``learning.episodes`` must be 0). ``decide`` gets the observations (``observation_of``'s
+    columns, as ``NanoNavEnv`` gives them) and returns an action of the scenario's action set
+    for each row; each is held for the decision interval, as in the environments. Raises
+    ``PolicyFailed`` when it raises or answers anything else. ``progress`` is called about
+    every 0.1 s; False stops the run (``completed`` False)."""
+    if scenario.learning.episodes:
+        raise ScenarioError(
+            "learning.episodes", "a policy from outside is evaluated, not trained: it must be 0"
+        )
+    count = scenario.evaluation.worlds
+    schedule = scenario.robots.schedule
+    first = Worlds(scenario, 1, schedule, measure=phases.RECORDED, record_bytes=record_bytes)
+    batches = [first]
+    if count > 1:
+        batches.append(Worlds(scenario, count - 1, schedule, measure=phases.MEASURED))
+    # one evaluation stream draws every world in turn, as simulate's evaluation draws them
+    drawn = stream(scenario.seed, EVALUATION_STREAM)
+    first.world_rngs[0] = drawn
+    first.rngs[0] = stream(scenario.seed, DYNAMICS_STREAM)
+    for k in range(1, count):
+        batches[1].world_rngs[k - 1] = drawn
+        batches[1].rngs[k - 1] = stream(scenario.seed, DYNAMICS_STREAM, k)
+    columns = observation_of(scenario).columns
+    robots = scenario.robots.count
+    sequential = schedule == "sequential" and robots > 1
+    # who decides, as (worlds, robots) index pairs: every robot, or the one whose turn it is
+    everyone = [
+        (np.repeat(np.arange(b.count), robots), np.tile(np.arange(robots), b.count))
+        for b in batches
+    ]
+    actions = [np.zeros((b.count, robots), dtype=np.int64) for b in batches]
+    none_fresh = [np.zeros(b.count, dtype=np.bool_) for b in batches]
+    started = time.perf_counter()
+    last_report = started
+    for b in batches:
+        b.step(None, np.ones(b.count, dtype=np.bool_))
+    stopped = False
+    while not all(b.over.all() for b in batches):
+        picks = [
+            (np.arange(b.count), b.batch.pc.clock[:, phases.CLOCK_NEXT].clip(0))
+            if sequential
+            else pairs
+            for b, pairs in zip(batches, everyone, strict=True)
+        ]
+        rows = np.concatenate(
+            [b.obs[w, r][:, columns] for b, (w, r) in zip(batches, picks, strict=True)]
+        )
+        chosen = _decided(decide, rows, first.actions)
+        at = 0
+        for b, (w, r), given, fresh in zip(batches, picks, actions, none_fresh, strict=True):
+            given[w, r] = chosen[at : at + w.size]
+            at += w.size
+            b.step(given, fresh, checked=True)
+        now = time.perf_counter()
+        if progress is not None and now - last_report >= PROGRESS_EVERY_S:
+            last_report = now
+            done = sum(int(b.over.sum()) for b in batches)
+            step = min(b.steps(k) for b in batches for k in range(b.count))
+            if progress(Progress(done, count, step, scenario.learning.max_steps)) is False:
+                stopped = True
+                break
+    engine_s = time.perf_counter() - started
+    if stopped:
+        work = {"robot_steps": _robot_steps(batches), "engine_s": engine_s}
+        return SimulationResult(scenario, {}, [], [], work, None, None, completed=False)
+    tallies = np.zeros((count, robots, state.EV_COLUMNS))
+    cells = np.zeros((count, scenario.cells.count, state.CELL_COLUMNS), dtype=np.int64)
+    steps = np.zeros(count, dtype=np.int64)
+    robot_steps = np.zeros(count)
+    world = 0
+    for b in batches:
+        for k in range(b.count):
+            swarm, social, treatment = _views(b.batch, k)
+            tally_evaluation(swarm, social, treatment, tallies[world], cells[world])
+            steps[world] = b.steps(k)
+            robot_steps[world] = float(swarm.steps.sum())
+            world += 1
+    worlds, rows_of_first = evaluated_worlds(scenario, tallies, cells, steps, robot_steps, engine_s)
+    trajectory = recorded_trajectory(
+        scenario, _recording(first), tallies[0], int(steps[0]), first.params.record_stride
+    )
+    summary, uncertainty = metrics.over_worlds(worlds)
+    work = {"robot_steps": int(robot_steps.sum()), "engine_s": engine_s}
+    return SimulationResult(
+        scenario, summary, rows_of_first, [], work, trajectory, None,
+        uncertainty=uncertainty, worlds=worlds, physics=derived_physics(scenario, summary),
+    )  # fmt: skip
+
+
+def _decided(decide: Decide, rows: NDArray[np.float64], actions: int) -> NDArray[np.int64]:
+    """``decide``'s action for each row, checked: one integer of the action set a row."""
+    try:
+        chosen = np.asarray(decide(rows))
+    except Exception as error:
+        raise PolicyFailed(f"the policy raised {type(error).__name__}: {error}") from error
+    if chosen.shape != (rows.shape[0],):
+        raise PolicyFailed(
+            f"the policy answered an array of shape {chosen.shape} for {rows.shape[0]} "
+            "observations, not one action each"
+        )
+    if chosen.dtype.kind not in "iu":
+        raise PolicyFailed(f"the policy answered actions of {chosen.dtype}, not integers")
+    if chosen.size and (chosen.min() < 0 or chosen.max() >= actions):
+        bad = chosen[(chosen < 0) | (chosen >= actions)][0]
+        raise PolicyFailed(f"the policy answered action {bad}, not one of 0..{actions - 1}")
+    return chosen.astype(np.int64, copy=False)
+
+
+def _robot_steps(batches: list[Worlds]) -> int:
+    return int(sum(int(b.batch.s.steps.sum()) for b in batches))
+
+
+def _recording(worlds: Worlds) -> state.Recording:
+    """The history of the first world of ``worlds``."""
+    return state.Recording(*(a[0] for a in worlds.batch.rec))

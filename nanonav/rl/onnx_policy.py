@@ -1,0 +1,317 @@
+"""Networks sent as ONNX models: checked before they are kept, and run to decide for robots.
+
+ONNX is data (a protobuf graph of standard operators and its weights): nothing here loads a
+pickle or TorchScript. A model is accepted when it is small enough, keeps its weights inside
+itself (external data could name any file of the machine that runs it), uses only the standard
+operator sets at a version ONNX Runtime runs, takes one float32 input of a batch of
+observations, ``(batch, width)``, and gives either the action logits, ``(batch, actions)``
+floats (the action is their argmax), or the actions themselves, ``(batch,)`` or
+``(batch, 1)`` integers; and when it answers a trial batch of zero observations so.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Iterator
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import numpy as np
+import onnx
+import onnxruntime
+from numpy.typing import NDArray
+from onnx import AttributeProto, GraphProto, TensorProto
+
+# The operator sets of ONNX itself (the default domain is spelled both ways) and of ONNX-ML
+STANDARD_DOMAINS = frozenset({"", "ai.onnx", "ai.onnx.ml"})
+# The default domain's versions accepted: from the first with today's operator semantics that
+# exporters still write, to the newest this ONNX knows (ONNX Runtime refuses one it cannot run)
+MIN_OPSET = 9
+MAX_OPSET = int(onnx.defs.onnx_opset_version())
+# Rows of the trial batch: more than one, so that a fixed batch of one is found out
+TRIAL_ROWS = 2
+RULE = "policy_model"
+# The model's metadata keys under which a model names what it reads and chooses (JSON lists of
+# an environment's observation_labels and action_labels): nanonav train writes them
+METADATA_OBSERVATION = "nanonav.observation"
+METADATA_ACTIONS = "nanonav.actions"
+# What a value the graph computes may hold: per observation when it has the batch axis, else in
+# all. A network of two hidden layers of 256 computes under 1,000 numbers an observation; the
+# caps keep a model from asking for memory that no policy needs (a broadcast outer product).
+MAX_ROW_ELEMENTS = 10_000
+MAX_ELEMENTS = 1_000_000
+# Operators whose outputs' sizes or running time the graph alone does not bound
+UNBOUNDED_OPERATORS = frozenset({"Loop", "Scan", "If", "SequenceMap"})
+
+Output = Literal["logits", "actions"]
+
+
+class InvalidModel(ValueError):
+    """A model that cannot decide for the scenario's robots; the message says why."""
+
+
+@dataclass(frozen=True)
+class ModelInfo:
+    """What a checked model is: its operator set version, whether it gives logits or actions,
+    and the input and output it is run by."""
+
+    opset: int
+    output: Output
+    input_name: str
+    output_name: str
+
+
+def model_labels(data: bytes, *, max_bytes: int) -> tuple[list[str] | None, list[str] | None]:
+    """The observation and action labels a model's metadata names (``METADATA_*``), each
+    None where it names none; ``InvalidModel`` for a model that is not one, or labels that are
+    not a JSON list of strings."""
+    model = _parsed(data, max_bytes)
+    found: dict[str, list[str] | None] = {METADATA_OBSERVATION: None, METADATA_ACTIONS: None}
+    for entry in model.metadata_props:
+        if entry.key in found:
+            try:
+                labels = json.loads(entry.value)
+            except ValueError:
+                labels = None
+            if not (isinstance(labels, list) and all(isinstance(x, str) for x in labels)):
+                raise InvalidModel(f"the model's metadata {entry.key!r} is not a list of labels")
+            found[entry.key] = labels
+    return found[METADATA_OBSERVATION], found[METADATA_ACTIONS]
+
+
+def _tensors(graph: GraphProto) -> Iterator[TensorProto]:
+    """Every tensor the graph holds, in its subgraphs too: initializers (dense and sparse) and
+    the tensors of node attributes."""
+    yield from graph.initializer
+    for sparse in graph.sparse_initializer:
+        yield sparse.values
+        yield sparse.indices
+    for node in graph.node:
+        for attribute in node.attribute:
+            if attribute.type == AttributeProto.TENSOR:
+                yield attribute.t
+            yield from attribute.tensors
+            if attribute.type == AttributeProto.GRAPH:
+                yield from _tensors(attribute.g)
+            for sub in attribute.graphs:
+                yield from _tensors(sub)
+
+
+def _domains(graph: GraphProto) -> Iterator[str]:
+    """The operator domain of every node, in subgraphs too."""
+    for node in graph.node:
+        yield node.domain
+        for attribute in node.attribute:
+            if attribute.type == AttributeProto.GRAPH:
+                yield from _domains(attribute.g)
+            for sub in attribute.graphs:
+                yield from _domains(sub)
+
+
+def _dims(value: onnx.ValueInfoProto) -> list[int | str | None]:
+    """A value's shape: a number per fixed axis, a name per named one, None per unknown one."""
+    shape = value.type.tensor_type.shape
+    out: list[int | str | None] = []
+    for dim in shape.dim:
+        if dim.HasField("dim_value"):
+            out.append(int(dim.dim_value))
+        elif dim.HasField("dim_param"):
+            out.append(dim.dim_param)
+        else:
+            out.append(None)
+    return out
+
+
+def _parsed(data: bytes, max_bytes: int) -> onnx.ModelProto:
+    if len(data) > max_bytes:
+        raise InvalidModel(f"the model takes {len(data)} bytes, over the limit of {max_bytes}")
+    try:
+        model = onnx.load_model_from_string(data)
+    except Exception as error:  # protobuf's DecodeError, or worse
+        raise InvalidModel(f"this is not an ONNX model: {error}") from None
+    if model.ir_version <= 0 or not model.graph.node:
+        raise InvalidModel("this is not an ONNX model: it has no IR version or no graph")
+    return model
+
+
+def _check_contents(model: onnx.ModelProto) -> int:
+    """Refuse external data, other operator sets and model-local functions; returns the
+    default domain's opset."""
+    for tensor in _tensors(model.graph):
+        if tensor.data_location == TensorProto.EXTERNAL or len(tensor.external_data):
+            raise InvalidModel(
+                f"tensor {tensor.name!r} keeps its data outside the model: save the model "
+                "with its weights inside it (onnx.save(model, path), without "
+                "save_as_external_data)"
+            )
+    if model.functions:
+        raise InvalidModel("the model defines functions of its own: only standard operators")
+    opset = None
+    for entry in model.opset_import:
+        if entry.domain not in STANDARD_DOMAINS:
+            raise InvalidModel(
+                f"the model imports the operator set {entry.domain!r}: only ONNX's own "
+                "(and ONNX-ML's) are run"
+            )
+        if entry.domain in ("", "ai.onnx"):
+            opset = int(entry.version)
+    if opset is None:
+        raise InvalidModel("the model imports no version of ONNX's operator set")
+    if not MIN_OPSET <= opset <= MAX_OPSET:
+        raise InvalidModel(
+            f"the model's opset is {opset}: it must lie between {MIN_OPSET} and {MAX_OPSET}"
+        )
+    for domain in _domains(model.graph):
+        if domain not in STANDARD_DOMAINS:
+            raise InvalidModel(f"the model uses an operator of the custom domain {domain!r}")
+    try:
+        onnx.checker.check_model(model)
+    except onnx.checker.ValidationError as error:
+        raise InvalidModel(f"the model is not valid ONNX: {_first_line(error)}") from None
+    return opset
+
+
+def _check_sizes(model: onnx.ModelProto, batch: str | None) -> None:
+    """Refuse a graph whose computed values have sizes it does not fix (but for the batch
+    axis), or that are larger than ``MAX_ROW_ELEMENTS`` an observation (``MAX_ELEMENTS`` for a
+    value without the batch axis), and control flow, whose cost the graph does not bound."""
+    for node in model.graph.node:
+        if node.op_type in UNBOUNDED_OPERATORS:
+            raise InvalidModel(
+                f"the model uses {node.op_type}: a policy's graph runs straight through, "
+                "without loops or branches"
+            )
+    try:
+        inferred = onnx.shape_inference.infer_shapes(model, strict_mode=True, data_prop=True)
+    except Exception as error:
+        raise InvalidModel(f"the model's shapes do not check: {_first_line(error)}") from None
+    graph = inferred.graph
+    for value in [*graph.value_info, *graph.output]:
+        if not value.type.HasField("tensor_type"):
+            raise InvalidModel(f"the model computes {value.name!r}, which is not a tensor")
+        dims = _dims(value)
+        if not value.type.tensor_type.HasField("shape"):
+            dims = [None]
+        rows = dims.count(batch) if batch is not None else 0
+        fixed = [d for d in dims if d != batch]
+        if any(not isinstance(d, int) for d in fixed):
+            raise InvalidModel(
+                f"the model computes {value.name!r} of shape {dims}, whose size the graph does "
+                "not fix: only the batch axis may vary"
+            )
+        elements = math.prod(d for d in fixed if isinstance(d, int))
+        limit = MAX_ROW_ELEMENTS if rows else MAX_ELEMENTS
+        if rows > 1 or elements > limit:
+            per = " an observation" if rows else ""
+            raise InvalidModel(
+                f"the model computes {value.name!r} of shape {dims}: {elements} numbers{per}, "
+                f"over the {limit} a policy may compute"
+            )
+
+
+def _first_line(error: BaseException) -> str:
+    text = str(error).strip()
+    return text.splitlines()[0] if text else type(error).__name__
+
+
+def _session(data: bytes) -> onnxruntime.InferenceSession:
+    """An ONNX Runtime session on one thread (a worker runs one job a core)."""
+    options = onnxruntime.SessionOptions()
+    options.intra_op_num_threads = 1
+    options.inter_op_num_threads = 1
+    options.log_severity_level = 3
+    return onnxruntime.InferenceSession(data, options, providers=["CPUExecutionProvider"])
+
+
+def check_model(data: bytes, width: int, actions: int, *, max_bytes: int) -> ModelInfo:
+    """Check that ``data`` is an ONNX model that decides from ``width`` observation columns
+    among ``actions`` actions (``InvalidModel`` saying what is wrong if not), by reading the
+    graph and running it once on a batch of zero observations."""
+    model = _parsed(data, max_bytes)
+    opset = _check_contents(model)
+    weights = {tensor.name for tensor in model.graph.initializer}
+    inputs = [value for value in model.graph.input if value.name not in weights]
+    if len(inputs) != 1:
+        names = ", ".join(repr(value.name) for value in inputs) or "none"
+        raise InvalidModel(f"the model takes {len(inputs)} inputs ({names}), not one")
+    given = inputs[0]
+    if given.type.tensor_type.elem_type != TensorProto.FLOAT:
+        kind = TensorProto.DataType.Name(given.type.tensor_type.elem_type)
+        raise InvalidModel(f"the model's input {given.name!r} is {kind}, not FLOAT (float32)")
+    dims = _dims(given)
+    if len(dims) != 2 or dims[1] != width:
+        raise InvalidModel(
+            f"the model's input {given.name!r} has the shape {dims}: it must be (batch, {width}),"
+            f" one row of the {width} observation columns for each robot"
+        )
+    if not isinstance(dims[0], str):
+        fixed = f"a batch of exactly {dims[0]}" if dims[0] is not None else "an unnamed batch axis"
+        raise InvalidModel(
+            f"the model's input {given.name!r} has {fixed}: its first axis must be a named "
+            "dynamic axis (torch.onnx.export(..., dynamic_axes={name: {0: 'batch'}}))"
+        )
+    _check_sizes(model, dims[0])
+    try:
+        session = _session(data)
+    except Exception as error:
+        raise InvalidModel(f"ONNX Runtime cannot run the model: {_first_line(error)}") from None
+    output = session.get_outputs()[0]
+    try:
+        answer = session.run([output.name], {given.name: np.zeros((TRIAL_ROWS, width), np.float32)})
+    except Exception as error:
+        raise InvalidModel(
+            f"the model failed on a batch of {TRIAL_ROWS} zero observations: {_first_line(error)}"
+        ) from None
+    kind = _kind(np.asarray(answer[0]), actions)
+    return ModelInfo(opset, kind, given.name, output.name)
+
+
+def _kind(answer: NDArray[Any], actions: int) -> Output:
+    """Whether a trial answer is logits or actions; InvalidModel if it is neither."""
+    rows = TRIAL_ROWS
+    if answer.dtype.kind == "f":
+        if answer.shape != (rows, actions):
+            raise InvalidModel(
+                f"the model's first output is floats of shape {list(answer.shape)} for "
+                f"{rows} observations: logits must be (batch, {actions}), one per action"
+            )
+        if not np.isfinite(answer).all():
+            raise InvalidModel("the model's logits for zero observations are not finite")
+        return "logits"
+    if answer.dtype.kind in "iu":
+        if answer.shape not in ((rows,), (rows, 1)):
+            raise InvalidModel(
+                f"the model's first output is integers of shape {list(answer.shape)} for "
+                f"{rows} observations: actions must be (batch,) or (batch, 1)"
+            )
+        if answer.min() < 0 or answer.max() >= actions:
+            raise InvalidModel(
+                f"the model answers action {int(answer.ravel()[0])} for a zero observation: "
+                f"actions are 0..{actions - 1}"
+            )
+        return "actions"
+    raise InvalidModel(f"the model's first output is {answer.dtype}: logits or actions, please")
+
+
+class NetworkPolicy:
+    """A checked model, deciding for many robots in one inference call."""
+
+    def __init__(self, data: bytes, width: int, actions: int, *, max_bytes: int) -> None:
+        self.info = check_model(data, width, actions, max_bytes=max_bytes)
+        self._session = _session(data)
+        self.width = width
+
+    def __call__(self, observations: NDArray[np.float64]) -> NDArray[np.int64]:
+        """The action of each row of ``observations``."""
+        rows = np.ascontiguousarray(observations, dtype=np.float32)
+        answer = np.asarray(
+            self._session.run([self.info.output_name], {self.info.input_name: rows})[0]
+        )
+        if self.info.output == "logits":
+            if answer.shape != (rows.shape[0], answer.shape[-1]) or not np.isfinite(answer).all():
+                raise ValueError("the model's logits are not finite, one row an observation")
+            chosen: NDArray[np.int64] = np.argmax(answer, axis=1).astype(np.int64)
+            return chosen
+        actions: NDArray[np.int64] = answer.reshape(-1).astype(np.int64)
+        return actions

@@ -1,0 +1,89 @@
+"""A network sent as ONNX is checked before it is kept, and decides as its graph says: the
+argmax of its logits, or the actions it gives, for a batch of observations in one call."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from nanonav.rl.onnx_policy import (
+    METADATA_ACTIONS,
+    METADATA_OBSERVATION,
+    InvalidModel,
+    NetworkPolicy,
+    check_model,
+    model_labels,
+)
+from tests.rl import models
+
+LIMIT = 700_000
+
+
+def test_an_mlp_decides_the_argmax_of_its_logits_for_every_row_in_one_call() -> None:
+    policy = NetworkPolicy(models.mlp(7, 4, seed=2), 7, 4, max_bytes=LIMIT)
+    assert policy.info.output == "logits" and policy.info.opset == models.OPSET
+    rows = np.random.default_rng(0).normal(size=(500, 7))
+    w1, b1, w2, b2 = models.mlp_weights(7, 4, seed=2)
+    expected = np.argmax(np.maximum(rows.astype(np.float32) @ w1 + b1, 0) @ w2 + b2, axis=1)
+    chosen = policy(rows)
+    assert chosen.dtype == np.int64 and chosen.shape == (500,)
+    assert np.array_equal(chosen, expected)
+    assert len(set(chosen.tolist())) > 1  # the rows do lead to different actions
+
+
+def test_a_model_that_answers_actions_is_run_as_it_answers() -> None:
+    policy = NetworkPolicy(models.argmax_actions(7, 4), 7, 4, max_bytes=LIMIT)
+    assert policy.info.output == "actions"
+    rows = np.zeros((3, 7))
+    rows[0, 2], rows[1, 1], rows[2, 0] = 1.0, 1.0, 1.0
+    assert policy(rows).tolist() == [2, 1, 0]
+
+
+def test_labels_come_from_the_models_metadata_when_it_has_them() -> None:
+    plain = models.always(7, 4, 1)
+    assert model_labels(plain, max_bytes=LIMIT) == (None, None)
+    named = models.always(7, 4, 1, metadata={METADATA_OBSERVATION: '["a", "b"]',
+                                             METADATA_ACTIONS: '["x"]'})  # fmt: skip
+    assert model_labels(named, max_bytes=LIMIT) == (["a", "b"], ["x"])
+    broken = models.always(7, 4, 1, metadata={METADATA_ACTIONS: "{not json"})
+    with pytest.raises(InvalidModel, match=r"'nanonav\.actions' is not a list of labels"):
+        model_labels(broken, max_bytes=LIMIT)
+
+
+@pytest.mark.parametrize(
+    ("data", "width", "actions", "message"),
+    [
+        (b"", 7, 4, "not an ONNX model"),
+        (b"\x08\x07garbage that is not protobuf \xff\xff", 7, 4, "not an ONNX model"),
+        (models.mlp(7, 4), 5, 4, r"has the shape \['batch', 7\]: it must be \(batch, 5\)"),
+        (models.mlp(7, 4), 7, 6, r"logits must be \(batch, 6\), one per action"),
+        (models.mlp(7, 4, opset=7), 7, 4, "opset is 7: it must lie between 9 and"),
+        (models.custom_operator(7, 4), 7, 4, "imports the operator set 'com.example'"),
+        (models.external_weights(7, 4), 7, 4, "keeps its data outside the model"),
+        (models.outer_product(7, 4), 7, 4, "numbers an observation, over the 10000"),
+        (models.argmax_actions(7, 4, favourite=3), 7, 3, "answers action 3 for a zero observation"),
+    ],
+)  # fmt: skip
+def test_a_model_that_cannot_decide_is_refused_saying_why(
+    data: bytes, width: int, actions: int, message: str
+) -> None:
+    with pytest.raises(InvalidModel, match=message):
+        check_model(data, width, actions, max_bytes=LIMIT)
+
+
+def test_a_fixed_batch_a_second_input_and_the_size_limit_are_refused() -> None:
+    import onnx
+    from onnx import TensorProto, helper
+
+    fixed = onnx.load_model_from_string(models.always(7, 4, 0))
+    fixed.graph.input[0].type.tensor_type.shape.dim[0].ClearField("dim_param")
+    fixed.graph.input[0].type.tensor_type.shape.dim[0].dim_value = 1
+    with pytest.raises(InvalidModel, match="has a batch of exactly 1"):
+        check_model(fixed.SerializeToString(), 7, 4, max_bytes=LIMIT)
+    two = onnx.load_model_from_string(models.always(7, 4, 0))
+    two.graph.input.append(helper.make_tensor_value_info("memory", TensorProto.FLOAT, [1, 3]))
+    with pytest.raises(InvalidModel, match=r"takes 2 inputs \('observation', 'memory'\)"):
+        check_model(two.SerializeToString(), 7, 4, max_bytes=LIMIT)
+    data = models.mlp(7, 4, hidden=64)
+    with pytest.raises(InvalidModel, match=f"takes {len(data)} bytes, over the limit of 1024"):
+        check_model(data, 7, 4, max_bytes=1024)

@@ -1,0 +1,166 @@
+"""Networks (ONNX models) through the API: sent in base64, checked before they are kept (a 422
+naming the field and saying what is wrong, never a 500), shown and listed as networks, named by
+jobs whose robots observe and act as the network was trained to, and evaluated by a worker,
+which fails a job whose network answers nonsense with the reason."""
+
+from __future__ import annotations
+
+import base64
+import threading
+from typing import Any
+
+import numpy as np
+
+from nanonav.engine.worlds import action_labels, observation_of
+from nanonav.rl.onnx_policy import METADATA_ACTIONS, METADATA_OBSERVATION
+from nanonav.scenario import Scenario
+from nanonav.settings import Settings
+from nanonav.store import JobStatus
+from tests.conftest import Api
+from tests.rl import models
+from tests.service.test_api import assert_problem
+from tests.service.test_policies import refused, send
+from worker.job import run_job
+
+LATTICE = Scenario()
+OBSERVATION = list(observation_of(LATTICE).labels)
+ACTIONS = action_labels(LATTICE)
+EVALUATE: dict[str, Any] = {
+    "robots": {"count": 3, "schedule": "simultaneous"},
+    "learning": {"episodes": 0, "max_steps": 80},
+    "evaluation": {"worlds": 3},
+}
+
+
+def encoded(model: bytes) -> str:
+    return base64.b64encode(model).decode("ascii")
+
+
+def network(api: Api, model: bytes | None = None, **body: Any) -> dict[str, Any]:
+    data = model or models.mlp(len(OBSERVATION), len(ACTIONS))
+    return send(
+        api, {"onnx": encoded(data), "observation": OBSERVATION, "actions": ACTIONS, **body}
+    )
+
+
+def test_a_network_is_kept_shown_and_listed_as_a_network(api: Api) -> None:
+    model = models.mlp(len(OBSERVATION), len(ACTIONS))
+    sent = network(api, model, name="mlp")
+    assert sent["kind"] == "network" and sent["name"] == "mlp"
+    assert (sent["state_count"], sent["action_count"]) == (len(OBSERVATION), len(ACTIONS))
+    assert sent["action_set"] == "behaviors" and sent["communication"] == ["none"]
+    shown = api.client.get(sent["links"]["self"]).json()
+    assert shown["observation"] == OBSERVATION and shown["actions"] == ACTIONS
+    assert shown["model_bytes"] == len(model)
+    assert shown["values"] is None and shown["greedy"] is None
+    [listed] = api.client.get("/policies").json()["policies"]
+    assert listed["kind"] == "network" and listed["id"] == sent["id"]
+    page = api.client.get("/ui/policies")
+    assert page.status_code == 200 and "network: 7 observation columns" in page.text
+
+
+def test_the_labels_may_come_from_the_models_metadata(api: Api) -> None:
+    import json
+
+    named = {METADATA_OBSERVATION: json.dumps(OBSERVATION), METADATA_ACTIONS: json.dumps(ACTIONS)}
+    model = models.mlp(len(OBSERVATION), len(ACTIONS), metadata=named)
+    sent = send(api, {"onnx": encoded(model)})
+    assert sent["kind"] == "network" and sent["state_count"] == len(OBSERVATION)
+    assert refused(api, {"onnx": encoded(models.mlp(7, 4))}) == (
+        "#/observation", "policy_layout",
+        "a network needs observation: the model's metadata names none",
+    )  # fmt: skip
+
+
+def test_a_network_that_cannot_decide_is_422_at_the_field_at_fault(api: Api) -> None:
+    good = {"observation": OBSERVATION, "actions": ACTIONS}
+    width, count = len(OBSERVATION), len(ACTIONS)
+    cases: list[tuple[dict[str, Any], str, str, str]] = [
+        ({"onnx": encoded(b"not onnx at all"), **good}, "#/onnx", "policy_model",
+         "this is not an ONNX model"),
+        ({"onnx": encoded(models.mlp(width, 6)), **good}, "#/onnx", "policy_model",
+         "logits must be (batch, 4), one per action"),
+        ({"onnx": encoded(models.custom_operator(width, count)), **good}, "#/onnx",
+         "policy_model", "imports the operator set 'com.example'"),
+        ({"onnx": encoded(models.external_weights(width, count)), **good}, "#/onnx",
+         "policy_model", "keeps its data outside the model"),
+        ({"onnx": encoded(models.outer_product(width, count)), **good}, "#/onnx",
+         "policy_model", "over the 10000 a policy may compute"),
+        ({"onnx": encoded(models.mlp(width, count)), "observation": ["cell", "reading"],
+          "actions": ACTIONS}, "#/observation", "policy_layout", "is no robot's observation"),
+        ({"onnx": encoded(models.mlp(width, count)), "observation": OBSERVATION,
+          "actions": ["a", "b"]}, "#/actions", "policy_layout", "2 actions that are not"),
+        ({"onnx": encoded(models.mlp(width, count)), **good, "states": ["x"]}, "#/states",
+         "policy_kind", "a network is sent as onnx, observation and actions"),
+    ]  # fmt: skip
+    for body, pointer, rule, detail in cases:
+        found = refused(api, body)
+        assert found[:2] == (pointer, rule) and detail in found[2], found
+    not_base64 = assert_problem(
+        api.client.post("/policies", json={"onnx": "%%% not base64", **good}), 422
+    )
+    assert not_base64["errors"][0]["pointer"] == "#/onnx"
+    table_without_states = refused(api, {"actions": ACTIONS, "values": [[0.0] * count]})
+    assert table_without_states[:2] == ("#/states", "policy_kind")
+    assert api.client.get("/policies").json()["policies"] == []
+
+
+def test_a_job_names_a_network_whose_robots_observe_and_act_as_it_was_trained(
+    api: Api,
+) -> None:
+    policy = network(api)["policy_from"]
+    accepted = api.client.post("/jobs", json={**EVALUATE, "policy_from": policy})
+    assert accepted.status_code == 202, accepted.text
+    n = policy.removeprefix("policy-")
+    directions = {**EVALUATE, "learning": {"episodes": 0, "actions": "directions"}}
+    broadcast = {**EVALUATE, "communication": {"model": "broadcast"}}
+    heard = Scenario.model_validate(broadcast)
+    listens = list(observation_of(heard).labels)
+    spoken = action_labels(heard)
+    other = network(api, models.mlp(len(listens), len(spoken)), observation=listens,
+                    actions=spoken)  # fmt: skip
+    m = other["id"]
+    assert other["communication"] == ["broadcast"]
+    sent = api.client.post("/jobs", json={**broadcast, "policy_from": f"policy-{m}"})
+    assert sent.status_code == 202, sent.text
+    chemical = {**EVALUATE, "communication": {"model": "attractant"}}
+    cases = [
+        ({**EVALUATE, "physics": {"model": "active_brownian"}}, policy,
+         f"policy {n} chooses among the 'behaviors' actions and this scenario uses 'steering': "
+         "learning.actions must be the same"),
+        (directions, policy,
+         f"policy {n} chooses among the 'behaviors' actions and this scenario uses "
+         "'directions': learning.actions must be the same"),
+        (chemical, f"policy-{m}",
+         f"policy {m} reads ({', '.join(listens)}) and this scenario's robots observe "
+         f"({', '.join(listens)}, signal_change): physics.model and communication.model must "
+         "be those it was trained in"),
+    ]  # fmt: skip
+    for scenario, source, detail in cases:
+        pointer, rule, found = refused(api, {**scenario, "policy_from": source}, "/jobs")
+        assert (pointer, rule, found) == ("#/policy_from", "policy_unusable", detail)
+
+
+def test_a_worker_evaluates_a_network_and_fails_one_that_answers_nonsense(
+    api: Api, api_settings: Settings
+) -> None:
+    good = network(api)["policy_from"]
+    bad = network(api, models.beyond_once_sensing(len(OBSERVATION), len(ACTIONS)))
+    jobs = [
+        api.client.post("/jobs", json={**EVALUATE, "policy_from": source}).json()["id"]
+        for source in (good, bad["policy_from"])
+    ]
+    records = []
+    for _ in jobs:
+        claim = api.store.claim("test", lease_s=30)
+        assert claim is not None
+        records.append(run_job(api.store, claim, api_settings, threading.Event()))
+    done, failed = records
+    assert done is not None and done.status is JobStatus.SUCCEEDED, done
+    metrics = api.client.get(f"/jobs/{jobs[0]}/metrics").json()
+    assert len(metrics["worlds"]) == 3 and 0.0 <= metrics["summary"]["success_rate"] <= 1.0
+    trajectory = api.client.get(f"/jobs/{jobs[0]}/trajectory").json()
+    assert np.asarray(trajectory["robots"]).shape[1:] == (3, 3)
+    assert api.client.get(f"/jobs/{jobs[0]}/plots/trajectory.png").status_code == 200
+    assert failed is not None and failed.status is JobStatus.FAILED
+    assert failed.error == "policy_from: the policy answered action 4, not one of 0..3"
