@@ -127,7 +127,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true", help="short episodes: a smoke run")
     args = parser.parse_args(argv)
-    steps = 60 if args.quick else 600
+    steps = 200 if args.quick else 1000
     cases = [
         ("lattice, every step", scenario(LATTICE, steps)),
         ("active_brownian, every step", scenario(BROWNIAN, steps, 0.01)),
