@@ -75,10 +75,11 @@ def _quiet_torch() -> None:
     torch.set_num_threads(1)
 
 
-def train(job: tuple[str, float, int, str]) -> dict[str, Any]:
+def train(job: tuple[str, float, int, str, bool]) -> dict[str, Any]:
     """Train ``algo`` at ``radius`` for ``decisions`` on the design seeds; returns its rate and
-    where the trained policy is (an ONNX file, or the recurrent model's zip)."""
-    algo, radius, decisions, out = job
+    where the trained policy is (an ONNX file, or the recurrent model's zip). ``quick``: short
+    rollouts (a smoke run; the figures use the library's defaults)."""
+    algo, radius, decisions, out, quick = job
     _quiet_torch()
     from sb3_contrib import RecurrentPPO
     from stable_baselines3 import PPO
@@ -88,10 +89,11 @@ def train(job: tuple[str, float, int, str]) -> dict[str, Any]:
     world = scenario(radius, DESIGN_SEEDS, "q_learning", 1)
     env = NanoNavVecEnv(ENVS, world)
     env.seed(DESIGN_SEEDS)
+    rollout: dict[str, Any] = {"n_steps": 16, "batch_size": 64} if quick else {}
     if algo == "ppo":
-        model: Any = PPO("MlpPolicy", env, seed=DESIGN_SEEDS, device="cpu")
+        model: Any = PPO("MlpPolicy", env, seed=DESIGN_SEEDS, device="cpu", **rollout)
     else:
-        model = RecurrentPPO("MlpLstmPolicy", env, seed=DESIGN_SEEDS, device="cpu")
+        model = RecurrentPPO("MlpLstmPolicy", env, seed=DESIGN_SEEDS, device="cpu", **rollout)
     started = time.perf_counter()
     model.learn(total_timesteps=decisions)
     seconds = time.perf_counter() - started
@@ -151,15 +153,16 @@ def run_one(job: tuple[str, float, int, int, str]) -> float:
     return float(evaluate(s, decide).summary["success_rate"])
 
 
-def cartpole_rate(decisions: int) -> float:
+def cartpole_rate(decisions: int, quick: bool = False) -> float:
     """PPO's training decisions/s on CartPole-v1 with ``ENVS`` environments (SB3's own
-    DummyVecEnv, the ecosystem's usual case)."""
+    DummyVecEnv, the ecosystem's usual case), with the same rollouts as NanoNav's."""
     _quiet_torch()
     from stable_baselines3 import PPO
     from stable_baselines3.common.env_util import make_vec_env
 
     env = make_vec_env("CartPole-v1", n_envs=ENVS, seed=0)
-    model = PPO("MlpPolicy", env, seed=0, device="cpu")
+    rollout: dict[str, Any] = {"n_steps": 16, "batch_size": 64} if quick else {}
+    model = PPO("MlpPolicy", env, seed=0, device="cpu", **rollout)
     started = time.perf_counter()
     model.learn(total_timesteps=decisions)
     return int(model.num_timesteps) / (time.perf_counter() - started)
@@ -185,13 +188,14 @@ def main(argv: list[str] | None = None) -> int:
     worlds = args.worlds
     if args.quick:
         radii, seeds, worlds = radii[:1], range(args.seeds_from, args.seeds_from + 2), 1
-        decisions = {"ppo": 2048, "recurrent-ppo": 256}
+        decisions = {"ppo": 512, "recurrent-ppo": 256}
     started = time.perf_counter()
     with tempfile.TemporaryDirectory() as out, ProcessPoolExecutor(os.cpu_count() or 1) as pool:
-        training_jobs = [(algo, r, decisions[algo], out) for algo in LEARNERS for r in radii]
+        training_jobs = [
+            (algo, r, decisions[algo], out, args.quick) for algo in LEARNERS for r in radii
+        ]
         trained = dict(zip(training_jobs, pool.map(train, training_jobs), strict=True))
-        where = {(algo, r): trained[(algo, r, decisions[algo], out)]["where"]
-                 for algo in LEARNERS for r in radii}  # fmt: skip
+        where = {(job[0], job[1]): found["where"] for job, found in trained.items()}
         jobs = [
             (policy, r, seed, worlds, where.get((policy, r), ""))
             for r in radii
@@ -199,14 +203,14 @@ def main(argv: list[str] | None = None) -> int:
             for seed in seeds
         ]
         reached = dict(zip(jobs, pool.map(run_one, jobs), strict=True))
-        cartpole = pool.submit(cartpole_rate, min(decisions["ppo"], 100_000)).result()
+        cartpole = pool.submit(cartpole_rate, min(decisions["ppo"], 100_000), args.quick).result()
     print(
         f"{PRESET}: 20 robots, one tumour cell, 60 s, a decision a second; trained on design "
         f"seeds {DESIGN_SEEDS}.. ({ENVS} worlds of one robot), evaluated on seeds "
         f"{seeds.start}..{seeds.stop - 1} x {worlds} worlds; * = the 95 % interval excludes 0\n"
     )
     print("Training rate (one core each):")
-    for (algo, r, _, _), found in trained.items():
+    for (algo, r, *_), found in trained.items():
         rate = found["decisions"] / found["seconds"]
         robot_steps = rate * found["steps_per_decision"]
         print(f"  {algo:14} R = {r:g} um: {found['decisions']:,} decisions in "

@@ -705,6 +705,10 @@ class Client:
         network's ``observation``, ``actions`` and ``model_bytes``."""
         return self._json("GET", f"/policies/{policy_id}")
 
+    def network_model(self, policy_id: int) -> bytes:
+        """A network's ONNX model, as it was sent (``ApiError`` 404 for a table)."""
+        return self._request("GET", f"/policies/{policy_id}/model").content
+
     def policies(self, *, limit: int | None = None) -> Iterator[Policy]:
         """Policies newest first, without their tables (``policy(id)`` has them)."""
         params = {"limit": PAGE_SIZE if limit is None else min(limit, PAGE_SIZE)}

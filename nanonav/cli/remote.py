@@ -212,7 +212,7 @@ def add_fetch(subcommands: Subcommands) -> None:
         "every picture (<name>.png; qtable.png if it learned a Q-table) into DIR; or, with "
         "--study, a study's results.csv, results.parquet, study.json and its pictures; or, "
         "with --policy, a policy's policy.json (its table, which `nanonav policy` sends "
-        "again). DIR is created if missing.",
+        "again; a network's labels) and a network's policy.onnx. DIR is created if missing.",
     )
     _add_one_of(fetch)
     fetch.add_argument("--out", type=Path, metavar="DIR", required=True, help="where to write")
@@ -238,7 +238,7 @@ def _fetch(args: argparse.Namespace) -> int:
         if args.study is not None:
             found = _study_files(api, args.study)
         elif args.policy is not None:
-            found = iter([("policy.json", _document(api.policy(args.policy)))])
+            found = _policy_files(api, args.policy)
         else:
             found = _job_files(api, args.id)
         written = _write(args.out, found)
@@ -246,6 +246,14 @@ def _fetch(args: argparse.Namespace) -> int:
     for path in written:
         print(f"  {path.name:<28} {_size(path.stat().st_size):>9}")
     return EXIT_OK
+
+
+def _policy_files(api: Client, policy_id: int) -> Iterator[tuple[str, bytes]]:
+    """A policy's document, and a network's model."""
+    policy = api.policy(policy_id)
+    yield "policy.json", _document(policy)
+    if policy.get("kind") == "network":
+        yield "policy.onnx", api.network_model(policy_id)
 
 
 def add_delete(subcommands: Subcommands) -> None:

@@ -98,6 +98,7 @@ def evaluate(
     for b in batches:
         b.step(None, np.ones(b.count, dtype=np.bool_))
     stopped = False
+    calls = 0
     while not all(b.over.all() for b in batches):
         picks = [
             (np.arange(b.count), b.batch.pc.clock[:, phases.CLOCK_NEXT].clip(0))
@@ -109,6 +110,7 @@ def evaluate(
             [b.obs[w, r][:, columns] for b, (w, r) in zip(batches, picks, strict=True)]
         )
         chosen = _decided(decide, rows, first.actions)
+        calls += 1
         at = 0
         for b, (w, r), given, fresh in zip(batches, picks, actions, none_fresh, strict=True):
             given[w, r] = chosen[at : at + w.size]
@@ -124,7 +126,7 @@ def evaluate(
                 break
     engine_s = time.perf_counter() - started
     if stopped:
-        work = {"robot_steps": _robot_steps(batches), "engine_s": engine_s}
+        work = {"robot_steps": _robot_steps(batches), "engine_s": engine_s, "decide_calls": calls}
         return SimulationResult(scenario, {}, [], [], work, None, None, completed=False)
     tallies = np.zeros((count, robots, state.EV_COLUMNS))
     cells = np.zeros((count, scenario.cells.count, state.CELL_COLUMNS), dtype=np.int64)
@@ -143,7 +145,8 @@ def evaluate(
         scenario, _recording(first), tallies[0], int(steps[0]), first.params.record_stride
     )
     summary, uncertainty = metrics.over_worlds(worlds)
-    work = {"robot_steps": int(robot_steps.sum()), "engine_s": engine_s}
+    # decide_calls: what marks a result decided from outside (a network's, say)
+    work = {"robot_steps": int(robot_steps.sum()), "engine_s": engine_s, "decide_calls": calls}
     return SimulationResult(
         scenario, summary, rows_of_first, [], work, trajectory, None,
         uncertainty=uncertainty, worlds=worlds, physics=derived_physics(scenario, summary),

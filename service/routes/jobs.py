@@ -444,7 +444,13 @@ def _check_treatment(store: JobStore, job_id: int) -> None:
 def _qtable_png(store: JobStore, job_id: int) -> bytes:
     arrays = store.qtable(job_id)
     if not arrays:
-        policy = store.get(job_id).scenario.get("robots", {}).get("policy")
+        scenario = store.get(job_id).scenario
+        source = scenario.get("policy_from")
+        if isinstance(source, str):
+            raise NoQTable(
+                f"job {job_id} learned no Q-table: it evaluated {source}, a network, which has none"
+            )
+        policy = scenario.get("robots", {}).get("policy")
         raise NoQTable(
             f"job {job_id} learned no Q-table: its robots used the {policy!r} policy, and only "
             "q_learning learns one"

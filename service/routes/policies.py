@@ -220,6 +220,34 @@ def get_policy(policy_id: PolicyId, store: StoreDep) -> Policy:
     )
 
 
+@router.get(
+    "/{policy_id}/model",
+    response_class=Response,
+    responses={
+        200: {"content": {"application/octet-stream": {}}, "description": "The ONNX model."},
+        **problems(404, 422),
+    },
+)
+def get_model(policy_id: PolicyId, store: StoreDep) -> Response:
+    """A network's ONNX model, as it was sent (404 ``no-model`` for a table)."""
+    store.policies.get(policy_id)
+    table = store.policies.table(policy_id)
+    if "model" not in table:
+        problem = Problem(
+            type=PROBLEM_BASE + "no-model",
+            title="No model",
+            status=404,
+            detail=f"policy {policy_id} is a Q-table, not a network: GET /policies/{policy_id} "
+            "has its values",
+        )
+        return problem_response(problem)
+    return Response(
+        table["model"].tobytes(),
+        media_type="application/octet-stream",
+        headers={"Content-Disposition": f'attachment; filename="policy-{policy_id}.onnx"'},
+    )
+
+
 @router.delete(
     "/{policy_id}",
     status_code=204,

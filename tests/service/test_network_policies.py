@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from nanonav.client import Client
 from nanonav.engine.worlds import action_labels, observation_of
 from nanonav.rl.onnx_policy import METADATA_ACTIONS, METADATA_OBSERVATION
 from nanonav.scenario import Scenario
@@ -19,7 +20,7 @@ from nanonav.store import JobStatus
 from tests.conftest import Api
 from tests.rl import models
 from tests.service.test_api import assert_problem
-from tests.service.test_policies import refused, send
+from tests.service.test_policies import BEHAVIORS, refused, send
 from worker.job import run_job
 
 LATTICE = Scenario()
@@ -53,8 +54,13 @@ def test_a_network_is_kept_shown_and_listed_as_a_network(api: Api) -> None:
     assert shown["observation"] == OBSERVATION and shown["actions"] == ACTIONS
     assert shown["model_bytes"] == len(model)
     assert shown["values"] is None and shown["greedy"] is None
-    [listed] = api.client.get("/policies").json()["policies"]
-    assert listed["kind"] == "network" and listed["id"] == sent["id"]
+    with Client(api.url) as client:
+        assert client.network_model(sent["id"]) == model
+    table = send(api, {"states": BEHAVIORS[0], "actions": BEHAVIORS[1], "greedy": []})
+    no_model = assert_problem(api.client.get(f"/policies/{table['id']}/model"), 404)
+    assert no_model["type"].endswith("no-model")
+    listed = api.client.get("/policies").json()["policies"]
+    assert [p["kind"] for p in listed] == ["table", "network"] and listed[1]["id"] == sent["id"]
     page = api.client.get("/ui/policies")
     assert page.status_code == 200 and "network: 7 observation columns" in page.text
 
@@ -162,5 +168,11 @@ def test_a_worker_evaluates_a_network_and_fails_one_that_answers_nonsense(
     trajectory = api.client.get(f"/jobs/{jobs[0]}/trajectory").json()
     assert np.asarray(trajectory["robots"]).shape[1:] == (3, 3)
     assert api.client.get(f"/jobs/{jobs[0]}/plots/trajectory.png").status_code == 200
+    assert api.client.get(f"/jobs/{jobs[0]}/plots/learning.png").status_code == 200
+    assert metrics["work"]["decide_calls"] > 0  # the network decided, not an engine's table
+    no_table = assert_problem(api.client.get(f"/jobs/{jobs[0]}/plots/qtable.png"), 404)
+    assert no_table["detail"] == (
+        f"job {jobs[0]} learned no Q-table: it evaluated {good}, a network, which has none"
+    )
     assert failed is not None and failed.status is JobStatus.FAILED
     assert failed.error == "policy_from: the policy answered action 4, not one of 0..3"

@@ -281,6 +281,8 @@ def _learning_title(result: SimulationResult, trials: int, planned: int, trial_n
     actions = result.scenario.learning.actions
     if trials == 0:
         source = result.scenario.policy_from
+        if "decide_calls" in result.work:  # decided from outside: a network
+            return f"A network ({actions}), sent as {source}: evaluated, it does not learn"
         if isinstance(source, str):
             table = f"the table sent as {source}"
         else:
