@@ -5,9 +5,10 @@ learned table: the scenario's evaluation worlds, measured and the first recorded
 The worlds are those ``simulate`` evaluates in for the scenario's seed (drawn one after another
 from its evaluation stream), so a network and a rule evaluated with one seed meet the same
 worlds and pair by seed; the first world also runs on ``simulate``'s dynamics stream, the
-others each on one of their own. Every world steps at once: one call of ``decide`` a decision
-takes the observations of every robot of every world (one row each; under the sequential
-schedule, of the robot whose turn it is in each world).
+others each on one of their own. The worlds step together, in rounds of at most
+``ROUND_ROBOTS`` robots (which change nothing but the memory taken): one call of ``decide`` a
+decision takes the observations of every robot of every world of the round (one row each;
+under the sequential schedule, of the robot whose turn it is in each world).
 """
 
 from __future__ import annotations
@@ -38,6 +39,9 @@ from nanonav.scenario import Scenario, ScenarioError
 Decide = Callable[[NDArray[np.float64]], NDArray[np.int64]]
 # Seconds of work between progress reports
 PROGRESS_EVERY_S = 0.1
+# Robots stepped at once: the worlds are evaluated in rounds of at most this many robots (or
+# one world, if it has more), so that memory grows with a round, not with worlds x robots
+ROUND_ROBOTS = 100_000
 
 
 class PolicyFailed(RuntimeError):
@@ -71,82 +75,55 @@ def evaluate(
             "learning.episodes", "a policy from outside is evaluated, not trained: it must be 0"
         )
     count = scenario.evaluation.worlds
-    schedule = scenario.robots.schedule
-    first = Worlds(scenario, 1, schedule, measure=phases.RECORDED, record_bytes=record_bytes)
-    batches = [first]
-    if count > 1:
-        batches.append(Worlds(scenario, count - 1, schedule, measure=phases.MEASURED))
-    # one evaluation stream draws every world in turn, as simulate's evaluation draws them
-    drawn = stream(scenario.seed, EVALUATION_STREAM)
-    first.world_rngs[0] = drawn
-    first.rngs[0] = stream(scenario.seed, DYNAMICS_STREAM)
-    for k in range(1, count):
-        batches[1].world_rngs[k - 1] = drawn
-        batches[1].rngs[k - 1] = stream(scenario.seed, DYNAMICS_STREAM, k)
-    columns = observation_of(scenario).columns
     robots = scenario.robots.count
-    sequential = schedule == "sequential" and robots > 1
-    # who decides, as (worlds, robots) index pairs: every robot, or the one whose turn it is
-    everyone = [
-        (np.repeat(np.arange(b.count), robots), np.tile(np.arange(robots), b.count))
-        for b in batches
-    ]
-    actions = [np.zeros((b.count, robots), dtype=np.int64) for b in batches]
-    none_fresh = [np.zeros(b.count, dtype=np.bool_) for b in batches]
-    started = time.perf_counter()
-    last_report = started
-    for b in batches:
-        b.step(None, np.ones(b.count, dtype=np.bool_))
-    stopped = False
-    calls = 0
-    while not all(b.over.all() for b in batches):
-        picks = [
-            (np.arange(b.count), b.batch.pc.clock[:, phases.CLOCK_NEXT].clip(0))
-            if sequential
-            else pairs
-            for b, pairs in zip(batches, everyone, strict=True)
-        ]
-        rows = np.concatenate(
-            [b.obs[w, r][:, columns] for b, (w, r) in zip(batches, picks, strict=True)]
-        )
-        chosen = _decided(decide, rows, first.actions)
-        calls += 1
-        at = 0
-        for b, (w, r), given, fresh in zip(batches, picks, actions, none_fresh, strict=True):
-            given[w, r] = chosen[at : at + w.size]
-            at += w.size
-            b.step(given, fresh, checked=True)
-        now = time.perf_counter()
-        if progress is not None and now - last_report >= PROGRESS_EVERY_S:
-            last_report = now
-            done = sum(int(b.over.sum()) for b in batches)
-            step = min(b.steps(k) for b in batches for k in range(b.count))
-            if progress(Progress(done, count, step, scenario.learning.max_steps)) is False:
-                stopped = True
-                break
-    engine_s = time.perf_counter() - started
-    if stopped:
-        work = {"robot_steps": _robot_steps(batches), "engine_s": engine_s, "decide_calls": calls}
-        return SimulationResult(scenario, {}, [], [], work, None, None, completed=False)
     tallies = np.zeros((count, robots, state.EV_COLUMNS))
     cells = np.zeros((count, scenario.cells.count, state.CELL_COLUMNS), dtype=np.int64)
     steps = np.zeros(count, dtype=np.int64)
     robot_steps = np.zeros(count)
-    world = 0
-    for b in batches:
-        for k in range(b.count):
-            swarm, social, treatment = _views(b.batch, k)
-            tally_evaluation(swarm, social, treatment, tallies[world], cells[world])
-            steps[world] = b.steps(k)
-            robot_steps[world] = float(swarm.steps.sum())
-            world += 1
+    # one evaluation stream draws every world in turn, as simulate's evaluation draws them
+    drawn = stream(scenario.seed, EVALUATION_STREAM)
+    run = _Round(scenario, decide, progress, count)
+    per_round = max(1, ROUND_ROBOTS // robots)
+    first = Worlds(scenario, 1, scenario.robots.schedule, measure=phases.RECORDED,
+                   record_bytes=record_bytes)  # fmt: skip
+    trajectory = None
+    for start in range(0, count, per_round):
+        size = min(per_round, count - start)
+        batches = [first] if start == 0 else []
+        rest = size - len(batches)
+        if rest:
+            batches.append(
+                Worlds(scenario, rest, scenario.robots.schedule, measure=phases.MEASURED)
+            )
+        k = start
+        for b in batches:
+            for j in range(b.count):
+                b.world_rngs[j] = drawn
+                # the first world on simulate's own dynamics stream, each other on its own
+                b.rngs[j] = stream(scenario.seed, DYNAMICS_STREAM, *((k,) if k else ()))
+                k += 1
+        if not run.through(batches):
+            work = {"robot_steps": run.robot_steps, "engine_s": run.seconds,
+                    "decide_calls": run.calls}  # fmt: skip
+            return SimulationResult(scenario, {}, [], [], work, None, None, completed=False)
+        world = start
+        for b in batches:
+            for j in range(b.count):
+                swarm, social, treatment = _views(b.batch, j)
+                tally_evaluation(swarm, social, treatment, tallies[world], cells[world])
+                steps[world] = b.steps(j)
+                robot_steps[world] = float(swarm.steps.sum())
+                world += 1
+        if start == 0:
+            trajectory = recorded_trajectory(
+                scenario, _recording(first), tallies[0], int(steps[0]), first.params.record_stride
+            )
+        run.done += size
+    engine_s = run.seconds
     worlds, rows_of_first = evaluated_worlds(scenario, tallies, cells, steps, robot_steps, engine_s)
-    trajectory = recorded_trajectory(
-        scenario, _recording(first), tallies[0], int(steps[0]), first.params.record_stride
-    )
     summary, uncertainty = metrics.over_worlds(worlds)
     # decide_calls: what marks a result decided from outside (a network's, say)
-    work = {"robot_steps": int(robot_steps.sum()), "engine_s": engine_s, "decide_calls": calls}
+    work = {"robot_steps": int(robot_steps.sum()), "engine_s": engine_s, "decide_calls": run.calls}
     return SimulationResult(
         scenario, summary, rows_of_first, [], work, trajectory, None,
         uncertainty=uncertainty, worlds=worlds, physics=derived_physics(scenario, summary),
@@ -172,8 +149,78 @@ def _decided(decide: Decide, rows: NDArray[np.float64], actions: int) -> NDArray
     return chosen.astype(np.int64, copy=False)
 
 
-def _robot_steps(batches: list[Worlds]) -> int:
-    return int(sum(int(b.batch.s.steps.sum()) for b in batches))
+class _Round:
+    """Rounds of worlds stepped together to their ends, ``decide`` deciding for every robot of
+    every world of a round in one call a decision; the work done and the progress reported
+    over all of them."""
+
+    def __init__(
+        self, scenario: Scenario, decide: Decide, progress: ProgressCallback | None, count: int
+    ) -> None:
+        self.scenario = scenario
+        self.decide = decide
+        self.progress = progress
+        self.count = count
+        self.columns = observation_of(scenario).columns
+        self.robots = scenario.robots.count
+        self.sequential = scenario.robots.schedule == "sequential" and self.robots > 1
+        self.calls = 0
+        self.done = 0  # worlds of earlier rounds
+        self.seconds = 0.0
+        self.robot_steps = 0
+        self.last_report = time.perf_counter()
+
+    def through(self, batches: list[Worlds]) -> bool:
+        """Step ``batches`` until every world is over; False if ``progress`` said stop."""
+        started = time.perf_counter()
+        try:
+            return self._through(batches)
+        finally:
+            self.seconds += time.perf_counter() - started
+            self.robot_steps += sum(int(b.batch.s.steps.sum()) for b in batches)
+
+    def _through(self, batches: list[Worlds]) -> bool:
+        robots = self.robots
+        # who decides, as (worlds, robots) index pairs: every robot, or the one whose turn it is
+        everyone = [
+            (np.repeat(np.arange(b.count), robots), np.tile(np.arange(robots), b.count))
+            for b in batches
+        ]
+        actions = [np.zeros((b.count, robots), dtype=np.int64) for b in batches]
+        none_fresh = [np.zeros(b.count, dtype=np.bool_) for b in batches]
+        for b in batches:
+            b.step(None, np.ones(b.count, dtype=np.bool_))
+        while not all(b.over.all() for b in batches):
+            picks = [
+                (np.arange(b.count), b.batch.pc.clock[:, phases.CLOCK_NEXT].clip(0))
+                if self.sequential
+                else pairs
+                for b, pairs in zip(batches, everyone, strict=True)
+            ]
+            rows = np.concatenate(
+                [b.obs[w, r][:, self.columns] for b, (w, r) in zip(batches, picks, strict=True)]
+            )
+            chosen = _decided(self.decide, rows, batches[0].actions)
+            self.calls += 1
+            at = 0
+            for b, (w, r), given, fresh in zip(batches, picks, actions, none_fresh, strict=True):
+                given[w, r] = chosen[at : at + w.size]
+                at += w.size
+                b.step(given, fresh, checked=True)
+            if not self._report(batches):
+                return False
+        return True
+
+    def _report(self, batches: list[Worlds]) -> bool:
+        """Report progress about every ``PROGRESS_EVERY_S``; False if told to stop."""
+        now = time.perf_counter()
+        if self.progress is None or now - self.last_report < PROGRESS_EVERY_S:
+            return True
+        self.last_report = now
+        done = self.done + sum(int(b.over.sum()) for b in batches)
+        step = min(b.steps(k) for b in batches for k in range(b.count))
+        where = Progress(done, self.count, step, self.scenario.learning.max_steps)
+        return self.progress(where) is not False
 
 
 def _recording(worlds: Worlds) -> state.Recording:

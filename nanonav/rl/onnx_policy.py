@@ -294,8 +294,14 @@ def _kind(answer: NDArray[Any], actions: int) -> Output:
     raise InvalidModel(f"the model's first output is {answer.dtype}: logits or actions, please")
 
 
+# Observations a single inference call takes: a larger batch is run in parts of this many, so
+# that what the graph computes stays within MAX_ROW_ELEMENTS x this many numbers a value
+INFERENCE_ROWS = 8192
+
+
 class NetworkPolicy:
-    """A checked model, deciding for many robots in one inference call."""
+    """A checked model, deciding for many robots in one inference call (in parts of
+    ``INFERENCE_ROWS`` for more)."""
 
     def __init__(self, data: bytes, width: int, actions: int, *, max_bytes: int) -> None:
         self.info = check_model(data, width, actions, max_bytes=max_bytes)
@@ -305,9 +311,15 @@ class NetworkPolicy:
     def __call__(self, observations: NDArray[np.float64]) -> NDArray[np.int64]:
         """The action of each row of ``observations``."""
         rows = np.ascontiguousarray(observations, dtype=np.float32)
-        answer = np.asarray(
-            self._session.run([self.info.output_name], {self.info.input_name: rows})[0]
-        )
+        parts = [
+            np.asarray(
+                self._session.run(
+                    [self.info.output_name], {self.info.input_name: rows[at : at + INFERENCE_ROWS]}
+                )[0]
+            )
+            for at in range(0, max(rows.shape[0], 1), INFERENCE_ROWS)
+        ]
+        answer = parts[0] if len(parts) == 1 else np.concatenate(parts)
         if self.info.output == "logits":
             if answer.shape != (rows.shape[0], answer.shape[-1]) or not np.isfinite(answer).all():
                 raise ValueError("the model's logits are not finite, one row an observation")

@@ -11,6 +11,7 @@ import pytest
 
 from nanonav.engine import qlearning, simulate
 from nanonav.engine.worlds import observation_of
+from nanonav.rl import evaluate as evaluate_module
 from nanonav.rl.evaluate import PolicyFailed, evaluate
 from nanonav.scenario import Scenario, ScenarioError
 
@@ -125,3 +126,22 @@ def test_a_progress_callback_that_answers_false_stops_the_run() -> None:
     s = scenario(learning={"max_steps": 100_000}, robots={"count": 50})
     result = evaluate(s, always(0), progress=lambda where: False)
     assert not result.completed and result.summary == {}
+
+
+def test_worlds_evaluated_in_rounds_give_what_one_round_gives(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Rounds bound the memory and change nothing else: three robots a round (a world alone)
+    gives the very tallies of all five worlds at once."""
+    s = scenario(robots={"count": 3, "schedule": "simultaneous"}, evaluation={"worlds": 5})
+    at_once = evaluate(s, always(1))
+    monkeypatch.setattr(evaluate_module, "ROUND_ROBOTS", 3)
+    calls = []
+
+    def decide(rows: Any) -> Any:
+        calls.append(rows.shape[0])
+        return np.ones(rows.shape[0], dtype=np.int64)
+
+    in_rounds = evaluate(s, decide)
+    assert [untimed(w) for w in in_rounds.worlds] == [untimed(w) for w in at_once.worlds]
+    assert set(calls) == {3}  # one world's robots a call

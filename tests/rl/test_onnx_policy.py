@@ -87,3 +87,16 @@ def test_a_fixed_batch_a_second_input_and_the_size_limit_are_refused() -> None:
     data = models.mlp(7, 4, hidden=64)
     with pytest.raises(InvalidModel, match=f"takes {len(data)} bytes, over the limit of 1024"):
         check_model(data, 7, 4, max_bytes=1024)
+
+
+def test_a_batch_larger_than_one_call_takes_is_run_in_parts(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    from nanonav.rl import onnx_policy
+
+    policy = NetworkPolicy(models.mlp(7, 4, seed=3), 7, 4, max_bytes=LIMIT)
+    rows = np.random.default_rng(1).normal(size=(1000, 7))
+    whole = policy(rows)
+    monkeypatch.setattr(onnx_policy, "INFERENCE_ROWS", 64)
+    assert np.array_equal(policy(rows), whole)
+    assert policy(np.zeros((0, 7))).shape == (0,)
