@@ -18,6 +18,7 @@ from numpy.typing import NDArray
 
 from nanonav.engine import qlearning
 from nanonav.engine.worlds import OBSERVATION_LABELS, observation_of
+from nanonav.rl.evaluate import REMEMBERS_AT_ONCE, decides_at_once
 from nanonav.scenario import ActionSet, CommunicationModel, Scenario
 from nanonav.store.errors import JobNotFound, ResultsUnavailable
 from nanonav.store.models import JobStatus
@@ -275,6 +276,8 @@ def _network_problem(
             f"{_either(models or ['another version'])} and this scenario's is "
             f"'{communication}': communication.model must be the same"
         )
+    if int(table.get("memory", np.zeros(())).sum()) and not decides_at_once(scenario):
+        return f"{name} has a memory: {REMEMBERS_AT_ONCE}"
     observed = list(observation_of(scenario).labels)
     reads = table["observation"].tolist()
     if reads != observed:

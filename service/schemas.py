@@ -915,6 +915,11 @@ class Policy(PolicySummary):
         None, description="A network's: the observation column of each input."
     )
     model_bytes: int | None = Field(None, description="A network's: its ONNX model's size.")
+    memory: int | None = Field(
+        None,
+        description="A network's: the memory inputs it carries from decision to decision (a "
+        "recurrent one's; 0 for none).",
+    )
 
 
 class PolicyPage(BaseModel):

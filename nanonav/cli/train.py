@@ -29,8 +29,9 @@ def add_train(subcommands: Subcommands) -> None:
         description="Train PPO, recurrent PPO or DQN on one robot per world of the scenario, "
         "--envs worlds stepped together (world k drawn from seed + k), for --steps decisions "
         "in all. Writes model.zip (Stable-Baselines3's own file, for your own use), policy.onnx "
-        "(observation -> action logits; PPO and DQN), checkpoints/, tensorboard/ (tensorboard "
-        "--logdir DIR/tensorboard), scenario.json and training.json into --out. "
+        "(observation -> action logits; recurrent PPO's with its memory in and out), "
+        "checkpoints/, tensorboard/ (tensorboard --logdir DIR/tensorboard), scenario.json and "
+        "training.json into --out. "
         f"Needs the rl extra ({RL_EXTRA}).",
     )
     train.add_argument("--preset", choices=sorted(PRESETS), help="base values of the scenario")
@@ -91,13 +92,11 @@ def _train(args: argparse.Namespace) -> int:
     )  # fmt: skip
     seconds = time.perf_counter() - started
     model.save(out / "model.zip")
-    exported = None
-    if args.algo != "recurrent-ppo":  # its memory would be an input too: not exported yet
-        export_onnx(
-            model, out / "policy.onnx", observation=env.observation_labels,
-            actions=env.action_labels,
-        )  # fmt: skip
-        exported = "policy.onnx"
+    exported = "policy.onnx"
+    export_onnx(
+        model, out / "policy.onnx", observation=env.observation_labels,
+        actions=env.action_labels,
+    )  # fmt: skip
     (out / "scenario.json").write_text(scenario.model_dump_json(indent=1) + "\n")
     done = int(model.num_timesteps)
     report = {

@@ -142,6 +142,33 @@ ONNX_OPSET = 17
 """The ONNX opset ``export_onnx`` writes: one onnxruntime has run since 2022."""
 
 
+def _recurrent_logits_class() -> Any:
+    import torch
+    from stable_baselines3.common.policies import ActorCriticPolicy
+
+    class RecurrentLogits(torch.nn.Module):
+        """Recurrent PPO's actor for one step: observation and memory in, logits and memory
+        out (what its ``get_distribution`` does at a step that starts no episode)."""
+
+        def __init__(self, policy: Any) -> None:
+            super().__init__()
+            self.policy = policy  # a submodule: its weights are the graph's, not constants
+
+        def forward(
+            self, observation: torch.Tensor, hidden: torch.Tensor, cell: torch.Tensor
+        ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+            p = self.policy
+            # what get_distribution calls: the base class's, not the actor-critic's own
+            features = super(ActorCriticPolicy, p).extract_features(  # type: ignore[misc]
+                observation, p.pi_features_extractor
+            )
+            out, (hidden_out, cell_out) = p.lstm_actor(features.unsqueeze(0), (hidden, cell))
+            logits = p.action_net(p.mlp_extractor.forward_actor(out.squeeze(0)))
+            return logits, hidden_out, cell_out
+
+    return RecurrentLogits
+
+
 def export_onnx(
     model: Any,
     path: Path,
@@ -152,9 +179,11 @@ def export_onnx(
     """Write ``model``'s greedy decision as ONNX, the exchange format of neural networks: one
     float32 input ``observation`` (batch x the env's observation width) and one output
     ``logits`` (batch x actions; the greedy action is its argmax). PPO gives its policy's
-    action logits, DQN its Q-values. A recurrent policy is refused (``ValueError``): its memory
-    would be an input too. The file is data, not code: onnxruntime runs it with no Python of
-    the model's, unlike SB3's own zip, which holds pickles.
+    action logits, DQN its Q-values. Recurrent PPO (sb3-contrib) carries its actor's LSTM
+    memory as two more inputs, ``hidden_in`` and ``cell_in`` (layers x batch x units, zeros at
+    an episode's start), given back as ``hidden_out`` and ``cell_out`` after the logits. The
+    file is data, not code: onnxruntime runs it with no Python of the model's, unlike SB3's
+    own zip, which holds pickles.
 
     ``observation`` and ``actions`` (the env's ``observation_labels`` and ``action_labels``)
     are written into the model's metadata (``METADATA_OBSERVATION``, ``METADATA_ACTIONS``, as
@@ -180,17 +209,34 @@ def export_onnx(
         head = Logits(policy)
     elif isinstance(model, DQN):
         head = policy.q_net
+    elif type(model).__name__ == "RecurrentPPO":
+        head = _recurrent_logits_class()(policy)
     else:
-        raise ValueError(f"{type(model).__name__} cannot be exported: only PPO and DQN")
+        raise ValueError(
+            f"{type(model).__name__} cannot be exported: only PPO, recurrent PPO and DQN"
+        )
     width = int(model.observation_space.shape[0])
     head = head.to("cpu").eval()
+    given: tuple[torch.Tensor, ...] = (torch.zeros(1, width),)
+    inputs, outputs = ["observation"], ["logits"]
+    axes: dict[str, dict[int, str]] = {"observation": {0: "batch"}, "logits": {0: "batch"}}
+    if type(model).__name__ == "RecurrentPPO":
+        lstm = policy.lstm_actor
+        memory = torch.zeros(lstm.num_layers, 1, lstm.hidden_size)
+        given = (*given, memory, memory.clone())
+        inputs += ["hidden_in", "cell_in"]
+        outputs += ["hidden_out", "cell_out"]
+        axes.update({name: {1: "batch"} for name in (*inputs[1:], *outputs[1:])})
     with warnings.catch_warnings():
-        # the TorchScript exporter: torch's newer one needs onnxscript, which nothing else does
+        # the TorchScript exporter: torch's newer one needs onnxscript, which nothing else does;
+        # its tracer warns that the LSTM's shape checks are traced as constants: the ONNX LSTM
+        # operator it writes takes any batch (a test runs the file at another batch size)
         warnings.simplefilter("ignore", DeprecationWarning)
+        warnings.simplefilter("ignore", UserWarning)
+        warnings.simplefilter("ignore", torch.jit.TracerWarning)
         torch.onnx.export(
-            head, (torch.zeros(1, width),), str(path), input_names=["observation"],
-            output_names=["logits"], opset_version=ONNX_OPSET, dynamo=False,
-            dynamic_axes={"observation": {0: "batch"}, "logits": {0: "batch"}},
+            head, given, str(path), input_names=inputs, output_names=outputs,
+            opset_version=ONNX_OPSET, dynamo=False, dynamic_axes=axes,
         )  # fmt: skip
     if observation is not None or actions is not None:
         import onnx

@@ -44,6 +44,18 @@ PROGRESS_EVERY_S = 0.1
 ROUND_ROBOTS = 100_000
 
 
+REMEMBERS_AT_ONCE = (
+    "a network with a memory decides for every robot at once, each row one robot: "
+    "robots.schedule must be 'simultaneous'"
+)
+
+
+def decides_at_once(scenario: Scenario) -> bool:
+    """Whether every robot of a world decides in each call (the simultaneous schedule, or one
+    robot), so that row k is the same robot call after call."""
+    return scenario.robots.schedule == "simultaneous" or scenario.robots.count == 1
+
+
 class PolicyFailed(RuntimeError):
     """The outside policy answered what no robot can do (or raised); the message says what."""
 
@@ -74,6 +86,8 @@ def evaluate(
         raise ScenarioError(
             "learning.episodes", "a policy from outside is evaluated, not trained: it must be 0"
         )
+    if getattr(decide, "remembers", False) and not decides_at_once(scenario):
+        raise PolicyFailed(REMEMBERS_AT_ONCE)
     count = scenario.evaluation.worlds
     robots = scenario.robots.count
     tallies = np.zeros((count, robots, state.EV_COLUMNS))
@@ -163,7 +177,7 @@ class _Round:
         self.count = count
         self.columns = observation_of(scenario).columns
         self.robots = scenario.robots.count
-        self.sequential = scenario.robots.schedule == "sequential" and self.robots > 1
+        self.sequential = not decides_at_once(scenario)
         self.calls = 0
         self.done = 0  # worlds of earlier rounds
         self.seconds = 0.0
@@ -181,6 +195,9 @@ class _Round:
 
     def _through(self, batches: list[Worlds]) -> bool:
         robots = self.robots
+        forget = getattr(self.decide, "forget", None)
+        if forget is not None:
+            forget()  # a recurrent policy's robots start their episodes afresh
         # who decides, as (worlds, robots) index pairs: every robot, or the one whose turn it is
         everyone = [
             (np.repeat(np.arange(b.count), robots), np.tile(np.arange(robots), b.count))

@@ -52,14 +52,32 @@ class InvalidModel(ValueError):
 
 
 @dataclass(frozen=True)
+class Memory:
+    """A recurrent model's memory: an input it reads, the output that gives it back for the
+    next decision, their shape (a number per fixed axis, the batch axis's name) and which axis
+    is the batch's."""
+
+    input_name: str
+    output_name: str
+    dims: tuple[int | str, ...]
+    batch_axis: int
+
+    def zeros(self, rows: int) -> NDArray[np.float32]:
+        """The memory of ``rows`` robots at an episode's start."""
+        shape = [rows if axis == self.batch_axis else int(d) for axis, d in enumerate(self.dims)]
+        return np.zeros(shape, dtype=np.float32)
+
+
+@dataclass(frozen=True)
 class ModelInfo:
     """What a checked model is: its operator set version, whether it gives logits or actions,
-    and the input and output it is run by."""
+    the input and output it is run by, and a recurrent model's memory."""
 
     opset: int
     output: Output
     input_name: str
     output_name: str
+    memory: tuple[Memory, ...] = ()
 
 
 def model_labels(data: bytes, *, max_bytes: int) -> tuple[list[str] | None, list[str] | None]:
@@ -232,9 +250,8 @@ def check_model(data: bytes, width: int, actions: int, *, max_bytes: int) -> Mod
     opset = _check_contents(model)
     weights = {tensor.name for tensor in model.graph.initializer}
     inputs = [value for value in model.graph.input if value.name not in weights]
-    if len(inputs) != 1:
-        names = ", ".join(repr(value.name) for value in inputs) or "none"
-        raise InvalidModel(f"the model takes {len(inputs)} inputs ({names}), not one")
+    if not inputs:
+        raise InvalidModel("the model takes no input: it must take the observation")
     given = inputs[0]
     if given.type.tensor_type.elem_type != TensorProto.FLOAT:
         kind = TensorProto.DataType.Name(given.type.tensor_type.elem_type)
@@ -251,20 +268,64 @@ def check_model(data: bytes, width: int, actions: int, *, max_bytes: int) -> Mod
             f"the model's input {given.name!r} has {fixed}: its first axis must be a named "
             "dynamic axis (torch.onnx.export(..., dynamic_axes={name: {0: 'batch'}}))"
         )
+    memory = _memory(model, inputs[1:], dims[0])
     _check_sizes(model, dims[0])
     try:
         session = _session(data)
     except Exception as error:
         raise InvalidModel(f"ONNX Runtime cannot run the model: {_first_line(error)}") from None
     output = session.get_outputs()[0]
+    feeds = {given.name: np.zeros((TRIAL_ROWS, width), np.float32)}
+    feeds.update({m.input_name: m.zeros(TRIAL_ROWS) for m in memory})
+    names = [output.name, *(m.output_name for m in memory)]
     try:
-        answer = session.run([output.name], {given.name: np.zeros((TRIAL_ROWS, width), np.float32)})
+        answer = session.run(names, feeds)
     except Exception as error:
         raise InvalidModel(
             f"the model failed on a batch of {TRIAL_ROWS} zero observations: {_first_line(error)}"
         ) from None
     kind = _kind(np.asarray(answer[0]), actions)
-    return ModelInfo(opset, kind, given.name, output.name)
+    for m, kept in zip(memory, answer[1:], strict=True):
+        if np.asarray(kept).shape != m.zeros(TRIAL_ROWS).shape:
+            raise InvalidModel(
+                f"the model's output {m.output_name!r} is not shaped as its memory "
+                f"{m.input_name!r}, {list(m.dims)}"
+            )
+    return ModelInfo(opset, kind, given.name, output.name, memory)
+
+
+def _memory(
+    model: onnx.ModelProto, inputs: list[onnx.ValueInfoProto], batch: str
+) -> tuple[Memory, ...]:
+    """The memory of a recurrent model: each input after the observation, float32, with the
+    batch axis once and every other axis fixed, at most ``MAX_ROW_ELEMENTS`` numbers a robot,
+    given back by the output at its place after the decision (input k+1, output k+1)."""
+    outputs = list(model.graph.output)
+    found = []
+    for k, value in enumerate(inputs, start=1):
+        dims = _dims(value)
+        fixed = [d for d in dims if d != batch]
+        if (
+            value.type.tensor_type.elem_type != TensorProto.FLOAT
+            or dims.count(batch) != 1
+            or not all(isinstance(d, int) for d in fixed)
+        ):
+            raise InvalidModel(
+                f"the model's input {value.name!r}, shape {dims}, is neither the observation "
+                f"nor a memory: the first input is the observation; any other is a float32 "
+                f"memory with the batch axis {batch!r} once and every other axis fixed"
+            )
+        if math.prod(d for d in fixed if isinstance(d, int)) > MAX_ROW_ELEMENTS:
+            raise InvalidModel(
+                f"the model's memory {value.name!r} holds over {MAX_ROW_ELEMENTS} numbers a robot"
+            )
+        if len(outputs) <= k or _dims(outputs[k]) != dims:
+            raise InvalidModel(
+                f"the model reads the memory {value.name!r} but gives no output {k} of its "
+                f"shape {dims} back: output k after the decision carries input k's memory"
+            )
+        found.append(Memory(value.name, outputs[k].name, tuple(dims), dims.index(batch)))  # type: ignore[arg-type]
+    return tuple(found)
 
 
 def _kind(answer: NDArray[Any], actions: int) -> Output:
@@ -294,6 +355,13 @@ def _kind(answer: NDArray[Any], actions: int) -> Output:
     raise InvalidModel(f"the model's first output is {answer.dtype}: logits or actions, please")
 
 
+def _along(memory: Memory, part: slice) -> tuple[slice, ...]:
+    """The index of rows ``part`` of a memory, along its batch axis."""
+    return tuple(
+        part if axis == memory.batch_axis else slice(None) for axis in range(len(memory.dims))
+    )
+
+
 # Observations a single inference call takes: a larger batch is run in parts of this many, so
 # that what the graph computes stays within MAX_ROW_ELEMENTS x this many numbers a value
 INFERENCE_ROWS = 8192
@@ -307,18 +375,36 @@ class NetworkPolicy:
         self.info = check_model(data, width, actions, max_bytes=max_bytes)
         self._session = _session(data)
         self.width = width
+        self._kept: list[NDArray[np.float32]] | None = None
+
+    @property
+    def remembers(self) -> bool:
+        """Whether the network carries a memory from decision to decision (recurrent)."""
+        return bool(self.info.memory)
+
+    def forget(self) -> None:
+        """Start every robot's memory afresh at the next call (a new set of episodes)."""
+        self._kept = None
 
     def __call__(self, observations: NDArray[np.float64]) -> NDArray[np.int64]:
-        """The action of each row of ``observations``."""
+        """The action of each row of ``observations``; a recurrent network's row k carries the
+        memory row k had at the last call (the same robot, call after call, until ``forget``)."""
         rows = np.ascontiguousarray(observations, dtype=np.float32)
-        parts = [
-            np.asarray(
-                self._session.run(
-                    [self.info.output_name], {self.info.input_name: rows[at : at + INFERENCE_ROWS]}
-                )[0]
-            )
-            for at in range(0, max(rows.shape[0], 1), INFERENCE_ROWS)
-        ]
+        memory = self.info.memory
+        count = rows.shape[0]
+        if memory and (self._kept is None or self._kept[0].shape[memory[0].batch_axis] != count):
+            self._kept = [m.zeros(count) for m in memory]
+        names = [self.info.output_name, *(m.output_name for m in memory)]
+        parts = []
+        for at in range(0, max(count, 1), INFERENCE_ROWS):
+            part = slice(at, at + INFERENCE_ROWS)
+            feeds = {self.info.input_name: rows[part]}
+            for m, kept in zip(memory, self._kept or [], strict=True):
+                feeds[m.input_name] = kept[_along(m, part)]
+            answer = self._session.run(names, feeds)
+            for m, kept, new in zip(memory, self._kept or [], answer[1:], strict=True):
+                kept[_along(m, part)] = new
+            parts.append(np.asarray(answer[0]))
         answer = parts[0] if len(parts) == 1 else np.concatenate(parts)
         if self.info.output == "logits":
             if answer.shape != (rows.shape[0], answer.shape[-1]) or not np.isfinite(answer).all():

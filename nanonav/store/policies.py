@@ -153,18 +153,21 @@ class PolicyStore:
         observation: list[str],
         actions: list[str],
         model: bytes,
+        memory: int = 0,
         name: str | None = None,
         owner: str = "",
         idempotency: Idempotency | None = None,
         limit: int = 0,
     ) -> PolicyRecord:
         """Keep a network, an ONNX ``model`` checked already, that decides among ``actions``
-        from the ``observation`` columns it names; keys and limits as ``add``."""
+        from the ``observation`` columns it names (a recurrent one with ``memory`` inputs);
+        keys and limits as ``add``."""
         blob = pack(
             {
                 "observation": np.array(observation, dtype=np.str_),
                 "actions": np.array(actions, dtype=np.str_),
                 "model": np.frombuffer(model, dtype=np.uint8),
+                "memory": np.array(memory),
             }
         )
         row = partial(
@@ -221,7 +224,8 @@ class PolicyStore:
     def table(self, policy_id: int) -> dict[str, NDArray[Any]]:
         """A table's ``states`` and ``actions`` labels and its ``values``, as a job's Q-table
         is read (without visits: it was not learned here); a network's ``observation`` and
-        ``actions`` labels and its ``model`` (the ONNX bytes, as uint8)."""
+        ``actions`` labels, its ``model`` (the ONNX bytes, as uint8) and the count of its
+        ``memory`` inputs."""
         with unit_of_work(self._sessions) as session:
             blob = session.scalar(select(Policy.table).where(Policy.id == policy_id))
         if blob is None:

@@ -146,7 +146,7 @@ def _keep_network(
                 raise InvalidPolicy((field,), detail, LAYOUT_RULE)
         assert observation is not None and actions is not None
         layout = network_layout(observation, actions)
-        check_model(model, len(observation), len(actions), max_bytes=limit)
+        info = check_model(model, len(observation), len(actions), max_bytes=limit)
     except InvalidPolicy as error:
         raise _refused(error) from None
     except InvalidModel as error:
@@ -157,6 +157,7 @@ def _keep_network(
         observation=list(layout.observation),
         actions=list(layout.action_labels),
         model=model,
+        memory=len(info.memory),
         name=policy.name,
         owner=caller.owner,
         idempotency=idempotency,
@@ -206,6 +207,7 @@ def get_policy(policy_id: PolicyId, store: StoreDep) -> Policy:
             actions=table["actions"].tolist(),
             observation=table["observation"].tolist(),
             model_bytes=int(table["model"].size),
+            memory=int(table["memory"]) if "memory" in table else 0,
         )
     states, actions = table["states"].tolist(), table["actions"].tolist()
     values = table["values"]

@@ -45,15 +45,16 @@ def test_a_learner_trains_and_leaves_what_it_learned(
     actions, _ = model.predict(obs, deterministic=True)
     assert np.asarray(actions).shape == (2,)
     assert all(0 <= a < len(env.action_labels) for a in np.asarray(actions))
-    if algo == "recurrent-ppo":
-        assert report["onnx"] is None and not (out / "policy.onnx").exists()
-        return
     # the exported policy, run by onnxruntime, decides as the model does
     assert report["onnx"] == "policy.onnx"
     session = ort.InferenceSession(str(out / "policy.onnx"), providers=["CPUExecutionProvider"])
-    (given,) = session.get_inputs()
-    assert given.name == "observation" and given.shape[1] == obs.shape[1]
-    (logits,) = session.run(["logits"], {"observation": obs})
+    given = session.get_inputs()
+    assert given[0].name == "observation" and given[0].shape[1] == obs.shape[1]
+    feeds = {"observation": obs}
+    if algo == "recurrent-ppo":  # its memory in, at an episode's start: zeros
+        assert [g.name for g in given[1:]] == ["hidden_in", "cell_in"]
+        feeds |= {g.name: np.zeros((g.shape[0], 2, g.shape[2]), np.float32) for g in given[1:]}
+    logits = session.run(["logits"], feeds)[0]
     assert logits.shape == (2, len(env.action_labels))
     np.testing.assert_array_equal(logits.argmax(axis=1), actions)
 

@@ -156,3 +156,32 @@ def beyond_once_sensing(width: int, actions: int) -> bytes:
     ]
     out = helper.make_tensor_value_info("action", TensorProto.INT64, ["batch"])
     return _model(nodes, weights, [observation(width)], out)
+
+
+def counter(width: int, actions: int) -> bytes:
+    """A recurrent model: its memory (batch, 1) counts the decisions of each row, and it
+    chooses action 0 for the first three, then action 1 (logits [1, count - 2.5, 0, ...])."""
+    weights = [
+        numpy_helper.from_array(np.array([[1.0]], dtype=np.float32), "one"),
+        numpy_helper.from_array(np.eye(1, actions, 1, dtype=np.float32), "to_second"),
+        numpy_helper.from_array(
+            np.array([1.0, -2.5] + [0.0] * (actions - 2), dtype=np.float32), "bias"
+        ),
+        numpy_helper.from_array(np.zeros((width, actions), dtype=np.float32), "ignore"),
+    ]
+    nodes = [
+        helper.make_node("Add", ["memory_in", "one"], ["memory_out"]),
+        helper.make_node("MatMul", ["memory_out", "to_second"], ["counted"]),
+        helper.make_node("MatMul", ["observation", "ignore"], ["nothing"]),
+        helper.make_node("Add", ["counted", "nothing"], ["summed"]),
+        helper.make_node("Add", ["summed", "bias"], ["logits"]),
+    ]
+    memory_in = helper.make_tensor_value_info("memory_in", TensorProto.FLOAT, ["batch", 1])
+    memory_out = helper.make_tensor_value_info("memory_out", TensorProto.FLOAT, ["batch", 1])
+    graph = helper.make_graph(
+        nodes, "counter", [observation(width), memory_in], [logits(actions), memory_out],
+        initializer=weights,
+    )  # fmt: skip
+    model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", OPSET)])
+    model.ir_version = 8
+    return bytes(model.SerializeToString())

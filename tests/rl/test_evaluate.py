@@ -145,3 +145,16 @@ def test_worlds_evaluated_in_rounds_give_what_one_round_gives(
     in_rounds = evaluate(s, decide)
     assert [untimed(w) for w in in_rounds.worlds] == [untimed(w) for w in at_once.worlds]
     assert set(calls) == {3}  # one world's robots a call
+
+
+def test_a_network_with_a_memory_decides_for_every_robot_at_once_only() -> None:
+    from nanonav.rl.onnx_policy import NetworkPolicy
+    from tests.rl import models
+
+    s = scenario(robots={"count": 3, "schedule": "simultaneous"}, evaluation={"worlds": 2})
+    width = observation_of(s).columns.size
+    policy = NetworkPolicy(models.counter(width, 4), width, 4, max_bytes=100_000)
+    assert evaluate(s, policy).completed
+    swarm_in_turns = scenario(robots={"count": 3, "schedule": "sequential"})
+    with pytest.raises(PolicyFailed, match=r"robots\.schedule must be 'simultaneous'"):
+        evaluate(swarm_in_turns, policy)

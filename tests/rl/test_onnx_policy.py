@@ -82,7 +82,7 @@ def test_a_fixed_batch_a_second_input_and_the_size_limit_are_refused() -> None:
         check_model(fixed.SerializeToString(), 7, 4, max_bytes=LIMIT)
     two = onnx.load_model_from_string(models.always(7, 4, 0))
     two.graph.input.append(helper.make_tensor_value_info("memory", TensorProto.FLOAT, [1, 3]))
-    with pytest.raises(InvalidModel, match=r"takes 2 inputs \('observation', 'memory'\)"):
+    with pytest.raises(InvalidModel, match="is neither the observation nor a memory"):
         check_model(two.SerializeToString(), 7, 4, max_bytes=LIMIT)
     data = models.mlp(7, 4, hidden=64)
     with pytest.raises(InvalidModel, match=f"takes {len(data)} bytes, over the limit of 1024"):
@@ -100,3 +100,22 @@ def test_a_batch_larger_than_one_call_takes_is_run_in_parts(
     monkeypatch.setattr(onnx_policy, "INFERENCE_ROWS", 64)
     assert np.array_equal(policy(rows), whole)
     assert policy(np.zeros((0, 7))).shape == (0,)
+
+
+def test_a_recurrent_network_carries_each_rows_memory_until_it_forgets() -> None:
+    policy = NetworkPolicy(models.counter(7, 4), 7, 4, max_bytes=LIMIT)
+    assert policy.remembers and [m.input_name for m in policy.info.memory] == ["memory_in"]
+    rows = np.zeros((3, 7))
+    assert [policy(rows).tolist() for _ in range(5)] == [[0] * 3] * 3 + [[1] * 3] * 2
+    policy.forget()
+    assert policy(rows).tolist() == [0, 0, 0]
+    assert policy(np.zeros((5, 7))).tolist() == [0] * 5  # other rows: other robots, afresh
+
+
+def test_a_memory_not_given_back_is_refused() -> None:
+    import onnx
+
+    broken = onnx.load_model_from_string(models.counter(7, 4))
+    del broken.graph.output[1]
+    with pytest.raises(InvalidModel, match="gives no output 1 of its shape"):
+        check_model(broken.SerializeToString(), 7, 4, max_bytes=LIMIT)

@@ -176,3 +176,23 @@ def test_a_worker_evaluates_a_network_and_fails_one_that_answers_nonsense(
     )
     assert failed is not None and failed.status is JobStatus.FAILED
     assert failed.error == "policy_from: the policy answered action 4, not one of 0..3"
+
+
+def test_a_recurrent_network_is_kept_with_its_memory_and_evaluated_at_once(
+    api: Api, api_settings: Settings
+) -> None:
+    sent = network(api, models.counter(len(OBSERVATION), len(ACTIONS)))
+    assert api.client.get(sent["links"]["self"]).json()["memory"] == 1
+    source, n = sent["policy_from"], sent["id"]
+    in_turns = {**EVALUATE, "robots": {"count": 3, "schedule": "sequential"}}
+    pointer, rule, detail = refused(api, {**in_turns, "policy_from": source}, "/jobs")
+    assert (pointer, rule) == ("#/policy_from", "policy_unusable")
+    assert detail == (
+        f"policy {n} has a memory: a network with a memory decides for every robot at once, "
+        "each row one robot: robots.schedule must be 'simultaneous'"
+    )
+    job = api.client.post("/jobs", json={**EVALUATE, "policy_from": source}).json()["id"]
+    claim = api.store.claim("test", lease_s=30)
+    assert claim is not None and claim.job.id == job
+    record = run_job(api.store, claim, api_settings, threading.Event())
+    assert record is not None and record.status is JobStatus.SUCCEEDED, record
