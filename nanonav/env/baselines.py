@@ -228,12 +228,11 @@ def export_onnx(
         outputs += ["hidden_out", "cell_out"]
         axes.update({name: {1: "batch"} for name in (*inputs[1:], *outputs[1:])})
     with warnings.catch_warnings():
-        # the TorchScript exporter: torch's newer one needs onnxscript, which nothing else does;
-        # its tracer warns that the LSTM's shape checks are traced as constants: the ONNX LSTM
-        # operator it writes takes any batch (a test runs the file at another batch size)
-        warnings.simplefilter("ignore", DeprecationWarning)
-        warnings.simplefilter("ignore", UserWarning)
-        warnings.simplefilter("ignore", torch.jit.TracerWarning)
+        # the TorchScript exporter (torch's newer one needs onnxscript, which nothing else
+        # does) warns that it is deprecated, and its tracer that the LSTM's shape checks are
+        # traced as constants: the ONNX LSTM operator it writes takes any batch (a test runs
+        # the file at another batch size)
+        warnings.simplefilter("ignore")
         torch.onnx.export(
             head, given, str(path), input_names=inputs, output_names=outputs,
             opset_version=ONNX_OPSET, dynamo=False, dynamic_axes=axes,

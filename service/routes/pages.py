@@ -41,7 +41,7 @@ from nanonav.store import (
     PolicyRecord,
     StudyNotFound,
 )
-from nanonav.store.policies import NETWORK
+from nanonav.store.policies import NETWORK, policy_number
 from nanonav.store.queue import PRESENCE_WINDOW_S
 from nanonav.studies.spec import GRID_KEYS
 from service.deps import ReportsDep, SettingsDep, StoreDep, StudiesDep
@@ -243,7 +243,17 @@ def job_page(request: Request, job_id: PageId, store: StoreDep, caller: CallerDe
         table=[{"label": a, "value": b, "interval": c} for a, b, c in table1.rows(metrics)]
         if metrics else [],
         stride=stride, scenario_json=json.dumps(job.scenario, indent=2),
+        network=_network_of(job.scenario, metrics),
     )  # fmt: skip
+
+
+def _network_of(scenario: dict[str, Any], metrics: dict[str, Any] | None) -> int | None:
+    """The id of the network a succeeded job's robots were decided by, or None: its run says
+    it was decided from outside (``work.decide_calls``), its policy_from names the policy."""
+    source = scenario.get("policy_from")
+    if metrics is None or "decide_calls" not in (metrics.get("work") or {}):
+        return None
+    return policy_number(source) if isinstance(source, str) else None
 
 
 @router.get("/ui/studies", response_class=HTMLResponse)

@@ -174,6 +174,8 @@ def test_a_worker_evaluates_a_network_and_fails_one_that_answers_nonsense(
     assert no_table["detail"] == (
         f"job {jobs[0]} learned no Q-table: it evaluated {good}, a network, which has none"
     )
+    page = api.client.get(f"/ui/jobs/{jobs[0]}").text
+    assert "Decided by the network" in page and "plots/qtable.png" not in page
     assert failed is not None and failed.status is JobStatus.FAILED
     assert failed.error == "policy_from: the policy answered action 4, not one of 0..3"
 
