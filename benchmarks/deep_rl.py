@@ -14,9 +14,9 @@ together (the simultaneous schedule), for every policy alike.
   a world, for ``--decisions`` decisions, exported to ONNX; recurrent PPO (MlpLstmPolicy) for
   ``--recurrent-decisions``.
 - Evaluation, on fresh seeds (9400 on), ``--worlds`` evaluation worlds a seed, every policy in
-  the same worlds: the ONNX network by the service's own path (``nanonav.rl.evaluate`` with
-  onnxruntime, as a worker runs a ``policy_from`` network); recurrent PPO by the same path
-  with the model's own ``predict`` carrying each robot's memory; 'gradient' (steer up the
+  the same worlds: both networks, exported to ONNX, by the service's own path
+  (``nanonav.rl.evaluate`` with onnxruntime, as a worker runs a ``policy_from`` network; the
+  recurrent one carrying each robot's memory from decision to decision); 'gradient' (steer up the
   sensed gradient: the strongest fixed rule, README "the physical question") and 'q_learning'
   (the tabular learner, its default 50 training episodes a seed) by ``simulate``.
 
@@ -36,8 +36,6 @@ import time
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
-
-import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
@@ -77,8 +75,8 @@ def _quiet_torch() -> None:
 
 def train(job: tuple[str, float, int, str, bool]) -> dict[str, Any]:
     """Train ``algo`` at ``radius`` for ``decisions`` on the design seeds; returns its rate and
-    where the trained policy is (an ONNX file, or the recurrent model's zip). ``quick``: short
-    rollouts (a smoke run; the figures use the library's defaults)."""
+    where the trained policy is, exported to ONNX (recurrent PPO's with its memory). ``quick``:
+    short rollouts (a smoke run; the figures use the library's defaults)."""
     algo, radius, decisions, out, quick = job
     _quiet_torch()
     from sb3_contrib import RecurrentPPO
@@ -97,38 +95,11 @@ def train(job: tuple[str, float, int, str, bool]) -> dict[str, Any]:
     started = time.perf_counter()
     model.learn(total_timesteps=decisions)
     seconds = time.perf_counter() - started
-    path = Path(out) / f"{algo}-{radius}"
-    if algo == "ppo":
-        export_onnx(model, path.with_suffix(".onnx"), observation=env.observation_labels,
-                    actions=env.action_labels)  # fmt: skip
-        where = str(path.with_suffix(".onnx"))
-    else:
-        model.save(path.with_suffix(".zip"))
-        where = str(path.with_suffix(".zip"))
+    where = str(Path(out) / f"{algo}-{radius}.onnx")
+    export_onnx(model, Path(where), observation=env.observation_labels, actions=env.action_labels)
     done = int(model.num_timesteps)
     return {"decisions": done, "seconds": seconds, "steps_per_decision": world.decision_steps,
             "where": where}  # fmt: skip
-
-
-class Remembering:
-    """Recurrent PPO deciding for the rows ``evaluate`` hands it, each row one robot of one
-    world in a fixed order (the simultaneous schedule), its LSTM state carried from call to
-    call, fresh at the first."""
-
-    def __init__(self, model: Any) -> None:
-        self.model = model
-        self.state: Any = None
-        self.start: np.ndarray[Any, Any] | None = None
-
-    def __call__(self, rows: np.ndarray[Any, Any]) -> np.ndarray[Any, Any]:
-        if self.start is None or self.start.shape[0] != rows.shape[0]:
-            self.state, self.start = None, np.ones(rows.shape[0], dtype=bool)
-        actions, self.state = self.model.predict(
-            rows.astype(np.float32), state=self.state, episode_start=self.start,
-            deterministic=True,
-        )  # fmt: skip
-        self.start = np.zeros(rows.shape[0], dtype=bool)
-        return np.asarray(actions, dtype=np.int64)
 
 
 def run_one(job: tuple[str, float, int, int, str]) -> float:
@@ -140,16 +111,9 @@ def run_one(job: tuple[str, float, int, int, str]) -> float:
             simulate(scenario(radius, seed, policy, worlds, episodes)).summary["success_rate"]
         )
     s = scenario(radius, seed, "q_learning", worlds)
-    if policy == "ppo":
-        model = Path(where).read_bytes()
-        width = observation_of(s).columns.size
-        actions = len(action_labels(s))
-        decide: Any = NetworkPolicy(model, width, actions, max_bytes=len(model))
-    else:
-        _quiet_torch()
-        from sb3_contrib import RecurrentPPO
-
-        decide = Remembering(RecurrentPPO.load(where, device="cpu"))
+    model = Path(where).read_bytes()
+    width = observation_of(s).columns.size
+    decide = NetworkPolicy(model, width, len(action_labels(s)), max_bytes=len(model))
     return float(evaluate(s, decide).summary["success_rate"])
 
 
