@@ -9,6 +9,10 @@ others each on one of their own. The worlds step together, in rounds of at most
 ``ROUND_ROBOTS`` robots (which change nothing but the memory taken): one call of ``decide`` a
 decision takes the observations of every robot of every world of the round (one row each;
 under the sequential schedule, of the robot whose turn it is in each world).
+
+A ``decide`` with a memory (``remembers`` true: a recurrent network) is evaluated only where
+every robot decides at once, so that row k is the same robot call after call; its ``forget()``
+is called as each round begins.
 """
 
 from __future__ import annotations
