@@ -48,7 +48,7 @@ REPEATS = 3
 MAX_CALLS = 50_000  # vector-env steps a repeat: one world's rate settles long before 2 M
 
 
-def _median(run: Callable[[], tuple[int, float]]) -> float:
+def median_rate(run: Callable[[], tuple[int, float]]) -> float:
     """Median over repeats of (robot-steps / seconds) that ``run`` measured."""
     rates = []
     for _ in range(REPEATS):
@@ -131,8 +131,8 @@ def engine_rate(world: dict[str, object], robot_steps: int) -> float:
 
 # old and new side by side: the figure of each, robot-steps/s
 COMPARED: dict[str, Callable[[], float]] = {
-    "vector env, 1,000 worlds": lambda: _median(vector_env(1000, 2_000_000)),
-    "swarm env, step_arrays, 1,000 robots": lambda: _median(swarm_env(2_000_000, True)),
+    "vector env, 1,000 worlds": lambda: median_rate(vector_env(1000, 2_000_000)),
+    "swarm env, step_arrays, 1,000 robots": lambda: median_rate(swarm_env(2_000_000, True)),
     "simulate, one robot, random": lambda: engine_rate(SINGLE, 500_000),
     "simulate, 1,000 robots, random": lambda: engine_rate(SWARM, 2_000_000),
 }
@@ -175,8 +175,8 @@ def main(argv: list[str] | None = None) -> int:
 
     _warm_up()
 
-    nanonav = _median(single_env(NanoNavEnv(SINGLE), single_steps))
-    cartpole = _median(single_env(gymnasium.make("CartPole-v1").unwrapped, single_steps))
+    nanonav = median_rate(single_env(NanoNavEnv(SINGLE), single_steps))
+    cartpole = median_rate(single_env(gymnasium.make("CartPole-v1").unwrapped, single_steps))
     print("single env, a Python loop (env-steps per second, and the time per step)")
     print(f"  {'NanoNavEnv (paper-single)':32s} {nanonav:>12,.0f}  {1e6 / nanonav:7.1f} us")
     print(f"  {'CartPole-v1 (bare gymnasium)':32s} {cartpole:>12,.0f}  {1e6 / cartpole:7.1f} us")
@@ -186,7 +186,7 @@ def main(argv: list[str] | None = None) -> int:
     verdicts = []
     lone = engine_rate(SINGLE, robot_steps // 4)
     for worlds in VECTOR_WORLDS:
-        rate = _median(vector_env(worlds, robot_steps))
+        rate = median_rate(vector_env(worlds, robot_steps))
         print(f"  {worlds:>6,} worlds {rate:>14,.0f}  {rate / lone:5.2f} of the engine's own")
         if worlds == 1000:
             verdicts.append(("vector env, 1,000 worlds", rate))
@@ -195,7 +195,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"swarm env ({SWARM_ROBOTS:,} robots of paper-swarm; robot-steps per second)")
     own = engine_rate(SWARM, robot_steps)
     for label, arrays in (("PettingZoo dicts", False), ("step_arrays", True)):
-        rate = _median(swarm_env(robot_steps, arrays))
+        rate = median_rate(swarm_env(robot_steps, arrays))
         print(f"  {label:20s} {rate:>14,.0f}  {rate / own:5.2f} of the engine's own")
         verdicts.append((f"swarm env, {SWARM_ROBOTS:,} robots, {label}", rate))
     print(f"  {'simulate':20s} {own:>14,.0f}  (its own loop, random behaviours)")

@@ -24,14 +24,18 @@ from __future__ import annotations
 
 import argparse
 import itertools
-import statistics
 import sys
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 import onnx
 from onnx import TensorProto, helper, numpy_helper
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from env import REPEATS, median_rate
 
 from nanonav.engine import qlearning, simulate
 from nanonav.engine.worlds import action_labels, observation_of
@@ -41,7 +45,6 @@ from nanonav.scenario import Scenario
 
 ROBOTS = 1000
 HIDDEN = 64
-REPEATS = 3
 TARGET_RATE = 1_000_000
 LATTICE: dict[str, Any] = {"preset": "paper-swarm"}
 BROWNIAN: dict[str, Any] = {"preset": "tumour-microswimmers", "physics": {"robot_radius_um": 2.0}}
@@ -92,14 +95,6 @@ def scenario(base: dict[str, Any], steps: int, interval_s: float | None = None) 
     return Scenario.model_validate(data)
 
 
-def _median(run: Callable[[], tuple[int, float]]) -> float:
-    rates = []
-    for _ in range(REPEATS):
-        steps, seconds = run()
-        rates.append(steps / seconds)
-    return statistics.median(rates)
-
-
 def by_network(s: Scenario) -> Callable[[], tuple[int, float]]:
     width = observation_of(s).columns.size
     model = mlp(width, len(action_labels(s)))
@@ -141,8 +136,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"  {'case':32} {'ONNX MLP 64x64':>16} {'Q-table':>12}  network/table")
     verdicts = []
     for label, s in cases:
-        network = _median(by_network(s))
-        table = _median(by_table(s))
+        network = median_rate(by_network(s))
+        table = median_rate(by_table(s))
         print(f"  {label:32} {network:16,.0f} {table:12,.0f}  {network / table:.2f}")
         if label.endswith("every step"):
             verdicts.append((label, network))

@@ -212,14 +212,9 @@ def fit_problem(
     communication = scenario.communication.model
     states, actions = qlearning.labels(wanted, communication)
     table_states, table_actions = table["states"].tolist(), table["actions"].tolist()
-    same_actions = [layout for layout in LAYOUTS if list(layout.action_labels) == table_actions]
-    if not same_actions:
-        return f"{name}'s actions are not those of any action set this engine knows"
-    if same_actions[0].actions != wanted:
-        return (
-            f"{name} {verb} the '{same_actions[0].actions}' actions and this scenario uses "
-            f"'{wanted}': learning.actions must be the same"
-        )
+    same_actions, problem = _action_set_problem(name, verb, table_actions, wanted)
+    if problem is not None:
+        return problem
     if table_states != states or table_actions != actions:
         layout = next((la for la in same_actions if list(la.state_labels) == table_states), None)
         if layout is None:
@@ -254,6 +249,22 @@ def fit_problem(
     return None
 
 
+def _action_set_problem(
+    name: str, verb: str, given: list[str], wanted: str
+) -> tuple[list[Layout], str | None]:
+    """The layouts whose actions are ``given``, and why they are not the scenario's action set
+    ``wanted`` (None when they are): a table's and a network's actions alike."""
+    same = [layout for layout in LAYOUTS if list(layout.action_labels) == given]
+    if not same:
+        return same, f"{name}'s actions are not those of any action set this engine knows"
+    if same[0].actions != wanted:
+        return same, (
+            f"{name} {verb} the '{same[0].actions}' actions and this scenario uses "
+            f"'{wanted}': learning.actions must be the same"
+        )
+    return same, None
+
+
 def _network_problem(
     scenario: Scenario, name: str, table: Mapping[str, NDArray[Any]]
 ) -> str | None:
@@ -264,17 +275,13 @@ def _network_problem(
     actions = qlearning.labels(wanted, communication)[1]
     given = table["actions"].tolist()
     if given != actions:
-        same = [layout for layout in LAYOUTS if list(layout.action_labels) == given]
-        if same and same[0].actions != wanted:
-            return (
-                f"{name} chooses among the '{same[0].actions}' actions and this scenario uses "
-                f"'{wanted}': learning.actions must be the same"
-            )
+        same, problem = _action_set_problem(name, "chooses among", given, wanted)
+        if problem is not None:
+            return problem
         models = sorted({model for layout in same for model in layout.communication})
         return (
-            f"{name} chooses among actions laid out for communication.model "
-            f"{_either(models or ['another version'])} and this scenario's is "
-            f"'{communication}': communication.model must be the same"
+            f"{name} chooses among actions laid out for communication.model {_either(models)} "
+            f"and this scenario's is '{communication}': communication.model must be the same"
         )
     if int(table.get("memory", np.zeros(())).sum()) and not decides_at_once(scenario):
         return f"{name} has a memory: {REMEMBERS_AT_ONCE}"

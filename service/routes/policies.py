@@ -109,7 +109,7 @@ def send_policy(
 
 def _refused(error: InvalidPolicy | InvalidModel, loc: tuple[str, ...] = ()) -> InvalidInput:
     """A 422 at the field ``error`` names (or at ``loc``)."""
-    where = loc or error.loc if isinstance(error, InvalidPolicy) else loc
+    where = loc or (error.loc if isinstance(error, InvalidPolicy) else ())
     rule = error.rule if isinstance(error, InvalidPolicy) else MODEL_RULE
     problem = field_error(["body", *where], str(error), rule)
     return InvalidInput(f"{problem.pointer}: {problem.detail}", [problem])
@@ -232,7 +232,6 @@ def get_policy(policy_id: PolicyId, store: StoreDep) -> Policy:
 )
 def get_model(policy_id: PolicyId, store: StoreDep) -> Response:
     """A network's ONNX model, as it was sent (404 ``no-model`` for a table)."""
-    store.policies.get(policy_id)
     table = store.policies.table(policy_id)
     if "model" not in table:
         problem = Problem(
