@@ -2,12 +2,16 @@
 beat the strongest fixed rule, or the tabular learner, for robots of what size?
 
     python benchmarks/deep_rl.py [--decisions N] [--recurrent-decisions N] [--seeds N]
-                                 [--seeds-from S] [--worlds N] [--radii R,...] [--quick]
+                                 [--seeds-from S] [--worlds N] [--radii R,...]
+                                 [--steering discrete|continuous] [--decision-interval-s S]
+                                 [--quick]
 
 The 'tumour-microswimmers' world (one tumour cell among 40 tissue obstacles, 20 robots
 swimming at 10 um/s for 60 s), robots of radius 0.5, 1, 2 and 5 um. Every robot decides once a
-second (the physics' default decision interval) and holds its action; the robots decide
-together (the simultaneous schedule), for every policy alike.
+second (the physics' default decision interval, or ``--decision-interval-s``) and holds its
+action; the robots decide together (the simultaneous schedule), for every policy alike. The
+deep learners choose among the steering actions, or with ``--steering continuous`` turn by a
+continuous (side, up) command in the body frame, observing the gradient in that frame.
 
 - Training, on design seeds (world k of the 16 trained together drawn from seed 5000 + k):
   PPO (MlpPolicy, the library's default hyperparameters) through ``NanoNavVecEnv``, one robot
@@ -43,7 +47,7 @@ from science import mean_ci
 
 from nanonav import stats
 from nanonav.engine import simulate
-from nanonav.engine.worlds import action_labels, observation_of
+from nanonav.engine.worlds import STEERINGS, Steering, action_labels, observation_of
 from nanonav.rl.evaluate import evaluate
 from nanonav.rl.onnx_policy import NetworkPolicy
 from nanonav.scenario import Scenario, preset_scenario
@@ -57,13 +61,20 @@ LEARNERS = ("ppo", "recurrent-ppo")
 BASELINES = ("gradient", "q_learning")
 
 
+# the decision interval, s (None: the physics' default), set once by main
+INTERVAL: dict[str, float | None] = {"s": None}
+
+
 def scenario(radius: float, seed: int, policy: str, worlds: int, episodes: int = 0) -> Scenario:
     """The preset with robots of ``radius`` um, 60 s, deciding together."""
+    learning: dict[str, Any] = {"episodes": episodes}
+    if INTERVAL["s"] is not None:
+        learning["decision_interval_s"] = INTERVAL["s"]
     return preset_scenario(
         PRESET, seed=seed,
         physics={"model": "active_brownian", "time_limit_s": 60.0, "robot_radius_um": radius},
         robots={"policy": policy, "schedule": "simultaneous"},
-        learning={"episodes": episodes}, evaluation={"worlds": worlds},
+        learning=learning, evaluation={"worlds": worlds},
     )  # fmt: skip
 
 
@@ -73,11 +84,12 @@ def _quiet_torch() -> None:
     torch.set_num_threads(1)
 
 
-def train(job: tuple[str, float, int, str, bool]) -> dict[str, Any]:
+def train(job: tuple[str, float, int, str, bool, Steering, float | None]) -> dict[str, Any]:
     """Train ``algo`` at ``radius`` for ``decisions`` on the design seeds; returns its rate and
     where the trained policy is, exported to ONNX (recurrent PPO's with its memory). ``quick``:
     short rollouts (a smoke run; the figures use the library's defaults)."""
-    algo, radius, decisions, out, quick = job
+    algo, radius, decisions, out, quick, steering, interval = job
+    INTERVAL["s"] = interval
     _quiet_torch()
     from sb3_contrib import RecurrentPPO
     from stable_baselines3 import PPO
@@ -85,7 +97,7 @@ def train(job: tuple[str, float, int, str, bool]) -> dict[str, Any]:
     from nanonav.env.baselines import NanoNavVecEnv, export_onnx
 
     world = scenario(radius, DESIGN_SEEDS, "q_learning", 1)
-    env = NanoNavVecEnv(ENVS, world)
+    env = NanoNavVecEnv(ENVS, world, steering=steering)
     env.seed(DESIGN_SEEDS)
     rollout: dict[str, Any] = {"n_steps": 16, "batch_size": 64} if quick else {}
     if algo == "ppo":
@@ -102,9 +114,10 @@ def train(job: tuple[str, float, int, str, bool]) -> dict[str, Any]:
             "where": where}  # fmt: skip
 
 
-def run_one(job: tuple[str, float, int, int, str]) -> float:
+def run_one(job: tuple[str, float, int, int, str, Steering, float | None]) -> float:
     """The share of robots that reach the cell in one evaluation run."""
-    policy, radius, seed, worlds, where = job
+    policy, radius, seed, worlds, where, steering, interval = job
+    INTERVAL["s"] = interval
     if policy in BASELINES:
         episodes = 50 if policy == "q_learning" else 0
         return float(
@@ -112,9 +125,12 @@ def run_one(job: tuple[str, float, int, int, str]) -> float:
         )
     s = scenario(radius, seed, "q_learning", worlds)
     model = Path(where).read_bytes()
-    width = observation_of(s).columns.size
-    decide = NetworkPolicy(model, width, len(action_labels(s)), max_bytes=len(model))
-    return float(evaluate(s, decide).summary["success_rate"])
+    width = observation_of(s, steering).columns.size
+    decide = NetworkPolicy(
+        model, width, len(action_labels(s, steering)), max_bytes=len(model),
+        continuous=steering == "continuous",
+    )  # fmt: skip
+    return float(evaluate(s, decide, steering=steering).summary["success_rate"])
 
 
 def cartpole_rate(decisions: int, quick: bool = False) -> float:
@@ -144,8 +160,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seeds-from", type=int, default=FRESH_SEEDS)
     parser.add_argument("--worlds", type=int, default=5, help="evaluation worlds per run")
     parser.add_argument("--radii", help="comma-separated robot radii, um (default: 0.5,1,2,5)")
+    parser.add_argument("--steering", choices=STEERINGS, default="discrete")
+    parser.add_argument("--decision-interval-s", type=float, help="default: the physics'")
     parser.add_argument("--quick", action="store_true", help="a smoke run")
     args = parser.parse_args(argv)
+    steering, interval = args.steering, args.decision_interval_s
     radii = tuple(float(r) for r in args.radii.split(",")) if args.radii else RADII
     decisions = {"ppo": args.decisions, "recurrent-ppo": args.recurrent_decisions}
     seeds = range(args.seeds_from, args.seeds_from + args.seeds)
@@ -156,20 +175,26 @@ def main(argv: list[str] | None = None) -> int:
     started = time.perf_counter()
     with tempfile.TemporaryDirectory() as out, ProcessPoolExecutor(os.cpu_count() or 1) as pool:
         training_jobs = [
-            (algo, r, decisions[algo], out, args.quick) for algo in LEARNERS for r in radii
+            (algo, r, decisions[algo], out, args.quick, steering, interval)
+            for algo in LEARNERS
+            for r in radii
         ]
         trained = dict(zip(training_jobs, pool.map(train, training_jobs), strict=True))
         where = {(job[0], job[1]): found["where"] for job, found in trained.items()}
         jobs = [
-            (policy, r, seed, worlds, where.get((policy, r), ""))
+            (policy, r, seed, worlds, where.get((policy, r), ""), steering, interval)
             for r in radii
             for policy in (*BASELINES, *LEARNERS)
             for seed in seeds
         ]
         reached = dict(zip(jobs, pool.map(run_one, jobs), strict=True))
         cartpole = pool.submit(cartpole_rate, min(decisions["ppo"], 100_000), args.quick).result()
+    INTERVAL["s"] = interval
+    shown = scenario(radii[0], 0, "gradient", 1)
+    every = shown.decision_steps * shown.physics.step_s
     print(
-        f"{PRESET}: 20 robots, one tumour cell, 60 s, a decision a second; trained on design "
+        f"{PRESET}: 20 robots, one tumour cell, 60 s, a decision every {every:g} s (the deep "
+        f"learners steering {steering}ly); trained on design "
         f"seeds {DESIGN_SEEDS}.. ({ENVS} worlds of one robot), evaluated on seeds "
         f"{seeds.start}..{seeds.stop - 1} x {worlds} worlds; * = the 95 % interval excludes 0\n"
     )
@@ -183,7 +208,10 @@ def main(argv: list[str] | None = None) -> int:
     print(f"  PPO on CartPole-v1 ({ENVS} envs, DummyVecEnv): {cartpole:,.0f} decisions/s\n")
 
     def shares(policy: str, r: float) -> list[float]:
-        return [reached[(policy, r, seed, worlds, where.get((policy, r), ""))] for seed in seeds]
+        return [
+            reached[(policy, r, seed, worlds, where.get((policy, r), ""), steering, interval)]
+            for seed in seeds
+        ]
 
     comparisons = [(r, learner, base) for r in radii for learner in LEARNERS for base in BASELINES]
     found = {c: _paired(shares(c[1], c[0]), shares(c[2], c[0])) for c in comparisons}

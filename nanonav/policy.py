@@ -17,7 +17,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from nanonav.engine import qlearning
-from nanonav.engine.worlds import OBSERVATION_LABELS, observation_of
+from nanonav.engine.worlds import (
+    BODY_GRADIENT_LABELS,
+    OBSERVATION_LABELS,
+    Steering,
+    observation_of,
+)
 from nanonav.rl.evaluate import REMEMBERS_AT_ONCE, decides_at_once
 from nanonav.scenario import ActionSet, CommunicationModel, Scenario
 from nanonav.store.errors import JobNotFound, ResultsUnavailable
@@ -274,7 +279,14 @@ def _network_problem(
     communication = scenario.communication.model
     actions = qlearning.labels(wanted, communication)[1]
     given = table["actions"].tolist()
-    if given != actions:
+    steering = steering_of(given)
+    if steering == "continuous":
+        if scenario.physics.model != "active_brownian":
+            return (
+                f"{name} steers by a continuous turn ({', '.join(given)}): physics.model must "
+                "be 'active_brownian'"
+            )
+    elif given != actions:
         same, problem = _action_set_problem(name, "chooses among", given, wanted)
         if problem is not None:
             return problem
@@ -285,7 +297,7 @@ def _network_problem(
         )
     if int(table.get("memory", np.zeros(())).sum()) and not decides_at_once(scenario):
         return f"{name} has a memory: {REMEMBERS_AT_ONCE}"
-    observed = list(observation_of(scenario).labels)
+    observed = list(observation_of(scenario, steering).labels)
     reads = table["observation"].tolist()
     if reads != observed:
         return (
@@ -515,6 +527,12 @@ def observed_communication(observation: Sequence[str]) -> tuple[CommunicationMod
     return ("broadcast",) if "signal" in observation else ("none",)
 
 
+def steering_of(actions: Sequence[str]) -> Steering:
+    """How a network with these actions steers: by a continuous turn when they are its two
+    parts (``qlearning.TURN_ACTIONS``), else by the action set's numbers."""
+    return "continuous" if list(actions) == qlearning.TURN_ACTIONS else "discrete"
+
+
 def observed_physics(observation: Sequence[str]) -> str:
     """The physics whose robots observe ``observation``: only the lattice's sense a gradient
     without steering up it."""
@@ -526,18 +544,26 @@ def network_layout(observation: Sequence[str], actions: Sequence[str]) -> Networ
     order; ``InvalidPolicy`` at ``observation`` or ``actions`` saying what would be.
 
     An observation is some of ``OBSERVATION_LABELS``, in their order (a scenario leaves out
-    the columns it never fills); which are there is checked against each scenario that names
+    the columns it never fills; a network that turns reads the gradient in the body frame,
+    ``BODY_GRADIENT_LABELS``); which are there is checked against each scenario that names
     the network."""
     observation, actions = list(observation), list(actions)
-    same_actions = [layout for layout in LAYOUTS if list(layout.action_labels) == actions]
+    continuous = steering_of(actions) == "continuous"
+    known = list(OBSERVATION_LABELS)
+    if continuous:
+        at = known.index("gradient_x")
+        known[at : at + 3] = BODY_GRADIENT_LABELS
+        same_actions = [layout for layout in LAYOUTS if layout.actions == "steering"]
+    else:
+        same_actions = [layout for layout in LAYOUTS if list(layout.action_labels) == actions]
     if not same_actions:
         raise InvalidPolicy(("actions",), _actions_problem(actions), LAYOUT_RULE)
-    order = {label: i for i, label in enumerate(OBSERVATION_LABELS)}
+    order = {label: i for i, label in enumerate(known)}
     places = [order.get(label, -1) for label in observation]
     if -1 in places or places != sorted(set(places)):
         detail = (
             f"({', '.join(observation)}) is no robot's observation: an environment's "
-            f"observation_labels are some of ({', '.join(OBSERVATION_LABELS)}), in that order"
+            f"observation_labels are some of ({', '.join(known)}), in that order"
         )
         raise InvalidPolicy(("observation",), detail, LAYOUT_RULE)
     if "signal_change" in observation and "signal" not in observation:
@@ -551,6 +577,8 @@ def network_layout(observation: Sequence[str], actions: Sequence[str]) -> Networ
             f"and the actions are those of {_actions_title(same_actions)}"
         )
         raise InvalidPolicy(("observation",), detail, LAYOUT_RULE)
+    if continuous:
+        models = list(dict.fromkeys(heard))  # a turn is the same whatever a robot receives
     return NetworkLayout(same_actions[0].actions, tuple(models), tuple(observation), tuple(actions))
 
 

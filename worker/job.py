@@ -21,7 +21,7 @@ from sqlalchemy.exc import SQLAlchemyError
 
 from nanonav.engine import Progress, SimulationResult, simulate
 from nanonav.finite import finite
-from nanonav.policy import Network, UnusablePolicy, learned_policy
+from nanonav.policy import Network, UnusablePolicy, learned_policy, steering_of
 from nanonav.rl.evaluate import PolicyFailed, evaluate
 from nanonav.rl.onnx_policy import InvalidModel, NetworkPolicy
 from nanonav.scenario import Scenario
@@ -136,7 +136,7 @@ def run_job(
     try:
         with heartbeat(store, claim, settings):
             if isinstance(policy, NetworkPolicy):
-                result = evaluate(scenario, policy, watch)
+                result = evaluate(scenario, policy, watch, steering=policy.steering)
             else:
                 result = simulate(scenario, watch, policy=policy)
     except PolicyFailed as error:
@@ -192,6 +192,7 @@ def _loaded(
         len(policy.observation),
         len(policy.actions),
         max_bytes=settings.policy_model_max_bytes,
+        continuous=steering_of(policy.actions) == "continuous",
     )
 
 

@@ -16,6 +16,7 @@ from typing import Any
 
 from nanonav.cli.common import EXIT_OK, Subcommands, UsageError, positive
 from nanonav.cli.run import load_scenario
+from nanonav.engine.worlds import STEERINGS
 from nanonav.scenario import PRESETS
 
 ALGOS = ("ppo", "recurrent-ppo", "dqn")
@@ -41,6 +42,12 @@ def add_train(subcommands: Subcommands) -> None:
         help="the first training world's seed (train on seeds you will not evaluate on)",
     )  # fmt: skip
     train.add_argument("--algo", choices=ALGOS, default="ppo", help="the learner (default: ppo)")
+    train.add_argument(
+        "--steering", choices=STEERINGS, default="discrete",
+        help="active_brownian: by the action set (default), or by a continuous turn (side, up) "
+        "in the robot's body frame, observing its sensed gradient in that frame (ppo and "
+        "recurrent-ppo; policy.onnx then gives the turn)",
+    )  # fmt: skip
     train.add_argument("--steps", type=positive, required=True, help="decisions, all worlds")
     train.add_argument("--envs", type=positive, default=8, help="worlds stepped together")
     train.add_argument(
@@ -69,6 +76,11 @@ def _model(algo: str, env: Any, seed: int, logs: Path) -> Any:
 
 def _train(args: argparse.Namespace) -> int:
     scenario = load_scenario(args.scenario, preset=args.preset, seed=args.seed)
+    if args.steering == "continuous":
+        if args.algo == "dqn":
+            raise UsageError(["--steering continuous: dqn chooses among actions; use ppo"])
+        if scenario.physics.model != "active_brownian":
+            raise UsageError(["--steering continuous needs physics.model 'active_brownian'"])
     try:
         from stable_baselines3.common.callbacks import CheckpointCallback
 
@@ -77,7 +89,7 @@ def _train(args: argparse.Namespace) -> int:
         raise UsageError([f"training needs the rl extra ({RL_EXTRA}): {missing}"]) from None
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)
-    env = NanoNavVecEnv(args.envs, scenario)
+    env = NanoNavVecEnv(args.envs, scenario, steering=args.steering)
     env.seed(scenario.seed)
     model = _model(args.algo, env, scenario.seed, out / "tensorboard")
     every = args.checkpoint_every or max(args.steps // 4, 1)
@@ -102,7 +114,8 @@ def _train(args: argparse.Namespace) -> int:
     report = {
         "algo": args.algo, "decisions": done, "envs": args.envs, "seed": scenario.seed,
         "seconds": round(seconds, 3), "decisions_per_s": round(done / max(seconds, 1e-9), 1),
-        "decision_interval_steps": scenario.decision_steps, "onnx": exported,
+        "decision_interval_steps": scenario.decision_steps, "steering": args.steering,
+        "onnx": exported,
     }  # fmt: skip
     (out / "training.json").write_text(json.dumps(report, indent=1) + "\n")
     print(

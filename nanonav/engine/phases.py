@@ -52,6 +52,7 @@ from nanonav.engine.qlearning import (
     STEER_TO_SIGNAL,
     STEER_UP_GRADIENT,
     TUMBLE,
+    TURN,
 )
 from nanonav.engine.sensing import (
     _read,
@@ -127,6 +128,8 @@ class Percept(NamedTuple):
     reward: NDArray[np.float64]  # (N,) reward since the last decision
     clock: NDArray[np.int64]  # (CLOCK_SLOTS,)
     held: NDArray[np.int64]  # (N,) the steering code held until the next decision
+    turn: NDArray[np.float64]  # (N, 2) the continuous turn (side, up) held (``TURN``)
+    side: NDArray[np.float64]  # (N, 3) the body's side axis (``brownian.body_frame``)
 
 
 class Sim(NamedTuple):
@@ -159,6 +162,8 @@ def percept(robots: int) -> Percept:
         reward=np.zeros(robots),
         clock=np.zeros(CLOCK_SLOTS, dtype=np.int64),
         held=np.zeros(robots, dtype=np.int64),
+        turn=np.zeros((robots, 2)),
+        side=np.zeros((robots, 3)),
     )
 
 
@@ -198,6 +203,27 @@ def delivered(p: KernelParams, sim: Sim, i: int, cell: int, t: int) -> None:
 
 
 @njit(cache=True, error_model="numpy", inline="always")
+def body_gradient(p: KernelParams, rng: np.random.Generator, sim: Sim, i: int) -> None:
+    """Robot ``i`` reads its spatial gradient (as ``steer_up_gradient`` does) into its
+    observation's gradient columns, along its heading, side and up axes; the side axis
+    (``brownian.body_frame``) is kept for the turn it may then command."""
+    s = sim.s
+    pc = sim.pc
+    gx, gy, gz = _sensed_gradient(p, rng, s, i)
+    hx = s.heading[i, 0]
+    hy = s.heading[i, 1]
+    hz = s.heading[i, 2]
+    ex, ey, ez, fx, fy, fz = brownian.body_frame(hx, hy, hz, pc.side[i, 0], pc.side[i, 1],
+                                                 pc.side[i, 2])  # fmt: skip
+    pc.side[i, 0] = ex
+    pc.side[i, 1] = ey
+    pc.side[i, 2] = ez
+    pc.obs[i, OBS_GRADIENT] = gx * hx + gy * hy + gz * hz
+    pc.obs[i, OBS_GRADIENT + 1] = gx * ex + gy * ey + gz * ez
+    pc.obs[i, OBS_GRADIENT + 2] = gx * fx + gy * fy + gz * fz
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def read_state(
     p: KernelParams, rng: np.random.Generator, sim: Sim, i: int, cell_d: float, full: bool
 ) -> int:
@@ -218,6 +244,9 @@ def read_state(
         obs[i, OBS_GRADIENT] = 0.0
         obs[i, OBS_GRADIENT + 1] = 0.0
         obs[i, OBS_GRADIENT + 2] = 0.0
+        if p.turning:
+            # a robot that turns by itself reads its gradient each step, in its body frame
+            body_gradient(p, rng, sim, i)
         obs[i, OBS_OBSTACLE] = 1.0 if s.blocked[i] else 0.0
         obs[i, OBS_CELL] = min(gap, p.cell_sensing_radius)
         return _steering_state(p, c, c > s.prev_conc[i], s.blocked[i], gap <= p.cell_sensing_radius)
@@ -392,7 +421,17 @@ def act(
             tx = pc.way[i, 0]
             ty = pc.way[i, 1]
             tz = pc.way[i, 2]
-        _steer(p, rng, s, i, code, sx, sy, sz, tx, ty, tz)
+        if code == TURN:
+            # the agent's turn of this decision, held in the body frame (a steady turn)
+            nx, ny, nz = brownian.turn_in_body(
+                hx, hy, hz, pc.side[i, 0], pc.side[i, 1], pc.side[i, 2], pc.turn[i, 0],
+                pc.turn[i, 1], p.turn,
+            )  # fmt: skip
+            s.heading[i, 0] = nx
+            s.heading[i, 1] = ny
+            s.heading[i, 2] = nz
+        else:
+            _steer(p, rng, s, i, code, sx, sy, sz, tx, ty, tz)
         s.prev_conc[i] += p.memory_weight * (c - s.prev_conc[i])
         nx, ny, nz, blocked = brownian.move_robot(p, rng, w, s, i, px, py, pz)
     else:

@@ -52,6 +52,10 @@ KEEP_HEADING = 0
 STEER_UP_GRADIENT = 1  # toward the sensed (noisy) spatial gradient
 TUMBLE = 2  # a new heading at random
 STEER_TO_CELL = 3  # toward a cell within the receptor range, else as keep_heading
+# A continuous turn in the body frame, by an agent outside (``Worlds(steering="continuous")``);
+# no table learns it, so it is no action number of any set.
+TURN = 5
+TURN_ACTIONS = ["turn_side", "turn_up"]
 STEERING_ACTIONS = ["keep_heading", "steer_up_gradient", "tumble", "steer_to_cell"]
 OBSTACLE_CONTACT = ["clear", "touching"]  # touching: the last move was stopped by an obstacle
 CELL_SENSED = ["none", "sensed"]

@@ -122,6 +122,9 @@ class KernelParams(NamedTuple):
     # steps a decision by action number (the Q-learner's, or an environment's agent's) is held:
     # the decision interval in steps (active Brownian); 1 in the lattice and for fixed rules
     hold: int = 1
+    # active Brownian, driven from outside: robots steer by a continuous turn in their body
+    # frame (``dynamics.brownian.turn_in_body``) and observe their sensed gradient in that frame
+    turning: bool = False
 
 
 class Swarm(NamedTuple):

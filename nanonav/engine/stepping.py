@@ -40,6 +40,7 @@ from nanonav.engine.phases import (
     perceive,
     uncounted,
 )
+from nanonav.engine.qlearning import TURN
 from nanonav.engine.state import (
     SEQUENTIAL,
     KernelParams,
@@ -122,6 +123,9 @@ def reset_world(
     sim.pc.reward[:] = 0.0
     sim.pc.state[:] = 0
     sim.pc.obs[:] = 0.0
+    sim.pc.held[:] = 0
+    sim.pc.turn[:] = 0.0
+    sim.pc.side[:] = 0.0  # a fresh body frame: an episode does not depend on the last one's
     measure = clock[CLOCK_MEASURE]
     status = begin_episode(p, world_rng, rng, sim, measure != 0, measure == RECORDED)
     if status != 0:
@@ -142,8 +146,16 @@ def reset_world(
 @njit(cache=True, error_model="numpy", inline="always")
 def _act_on(
     p: KernelParams, rng: np.random.Generator, sim: Sim, i: int, t: int, action: int,
-    directions: NDArray[np.float64],
+    turns: NDArray[np.float64], directions: NDArray[np.float64],
 ) -> None:  # fmt: skip
+    """Robot ``i`` acts on its action number, or where robots turn (``KernelParams.turning``)
+    on its continuous turn ``turns[i]`` (side, up), each within -1 .. 1."""
+    if p.turning:
+        pc = sim.pc
+        pc.turn[i, 0] = min(1.0, max(-1.0, turns[i, 0]))
+        pc.turn[i, 1] = min(1.0, max(-1.0, turns[i, 1]))
+        act(p, rng, sim, i, t, TURN, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        return
     code, dx, dy, dz, gx, gy, gz = command(p, sim, i, action, directions)
     act(p, rng, sim, i, t, code, dx, dy, dz, gx, gy, gz)
 
@@ -151,12 +163,13 @@ def _act_on(
 @njit(cache=True, error_model="numpy", inline="always")
 def step_world(
     p: KernelParams, rng: np.random.Generator, sim: Sim, actions: NDArray[np.int64],
-    directions: NDArray[np.float64],
+    turns: NDArray[np.float64], directions: NDArray[np.float64],
 ) -> None:  # fmt: skip
     """One move of a world whose episode is not over, each robot's reward of it in
     ``pc.reward`` (0 for a robot that did nothing). Simultaneous: every active robot acts on
     its action, and the next step is perceived. Sequential: the robot whose turn it is acts on
-    its action (the others' are unused), and the next turn is perceived. With a decision
+    its action (the others' are unused), and the next turn is perceived. Where robots turn
+    (``KernelParams.turning``), ``turns`` (robots x 2) are their actions instead. With a decision
     interval (``KernelParams.hold``) a move runs on to the next decision, the robots keeping to
     their actions, and the reward is summed over it."""
     pc = sim.pc
@@ -167,12 +180,12 @@ def step_world(
         pc.reward[i] = 0.0
     if p.schedule == SEQUENTIAL:
         i = clock[CLOCK_NEXT]
-        _act_on(p, rng, sim, i, t, actions[i], directions)
+        _act_on(p, rng, sim, i, t, actions[i], turns, directions)
         _next_turn(p, rng, sim, i + 1)
         return
     for i in range(s.pos.shape[0]):
         if s.active[i]:
-            _act_on(p, rng, sim, i, t, actions[i], directions)
+            _act_on(p, rng, sim, i, t, actions[i], turns, directions)
     while True:
         t += 1
         clock[CLOCK_STEP] = t
@@ -236,7 +249,7 @@ def _recording_at(b: Recording, k: int) -> Recording:
 def _percept_at(b: Percept, k: int) -> Percept:
     return Percept(
         b.obs[k], b.state[k], b.heard[k], b.target[k], b.target_d[k], b.way[k], b.reward[k],
-        b.clock[k], b.held[k],
+        b.clock[k], b.held[k], b.turn[k], b.side[k],
     )  # fmt: skip
 
 
@@ -259,12 +272,14 @@ def step_worlds(
     rngs: List[np.random.Generator],
     batches: List[Sim],
     actions: NDArray[np.int64],
+    turns: NDArray[np.float64],
     fresh: NDArray[np.bool_],
     directions: NDArray[np.float64],
     advance: bool,
 ) -> int:
     """Every world k of ``batches[0]`` (its arrays shaped worlds x ...) one move
-    (``step_world``) on ``actions[k]`` (one per robot), or, where ``fresh[k]``, into a fresh
+    (``step_world``) on ``actions[k]`` (one per robot; ``turns[k]``, robots x 2, where robots
+    turn), or, where ``fresh[k]``, into a fresh
     world (its actions unused); a world whose episode is over and is not fresh stays as it
     is, and so does every world not fresh unless ``advance`` (a reset of some worlds alone,
     as Stable-Baselines3 resets a finished world within the step that ended it). What each
@@ -290,16 +305,16 @@ def step_worlds(
             rngs[min(start + 3, last)], rngs[min(start + 4, last)], rngs[min(start + 5, last)],
             rngs[min(start + 6, last)], rngs[min(start + 7, last)],
         )  # fmt: skip
-        _step_chunk(p, generators, batch, start, min(CHUNK, worlds - start), actions, fresh,
-                    directions)  # fmt: skip
+        _step_chunk(p, generators, batch, start, min(CHUNK, worlds - start), actions, turns,
+                    fresh, directions)  # fmt: skip
     return 0
 
 
 @uncounted
 def _step_chunk(
     p: KernelParams, generators: tuple[np.random.Generator, ...], batch: Sim, start: int,
-    count: int, actions: NDArray[np.int64], fresh: NDArray[np.bool_],
-    directions: NDArray[np.float64],
+    count: int, actions: NDArray[np.int64], turns: NDArray[np.float64],
+    fresh: NDArray[np.bool_], directions: NDArray[np.float64],
 ) -> None:  # fmt: skip
     """``step_world`` of worlds ``start`` ... ``start + count - 1`` of the batch (world
     ``start + j`` with ``generators[j]``; one fresh or over is left as it is), compiled without
@@ -309,4 +324,4 @@ def _step_chunk(
     for j in range(count):
         k = start + j
         if not fresh[k] and clock[k, CLOCK_OVER] == 0:
-            step_world(p, generators[j], _sim_at(batch, k), actions[k], directions)
+            step_world(p, generators[j], _sim_at(batch, k), actions[k], turns[k], directions)

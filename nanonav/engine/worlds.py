@@ -9,7 +9,7 @@ environments' spaces, the policies sent as ONNX models and the README alike.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from typing import Any, NamedTuple
+from typing import Any, Literal, NamedTuple
 
 import numpy as np
 from numba.typed import List
@@ -42,6 +42,13 @@ OBSERVATION_LABELS = (
     "signal",
     "signal_change",
 )
+# The gradient's columns where robots steer continuously: read each step in the body frame.
+BODY_GRADIENT_LABELS = ("gradient_forward", "gradient_side", "gradient_up")
+# How an agent outside steers an active Brownian robot: by the action set's numbers, or by a
+# continuous turn (side, up) in the robot's body frame, each -1 .. 1 of the largest turn a step
+# allows (``dynamics.brownian.turn_in_body``).
+Steering = Literal["discrete", "continuous"]
+STEERINGS: tuple[Steering, ...] = ("discrete", "continuous")
 
 
 def as_scenario(scenario: Scenario | Mapping[str, Any] | None) -> Scenario:
@@ -62,11 +69,14 @@ def with_robots(scenario: Scenario, count: int) -> Scenario:
     return Scenario.model_validate(data)
 
 
-def _bounds(scenario: Scenario) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def _bounds(
+    scenario: Scenario, steering: Steering
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """(low, high) of each engine column (``phases.OBS_*``) in this scenario's units:
-    readings and signals are unbounded (``UNBOUNDED``; a noise floor can read below 0), the
-    distances are capped at the sensors' ranges, the obstacle contact of active_brownian is 0
-    or 1; a column the scenario never fills is 0 to 0."""
+    readings, gradients and signals are unbounded (``UNBOUNDED``; a noise floor can read below
+    0), the distances are capped at the sensors' ranges, the obstacle contact of
+    active_brownian is 0 or 1; a column the scenario never fills is 0 to 0 (active_brownian's
+    gradient, unless robots steer continuously)."""
     low = np.full(phases.FEATURES, -UNBOUNDED)
     high = np.full(phases.FEATURES, UNBOUNDED)
     brownian = scenario.physics.model == "active_brownian"
@@ -74,7 +84,7 @@ def _bounds(scenario: Scenario) -> tuple[NDArray[np.float64], NDArray[np.float64
     high[phases.OBS_OBSTACLE] = 1.0 if brownian else scenario.robots.sensing_radius
     low[phases.OBS_CELL] = 0.0
     high[phases.OBS_CELL] = scenario.robots.cell_sensing_radius
-    if brownian:
+    if brownian and steering == "discrete":
         low[phases.OBS_GRADIENT : phases.OBS_GRADIENT + 3] = 0.0
         high[phases.OBS_GRADIENT : phases.OBS_GRADIENT + 3] = 0.0
     if scenario.communication.model == "none":
@@ -98,19 +108,24 @@ class Observation(NamedTuple):
     high: NDArray[np.float64]
 
 
-def observation_of(scenario: Scenario) -> Observation:
-    """The observation of a robot of ``scenario`` (``OBSERVATION_LABELS`` says what each
-    column is; a column the scenario never fills, such as the signal without communication, is
-    left out)."""
-    low, high = _bounds(scenario)
+def observation_of(scenario: Scenario, steering: Steering = "discrete") -> Observation:
+    """The observation of a robot of ``scenario`` steered so (``OBSERVATION_LABELS`` says what
+    each column is; a column the scenario never fills, such as the signal without
+    communication, is left out). A robot that steers continuously reads its sensed gradient
+    each step along its heading, side and up axes (``BODY_GRADIENT_LABELS``)."""
+    low, high = _bounds(scenario, steering)
     columns = np.flatnonzero(low != high)
-    return Observation(
-        columns, tuple(OBSERVATION_LABELS[c] for c in columns), low[columns], high[columns]
-    )
+    names = list(OBSERVATION_LABELS)
+    if steering == "continuous":
+        names[phases.OBS_GRADIENT : phases.OBS_GRADIENT + 3] = BODY_GRADIENT_LABELS
+    return Observation(columns, tuple(names[c] for c in columns), low[columns], high[columns])
 
 
-def action_labels(scenario: Scenario) -> list[str]:
-    """The scenario's action set, in the order the ``Discrete`` action numbers them."""
+def action_labels(scenario: Scenario, steering: Steering = "discrete") -> list[str]:
+    """The scenario's action set, in the order the ``Discrete`` action numbers them; steering
+    continuously, the two parts of a turn (``qlearning.TURN_ACTIONS``)."""
+    if steering == "continuous":
+        return list(qlearning.TURN_ACTIONS)
     return qlearning.labels(scenario.learning.actions, scenario.communication.model)[1]
 
 
@@ -165,12 +180,20 @@ class Worlds:
         *,
         measure: int = 0,
         record_bytes: int = DEFAULT_RECORD_BYTES,
+        steering: Steering = "discrete",
     ) -> None:
         """``measure``: 0 for an environment's worlds; ``phases.MEASURED`` to tally them as
         ``simulate``'s evaluation does, ``phases.RECORDED`` to record their history too, in at
-        most ``record_bytes`` a world (``simulate``'s rows)."""
+        most ``record_bytes`` a world (``simulate``'s rows). ``steering``: ``continuous``
+        (active_brownian only) takes a turn (side, up) per robot for its action."""
         if count < 1:
             raise ValueError("count must be at least 1")
+        if steering not in STEERINGS:
+            raise ValueError(f"steering {steering!r} is not one of {', '.join(STEERINGS)}")
+        self.continuous = steering == "continuous"
+        if self.continuous and scenario.physics.model != "active_brownian":
+            raise ValueError("continuous steering needs physics.model 'active_brownian'")
+        self.steering = steering
         self.scenario = scenario
         self.count = count
         self.robots = scenario.robots.count
@@ -180,8 +203,11 @@ class Worlds:
         recorded = measure == phases.RECORDED
         self.params = kernel_params(
             scenario, record_bytes if recorded else _NO_HISTORY_CAP
-        )._replace(schedule=SCHEDULE_CODES[schedule], hold=scenario.decision_steps)
-        self.actions = len(action_labels(scenario))
+        )._replace(
+            schedule=SCHEDULE_CODES[schedule], hold=scenario.decision_steps,
+            turning=self.continuous,
+        )  # fmt: skip
+        self.actions = len(action_labels(scenario, steering))
         self.directions = np.ascontiguousarray(qlearning.DIRECTIONS)
         arrays = episode_arrays(scenario)
         n = self.robots
@@ -210,6 +236,7 @@ class Worlds:
         pc.clock[:, phases.CLOCK_OVER] = 1
         pc.clock[:, phases.CLOCK_MEASURE] = measure
         self._no_actions = np.zeros((count, self.robots), dtype=np.int64)
+        self._turns = np.zeros((count, self.robots, 2))
 
     def seed(self, seeds: Sequence[int]) -> None:
         """Restart world k's generators from ``seeds[k]``."""
@@ -220,20 +247,25 @@ class Worlds:
             self.rngs[k] = stream(int(seed), DYNAMICS_STREAM)
 
     def step(
-        self, actions: NDArray[np.int64] | None, fresh: NDArray[np.bool_], *, checked: bool = False
+        self, actions: NDArray[Any] | None, fresh: NDArray[np.bool_], *, checked: bool = False
     ) -> None:
-        """Step every world on ``actions`` (worlds x robots; an inactive robot's is unused), or
-        draw a fresh one where ``fresh``; the outputs are in ``obs``, ``state``, ``reward``,
-        ``active`` and ``over``. An action that is not an integer of the action set raises
-        ValueError, unless
-        the caller ``checked`` them already (an action the engine indexes with unchecked would
-        read memory that is not its own)."""
+        """Step every world on ``actions`` (worlds x robots, or worlds x robots x 2 turns
+        steering continuously; an inactive robot's are unused), or draw a fresh one where
+        ``fresh``; the outputs are in ``obs``, ``state``, ``reward``, ``active`` and ``over``.
+        An action that is not an integer of the action set, or a turn that is not finite,
+        raises ValueError, unless the caller ``checked`` them already (an action the engine
+        indexes with unchecked would read memory that is not its own). A turn's parts are
+        clipped to -1 .. 1."""
         if actions is None:
-            actions = self._no_actions
-        elif not checked:
-            self.check(actions, (self.count, self.robots))
-            actions = actions.astype(np.int64, copy=False)  # one compiled signature
-        self._call(actions, fresh, advance=True)
+            self._call(self._no_actions, fresh, advance=True)
+            return
+        if not checked:
+            self.check(actions, self.action_shape)
+        if self.continuous:
+            self._turns[:] = actions
+            self._call(self._no_actions, fresh, advance=True)
+            return
+        self._call(actions.astype(np.int64, copy=False), fresh, advance=True)
 
     def redraw(self, fresh: NDArray[np.bool_]) -> None:
         """Draw a fresh world where ``fresh`` and leave every other world as it is, outputs
@@ -242,21 +274,36 @@ class Worlds:
 
     def _call(self, actions: NDArray[np.int64], fresh: NDArray[np.bool_], advance: bool) -> None:
         status = stepping.step_worlds(
-            self._params, self.world_rngs, self.rngs, self._batches, actions, fresh,
-            self.directions, advance,
+            self._params, self.world_rngs, self.rngs, self._batches, actions, self._turns,
+            fresh, self.directions, advance,
         )  # fmt: skip
         raise_for_layout(status, self.scenario)
 
+    @property
+    def action_shape(self) -> tuple[int, ...]:
+        """The shape of ``step``'s actions: worlds x robots, and x 2 steering continuously."""
+        if self.continuous:
+            return (self.count, self.robots, 2)
+        return (self.count, self.robots)
+
     def in_action_set(self, actions: NDArray[Any]) -> bool:
-        """Whether every one of ``actions`` is an integer of the action set."""
+        """Whether every one of ``actions`` is an integer of the action set (steering
+        continuously: a finite number)."""
+        if self.continuous:
+            return actions.dtype.kind in "iuf" and bool(np.isfinite(actions).all())
         return actions.dtype.kind in "iu" and (
             not actions.size or (actions.min() >= 0 and actions.max() < self.actions)
         )
 
     def check(self, actions: NDArray[Any], shape: tuple[int, ...]) -> None:
-        """Refuse ``actions`` not shaped ``shape``, or not all integers of the action set."""
+        """Refuse ``actions`` not shaped ``shape``, or not all integers of the action set
+        (steering continuously: not all finite numbers)."""
         if actions.shape != shape:
             raise ValueError(f"actions of shape {actions.shape}, not {shape}")
+        if self.continuous:
+            if not self.in_action_set(actions):
+                raise ValueError(f"turns of {actions.dtype} must be finite numbers")
+            return
         if actions.dtype.kind not in "iu":
             raise ValueError(f"actions of {actions.dtype}, not integers")
         if not self.in_action_set(actions):

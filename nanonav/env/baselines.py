@@ -25,6 +25,7 @@ from stable_baselines3.common.vec_env import VecEnv
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvIndices, VecEnvStepReturn
 
 from nanonav.engine.worlds import (
+    Steering,
     Worlds,
     action_labels,
     as_scenario,
@@ -32,7 +33,7 @@ from nanonav.engine.worlds import (
     state_labels,
     with_robots,
 )
-from nanonav.env.robot import ScenarioLike
+from nanonav.env.robot import ScenarioLike, action_space_of
 from nanonav.rl.onnx_policy import METADATA_ACTIONS, METADATA_OBSERVATION
 
 
@@ -45,25 +46,31 @@ class NanoNavVecEnv(VecEnv):
     rewards summed. ``seed(s)`` makes the next ``reset()`` draw world k from seed s + k (as
     ``NanoNavVectorEnv.reset(seed=s)``: the same worlds); without a seed, ``reset()`` draws
     the next worlds of each one's stream. Each info holds the world's tabular ``state``.
+    ``steering="continuous"`` (active_brownian) takes ``NanoNavEnv``'s continuous turn, a
+    ``Box`` (side, up) each -1 .. 1, for its action.
     """
 
     render_mode = None
 
-    def __init__(self, num_envs: int = 1, scenario: ScenarioLike = None) -> None:
+    def __init__(
+        self, num_envs: int = 1, scenario: ScenarioLike = None, *, steering: Steering = "discrete"
+    ) -> None:
         if num_envs < 1:
             raise ValueError("num_envs must be at least 1")
         self.scenario = with_robots(as_scenario(scenario), 1)
-        self._worlds = Worlds(self.scenario, num_envs, "simultaneous")
-        self._seen = observation_of(self.scenario)
+        self._worlds = Worlds(self.scenario, num_envs, "simultaneous", steering=steering)
+        self._seen = observation_of(self.scenario, steering)
         self.observation_labels = self._seen.labels
-        self.action_labels = action_labels(self.scenario)
+        self.action_labels = action_labels(self.scenario, steering)
         self.state_labels = state_labels(self.scenario)
         observations = spaces.Box(
             self._seen.low.astype(np.float32), self._seen.high.astype(np.float32),
             dtype=np.float32,
         )  # fmt: skip
-        super().__init__(num_envs, observations, spaces.Discrete(self._worlds.actions))
-        self._actions = np.zeros((num_envs, 1), dtype=np.int64)
+        super().__init__(num_envs, observations, action_space_of(self._worlds))
+        self._actions: NDArray[Any] = np.zeros(self._worlds.action_shape)
+        if not self._worlds.continuous:
+            self._actions = self._actions.astype(np.int64)
         self._all = np.ones(num_envs, dtype=np.bool_)
         self._none = np.zeros(num_envs, dtype=np.bool_)
 
@@ -78,8 +85,11 @@ class NanoNavVecEnv(VecEnv):
         return self._observed()
 
     def step_async(self, actions: NDArray[Any]) -> None:
-        given = np.asarray(actions).reshape(self.num_envs, 1)
-        self._worlds.check(given, (self.num_envs, 1))
+        shape = self._worlds.action_shape
+        given = np.asarray(actions)
+        if given.size == int(np.prod(shape)):
+            given = given.reshape(shape)
+        self._worlds.check(given, shape)
         self._actions[:] = given
 
     def step_wait(self) -> VecEnvStepReturn:
@@ -169,6 +179,26 @@ def _recurrent_logits_class() -> Any:
     return RecurrentLogits
 
 
+def _clipped_class() -> Any:
+    import torch
+
+    class Clipped(torch.nn.Module):
+        """A continuous policy's greedy action: its mean, clipped to the ``Box``'s -1 .. 1 as
+        SB3's ``predict`` clips it (the memory outputs of a recurrent one pass through)."""
+
+        def __init__(self, head: torch.nn.Module) -> None:
+            super().__init__()
+            self.head = head
+
+        def forward(self, *given: torch.Tensor) -> Any:
+            out = self.head(*given)
+            if isinstance(out, tuple):
+                return (torch.clamp(out[0], -1.0, 1.0), *out[1:])
+            return torch.clamp(out, -1.0, 1.0)
+
+    return Clipped
+
+
 def export_onnx(
     model: Any,
     path: Path,
@@ -183,7 +213,9 @@ def export_onnx(
     memory as two more inputs, ``hidden_in`` and ``cell_in`` (layers x batch x units, zeros at
     an episode's start), given back as ``hidden_out`` and ``cell_out`` after the logits. The
     file is data, not code: onnxruntime runs it with no Python of the model's, unlike SB3's
-    own zip, which holds pickles.
+    own zip, which holds pickles. A model trained on a continuous turn (``steering=
+    "continuous"``) gives its greedy turn instead, ``turn`` (batch x 2: side, up, clipped to
+    -1 .. 1).
 
     ``observation`` and ``actions`` (the env's ``observation_labels`` and ``action_labels``)
     are written into the model's metadata (``METADATA_OBSERVATION``, ``METADATA_ACTIONS``, as
@@ -216,10 +248,14 @@ def export_onnx(
             f"{type(model).__name__} cannot be exported: only PPO, recurrent PPO and DQN"
         )
     width = int(model.observation_space.shape[0])
+    first = "logits"
+    if isinstance(model.action_space, spaces.Box):
+        head = _clipped_class()(head)
+        first = "turn"
     head = head.to("cpu").eval()
     given: tuple[torch.Tensor, ...] = (torch.zeros(1, width),)
-    inputs, outputs = ["observation"], ["logits"]
-    axes: dict[str, dict[int, str]] = {"observation": {0: "batch"}, "logits": {0: "batch"}}
+    inputs, outputs = ["observation"], [first]
+    axes: dict[str, dict[int, str]] = {"observation": {0: "batch"}, first: {0: "batch"}}
     if type(model).__name__ == "RecurrentPPO":
         lstm = policy.lstm_actor
         memory = torch.zeros(lstm.num_layers, 1, lstm.hidden_size)

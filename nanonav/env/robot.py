@@ -13,6 +13,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from numpy.typing import NDArray
 
 from nanonav.engine.worlds import (
+    Steering,
     Worlds,
     action_labels,
     as_scenario,
@@ -23,6 +24,27 @@ from nanonav.engine.worlds import (
 from nanonav.scenario import Scenario
 
 ScenarioLike = Scenario | Mapping[str, Any] | None
+
+
+def action_space_of(worlds: Worlds) -> spaces.Discrete | spaces.Box:
+    """One robot's actions: ``Discrete`` over the action set, or steering continuously a
+    ``Box`` of a turn (side, up) in the body frame, each -1 .. 1 of the largest turn a step
+    allows (float32, as learners' continuous policies give it)."""
+    if worlds.continuous:
+        return spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
+    return spaces.Discrete(worlds.actions)
+
+
+def turn_of(action: Any) -> NDArray[np.float64]:
+    """A continuous action as the (side, up) turn ``Worlds`` takes, refused unless it is two
+    finite numbers (a number beyond -1 .. 1 is clipped, as a learner's sample may be)."""
+    try:
+        turn = np.asarray(action, dtype=np.float64).reshape(2)
+    except (TypeError, ValueError):
+        raise ValueError(f"action {action!r} is not a turn (side, up) of two numbers") from None
+    if not np.isfinite(turn).all():
+        raise ValueError(f"action {action!r} is not a turn of two finite numbers")
+    return turn
 
 
 class NanoNavEnv(gymnasium.Env[NDArray[np.float64], np.int64]):
@@ -41,7 +63,11 @@ class NanoNavEnv(gymnasium.Env[NDArray[np.float64], np.int64]):
     none sensed); and with a communication model the net signal it reads (attractant minus
     repellent, or 1 while a message waits) and, for a chemical signal, its change.
 
-    Action: ``Discrete`` over the scenario's action set (``action_labels``). Reward: the
+    Action: ``Discrete`` over the scenario's action set (``action_labels``); with
+    ``steering="continuous"`` (active_brownian), a ``Box`` turn (side, up) in the robot's body
+    frame, each -1 .. 1 of the largest turn a step allows (``physics.max_turn_rate_rad_s``),
+    held over the decision interval as a steady turn, and the gradient columns hold the
+    sensed gradient along the robot's heading, side and up axes, read each step. Reward: the
     scenario's (paper 2.7). Terminated when the robot reaches a cell (delivers its payload),
     truncated at ``learning.max_steps`` or once every cell is treated. ``info["state"]`` is the
     tabular state the engine's learner would see (``state_labels`` names them), so that a
@@ -54,18 +80,19 @@ class NanoNavEnv(gymnasium.Env[NDArray[np.float64], np.int64]):
 
     metadata: dict[str, Any] = {"render_modes": []}  # noqa: RUF012 (gymnasium's own layout)
 
-    def __init__(self, scenario: ScenarioLike = None) -> None:
+    def __init__(self, scenario: ScenarioLike = None, *, steering: Steering = "discrete") -> None:
         self.scenario = with_robots(as_scenario(scenario), 1)
-        self._worlds = Worlds(self.scenario, 1, "simultaneous")
-        self._seen = observation_of(self.scenario)
+        self._worlds = Worlds(self.scenario, 1, "simultaneous", steering=steering)
+        self._seen = observation_of(self.scenario, steering)
         self.observation_space = spaces.Box(self._seen.low, self._seen.high, dtype=np.float64)
-        self.action_space = spaces.Discrete(self._worlds.actions)
+        self.action_space = action_space_of(self._worlds)  # type: ignore[assignment]
         self.observation_labels = self._seen.labels
-        self.action_labels = action_labels(self.scenario)
+        self.action_labels = action_labels(self.scenario, steering)
         self.state_labels = state_labels(self.scenario)
         self._fresh = np.ones(1, dtype=np.bool_)
         self._stale = np.zeros(1, dtype=np.bool_)
         self._actions = np.zeros((1, 1), dtype=np.int64)
+        self._turns = np.zeros((1, 1, 2))
         self._ended = True
 
     def reset(
@@ -83,12 +110,16 @@ class NanoNavEnv(gymnasium.Env[NDArray[np.float64], np.int64]):
     ) -> tuple[NDArray[np.float64], SupportsFloat, bool, bool, dict[str, Any]]:
         if self._ended:
             raise RuntimeError("the episode is over (or never began): call reset()")
-        chosen = int(action) if isinstance(action, (int, np.integer)) else -1
-        if not 0 <= chosen < self._worlds.actions:
-            raise ValueError(f"action {action!r} is not in {self.action_space}")
-        self._actions[0, 0] = chosen
         w = self._worlds
-        w.step(self._actions, self._stale, checked=True)
+        if w.continuous:
+            self._turns[0, 0] = turn_of(action)
+            w.step(self._turns, self._stale, checked=True)
+        else:
+            chosen = int(action) if isinstance(action, (int, np.integer)) else -1
+            if not 0 <= chosen < w.actions:
+                raise ValueError(f"action {action!r} is not in {self.action_space}")
+            self._actions[0, 0] = chosen
+            w.step(self._actions, self._stale, checked=True)
         terminated = not bool(w.active[0, 0])
         truncated = bool(w.over[0]) and not terminated
         self._ended = terminated or truncated
@@ -105,7 +136,8 @@ class NanoNavEnv(gymnasium.Env[NDArray[np.float64], np.int64]):
 
 
 class NanoNavVectorEnv(VectorEnv[NDArray[np.float64], NDArray[np.int64], NDArray[Any]]):
-    """``num_envs`` worlds of one robot (as ``NanoNavEnv``), stepped in one compiled call.
+    """``num_envs`` worlds of one robot (as ``NanoNavEnv``, ``steering`` too), stepped in one
+    compiled call.
 
     World k reset with seed s + k (``reset(seed=s)``), or with a seed each; a world whose
     episode ended is drawn afresh at the next step (Gymnasium's next-step autoreset: that step's
@@ -117,23 +149,25 @@ class NanoNavVectorEnv(VectorEnv[NDArray[np.float64], NDArray[np.int64], NDArray
         "render_modes": [],
     }
 
-    def __init__(self, num_envs: int = 1, scenario: ScenarioLike = None) -> None:
+    def __init__(
+        self, num_envs: int = 1, scenario: ScenarioLike = None, *, steering: Steering = "discrete"
+    ) -> None:
         if num_envs < 1:
             raise ValueError("num_envs must be at least 1")
         self.scenario = with_robots(as_scenario(scenario), 1)
         self.num_envs = num_envs
-        self._worlds = Worlds(self.scenario, num_envs, "simultaneous")
-        self._seen = observation_of(self.scenario)
+        self._worlds = Worlds(self.scenario, num_envs, "simultaneous", steering=steering)
+        self._seen = observation_of(self.scenario, steering)
         self.observation_labels = self._seen.labels
         self.single_observation_space = spaces.Box(
             self._seen.low, self._seen.high, dtype=np.float64
         )
-        self.single_action_space = spaces.Discrete(self._worlds.actions)
+        self.single_action_space = action_space_of(self._worlds)
         self.observation_space = gymnasium.vector.utils.batch_space(
             self.single_observation_space, num_envs
         )
         self.action_space = gymnasium.vector.utils.batch_space(self.single_action_space, num_envs)
-        self.action_labels = action_labels(self.scenario)
+        self.action_labels = action_labels(self.scenario, steering)
         self.state_labels = state_labels(self.scenario)
         self._all = np.ones(num_envs, dtype=np.bool_)
         self._ended = np.zeros(num_envs, dtype=np.bool_)
@@ -152,8 +186,8 @@ class NanoNavVectorEnv(VectorEnv[NDArray[np.float64], NDArray[np.int64], NDArray
     def step(
         self, actions: NDArray[np.int64]
     ) -> tuple[NDArray[np.float64], NDArray[Any], NDArray[Any], NDArray[Any], dict[str, Any]]:
-        given = np.asarray(actions).reshape(self.num_envs, 1)
         w = self._worlds
+        given = np.asarray(actions).reshape(w.action_shape)
         fresh = self._ended.copy()
         w.step(given, fresh)
         terminated = ~w.active[:, 0] & ~fresh

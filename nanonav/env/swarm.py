@@ -12,34 +12,41 @@ from numpy.typing import NDArray
 from pettingzoo import ParallelEnv
 
 from nanonav.engine.worlds import (
+    Steering,
     Worlds,
     action_labels,
     as_scenario,
     observation_of,
     state_labels,
 )
-from nanonav.env.robot import ScenarioLike
+from nanonav.env.robot import ScenarioLike, action_space_of, turn_of
 from nanonav.scenario import Schedule
 
 
 class SwarmSpaces:
     """Every robot of a scenario an agent (``robot_0`` ... in index order) in one world stepped
     under ``schedule``, observing and acting as ``NanoNavEnv``'s one robot (its docstring says
-    what the observation means): the agents, their spaces (one object per agent, made once)
-    and the labels of observations, actions and tabular states."""
+    what the observation means, and ``steering``): the agents, their spaces (one object per
+    agent, made once) and the labels of observations, actions and tabular states."""
 
-    def __init__(self, scenario: ScenarioLike, schedule: Schedule) -> None:
+    def __init__(
+        self, scenario: ScenarioLike, schedule: Schedule, steering: Steering = "discrete"
+    ) -> None:
         self.scenario = as_scenario(scenario)
-        self._worlds = Worlds(self.scenario, 1, schedule)
+        self._worlds = Worlds(self.scenario, 1, schedule, steering=steering)
         n = self.scenario.robots.count
         self.possible_agents = [f"robot_{i}" for i in range(n)]
         self._index = {agent: i for i, agent in enumerate(self.possible_agents)}
         self.agents: list[str] = []
-        self._seen = observation_of(self.scenario)
+        self._seen = observation_of(self.scenario, steering)
         self._observation_spaces: dict[str, spaces.Box] = {}
-        self._action_spaces: dict[str, spaces.Discrete] = {}
+        self._action_spaces: dict[str, spaces.Discrete | spaces.Box] = {}
         self.observation_labels = self._seen.labels
-        self.action_labels = action_labels(self.scenario)
+        self.action_labels = action_labels(self.scenario, steering)
+        # what a step's actions are: action numbers, or a turn (side, up) per robot
+        self._actions: NDArray[Any] = np.zeros(self._worlds.action_shape)
+        if not self._worlds.continuous:
+            self._actions = self._actions.astype(np.int64)
         self.state_labels = state_labels(self.scenario)
 
     def observation_space(self, agent: str) -> spaces.Box:
@@ -50,11 +57,11 @@ class SwarmSpaces:
             self._observation_spaces[agent] = space
         return space
 
-    def action_space(self, agent: str) -> spaces.Discrete:
+    def action_space(self, agent: str) -> spaces.Discrete | spaces.Box:
         space = self._action_spaces.get(agent)
         if space is None:
             self._index_of(agent)
-            space = spaces.Discrete(self._worlds.actions)
+            space = action_space_of(self._worlds)
             self._action_spaces[agent] = space
         return space
 
@@ -65,7 +72,7 @@ class SwarmSpaces:
         return index
 
 
-class NanoNavParallelEnv(SwarmSpaces, ParallelEnv[str, NDArray[np.float64], int]):
+class NanoNavParallelEnv(SwarmSpaces, ParallelEnv[str, NDArray[np.float64], Any]):
     """Every robot of a scenario an agent (``robot_0`` ... in index order), observing, acting
     and rewarded as ``NanoNavEnv``'s one robot (its docstring says what the observation means);
     a robot that reaches a cell is terminated and leaves ``agents`` (it stays bound to the cell,
@@ -80,12 +87,10 @@ class NanoNavParallelEnv(SwarmSpaces, ParallelEnv[str, NDArray[np.float64], int]
 
     metadata: dict[str, Any] = {"name": "nanonav_swarm_v0", "render_modes": []}  # noqa: RUF012
 
-    def __init__(self, scenario: ScenarioLike = None) -> None:
-        SwarmSpaces.__init__(self, scenario, "simultaneous")
+    def __init__(self, scenario: ScenarioLike = None, *, steering: Steering = "discrete") -> None:
+        SwarmSpaces.__init__(self, scenario, "simultaneous", steering)
         # the robots of ``agents``, in order: what a step gives back is read at these
         self._live = np.zeros(0, dtype=np.int64)
-        n = len(self.possible_agents)
-        self._actions = np.zeros((1, n), dtype=np.int64)
         self._fresh = np.ones(1, dtype=np.bool_)
         self._stale = np.zeros(1, dtype=np.bool_)
 
@@ -98,7 +103,7 @@ class NanoNavParallelEnv(SwarmSpaces, ParallelEnv[str, NDArray[np.float64], int]
         observations = dict(zip(agents, w.obs[0][:, self._seen.columns], strict=True))
         return observations, self._infos(w.state[0].tolist())
 
-    def step(self, actions: dict[str, int]) -> tuple[
+    def step(self, actions: dict[str, Any]) -> tuple[
         dict[str, NDArray[np.float64]], dict[str, float], dict[str, bool], dict[str, bool],
         dict[str, dict[str, Any]],
     ]:  # fmt: skip
@@ -118,9 +123,20 @@ class NanoNavParallelEnv(SwarmSpaces, ParallelEnv[str, NDArray[np.float64], int]
         self._leave(ended, over)
         return observations, rewards, terminated, truncated, infos
 
-    def _chosen(self, actions: dict[str, int], agents: list[str]) -> NDArray[np.int64]:
-        """The live agents' actions, in order, as integers of the action set (a missing one,
-        or one that is not such an integer, is refused naming its agent)."""
+    def _chosen(self, actions: dict[str, Any], agents: list[str]) -> NDArray[Any]:
+        """The live agents' actions, in order, as integers of the action set, or steering
+        continuously as turns (a missing one, or one that is not such, is refused naming its
+        agent)."""
+        if self._worlds.continuous:
+            turns = []
+            for agent in agents:
+                if agent not in actions:
+                    raise ValueError(f"no action for live agent {agent}")
+                try:
+                    turns.append(turn_of(actions[agent]))
+                except ValueError as error:
+                    raise ValueError(f"{agent}'s {error}") from None
+            return np.array(turns).reshape(len(agents), 2)
         if len(actions) == len(agents) and list(actions) == agents:
             given = np.array(list(actions.values()))  # the usual dict, keyed as agents are
         else:
@@ -178,11 +194,12 @@ class NanoNavParallelEnv(SwarmSpaces, ParallelEnv[str, NDArray[np.float64], int]
 
     def step_arrays(self, actions: NDArray[np.int64]) -> tuple[NDArray[Any], ...]:
         """``step`` in arrays indexed by robot: ``actions[i]`` robot i's (unused for a robot
-        that is done); returns (observations, rewards, terminated, truncated) of every robot,
-        of which those live before the step count."""
+        that is done; steering continuously, ``actions`` is robots x 2 turns); returns
+        (observations, rewards, terminated, truncated) of every robot, of which those live
+        before the step count."""
         given = np.asarray(actions)
         n = len(self.possible_agents)
-        self._worlds.check(given, (n,))
+        self._worlds.check(given, self._worlds.action_shape[1:])
         self._actions[0] = given
         live = self._live
         ended, over = self._advance()

@@ -10,11 +10,12 @@ import numpy as np
 from numpy.typing import NDArray
 from pettingzoo import AECEnv
 
-from nanonav.env.robot import ScenarioLike
+from nanonav.engine.worlds import Steering
+from nanonav.env.robot import ScenarioLike, turn_of
 from nanonav.env.swarm import SwarmSpaces
 
 
-class NanoNavAECEnv(SwarmSpaces, AECEnv[str, NDArray[np.float64], int | None]):
+class NanoNavAECEnv(SwarmSpaces, AECEnv[str, NDArray[np.float64], Any]):
     """Every robot of a scenario an agent (``robot_0`` ... in index order), observing, acting
     and rewarded as ``NanoNavEnv``'s one robot, one at a time: the robot whose turn it is
     (``agent_selection``) has just perceived; it acts, then the next active robot perceives,
@@ -34,10 +35,8 @@ class NanoNavAECEnv(SwarmSpaces, AECEnv[str, NDArray[np.float64], int | None]):
 
     metadata: dict[str, Any] = {"name": "nanonav_turns_v0", "render_modes": []}  # noqa: RUF012
 
-    def __init__(self, scenario: ScenarioLike = None) -> None:
-        SwarmSpaces.__init__(self, scenario, "sequential")
-        n = len(self.possible_agents)
-        self._actions = np.zeros((1, n), dtype=np.int64)
+    def __init__(self, scenario: ScenarioLike = None, *, steering: Steering = "discrete") -> None:
+        SwarmSpaces.__init__(self, scenario, "sequential", steering)
         self._fresh = np.ones(1, dtype=np.bool_)
         self._stale = np.zeros(1, dtype=np.bool_)
         self.rewards: dict[str, float] = {}
@@ -67,19 +66,25 @@ class NanoNavAECEnv(SwarmSpaces, AECEnv[str, NDArray[np.float64], int | None]):
         ]
         return observed
 
-    def step(self, action: int | None) -> None:
+    def step(self, action: Any) -> None:
         agent = self.agent_selection
         if not self.agents:
             raise RuntimeError("every agent is done (or the swarm never began): call reset()")
         if self.terminations[agent] or self.truncations[agent]:
             self._was_dead_step(action)
             return
-        count = self._worlds.actions
-        if not isinstance(action, (int, np.integer)) or not 0 <= action < count:
-            raise ValueError(f"{agent}'s action {action!r} is not an integer of 0..{count - 1}")
         i = self._index[agent]
+        if self._worlds.continuous:
+            try:
+                self._actions[0, i] = turn_of(action)
+            except ValueError as error:
+                raise ValueError(f"{agent}'s {error}") from None
+        else:
+            count = self._worlds.actions
+            if not isinstance(action, (int, np.integer)) or not 0 <= action < count:
+                raise ValueError(f"{agent}'s action {action!r} is not an integer of 0..{count - 1}")
+            self._actions[0, i] = action
         self._cumulative_rewards[agent] = 0.0
-        self._actions[0, i] = action
         self._worlds.step(self._actions, self._stale, checked=True)
         self._after_move()
 

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -36,11 +37,12 @@ from nanonav.engine.simulate import (
 )
 from nanonav.engine.state import Social, Swarm, Treatment
 from nanonav.engine.world import DYNAMICS_STREAM, EVALUATION_STREAM, stream
-from nanonav.engine.worlds import Worlds, observation_of
+from nanonav.engine.worlds import Steering, Worlds, observation_of
 from nanonav.scenario import Scenario, ScenarioError
 
-# (rows, observation width) float64 in the scenario's units -> (rows,) action numbers
-Decide = Callable[[NDArray[np.float64]], NDArray[np.int64]]
+# (rows, observation width) float64 in the scenario's units -> (rows,) action numbers, or
+# steering continuously (rows, 2) turns
+Decide = Callable[[NDArray[np.float64]], NDArray[Any]]
 # Seconds of work between progress reports
 PROGRESS_EVERY_S = 0.1
 # Robots stepped at once: the worlds are evaluated in rounds of at most this many robots (or
@@ -79,11 +81,13 @@ def evaluate(
     progress: ProgressCallback | None = None,
     *,
     record_bytes: int = DEFAULT_RECORD_BYTES,
+    steering: Steering = "discrete",
 ) -> SimulationResult:
     """Evaluate ``decide`` in ``scenario``'s ``evaluation.worlds`` worlds (it trains nothing:
     ``learning.episodes`` must be 0). ``decide`` gets the observations (``observation_of``'s
     columns, as ``NanoNavEnv`` gives them) and returns an action of the scenario's action set
-    for each row; each is held for the decision interval, as in the environments. Raises
+    for each row (``steering`` continuously: a turn, side and up, as ``NanoNavEnv`` takes
+    it); each is held for the decision interval, as in the environments. Raises
     ``PolicyFailed`` when it raises or answers anything else. ``progress`` is called about
     every 0.1 s; False stops the run (``completed`` False)."""
     if scenario.learning.episodes:
@@ -100,10 +104,10 @@ def evaluate(
     robot_steps = np.zeros(count)
     # one evaluation stream draws every world in turn, as simulate's evaluation draws them
     drawn = stream(scenario.seed, EVALUATION_STREAM)
-    run = _Round(scenario, decide, progress, count)
+    run = _Round(scenario, decide, progress, count, steering)
     per_round = max(1, ROUND_ROBOTS // robots)
     first = Worlds(scenario, 1, scenario.robots.schedule, measure=phases.RECORDED,
-                   record_bytes=record_bytes)  # fmt: skip
+                   record_bytes=record_bytes, steering=steering)  # fmt: skip
     trajectory = None
     for start in range(0, count, per_round):
         size = min(per_round, count - start)
@@ -111,7 +115,13 @@ def evaluate(
         rest = size - len(batches)
         if rest:
             batches.append(
-                Worlds(scenario, rest, scenario.robots.schedule, measure=phases.MEASURED)
+                Worlds(
+                    scenario,
+                    rest,
+                    scenario.robots.schedule,
+                    measure=phases.MEASURED,
+                    steering=steering,
+                )
             )
         k = start
         for b in batches:
@@ -148,12 +158,23 @@ def evaluate(
     )  # fmt: skip
 
 
-def _decided(decide: Decide, rows: NDArray[np.float64], actions: int) -> NDArray[np.int64]:
-    """``decide``'s action for each row, checked: one integer of the action set a row."""
+def _decided(decide: Decide, rows: NDArray[np.float64], worlds: Worlds) -> NDArray[Any]:
+    """``decide``'s action for each row, checked: one integer of the action set a row, or
+    steering continuously a turn of two finite numbers."""
     try:
         chosen = np.asarray(decide(rows))
     except Exception as error:
         raise PolicyFailed(f"the policy raised {type(error).__name__}: {error}") from error
+    if worlds.continuous:
+        if chosen.shape != (rows.shape[0], 2):
+            raise PolicyFailed(
+                f"the policy answered an array of shape {chosen.shape} for {rows.shape[0]} "
+                "observations, not a turn (side, up) each"
+            )
+        if not worlds.in_action_set(chosen):
+            raise PolicyFailed("the policy answered turns that are not all finite numbers")
+        return chosen.astype(np.float64, copy=False)
+    actions = worlds.actions
     if chosen.shape != (rows.shape[0],):
         raise PolicyFailed(
             f"the policy answered an array of shape {chosen.shape} for {rows.shape[0]} "
@@ -173,13 +194,14 @@ class _Round:
     over all of them."""
 
     def __init__(
-        self, scenario: Scenario, decide: Decide, progress: ProgressCallback | None, count: int
-    ) -> None:
+        self, scenario: Scenario, decide: Decide, progress: ProgressCallback | None, count: int,
+        steering: Steering,
+    ) -> None:  # fmt: skip
         self.scenario = scenario
         self.decide = decide
         self.progress = progress
         self.count = count
-        self.columns = observation_of(scenario).columns
+        self.columns = observation_of(scenario, steering).columns
         self.robots = scenario.robots.count
         self.sequential = not decides_at_once(scenario)
         self.calls = 0
@@ -207,7 +229,10 @@ class _Round:
             (np.repeat(np.arange(b.count), robots), np.tile(np.arange(robots), b.count))
             for b in batches
         ]
-        actions = [np.zeros((b.count, robots), dtype=np.int64) for b in batches]
+        actions = [
+            np.zeros(b.action_shape, dtype=np.float64 if b.continuous else np.int64)
+            for b in batches
+        ]
         none_fresh = [np.zeros(b.count, dtype=np.bool_) for b in batches]
         for b in batches:
             b.step(None, np.ones(b.count, dtype=np.bool_))
@@ -221,7 +246,7 @@ class _Round:
             rows = np.concatenate(
                 [b.obs[w, r][:, self.columns] for b, (w, r) in zip(batches, picks, strict=True)]
             )
-            chosen = _decided(self.decide, rows, batches[0].actions)
+            chosen = _decided(self.decide, rows, batches[0])
             self.calls += 1
             at = 0
             for b, (w, r), given, fresh in zip(batches, picks, actions, none_fresh, strict=True):

@@ -6,7 +6,9 @@ itself (external data could name any file of the machine that runs it), uses onl
 operator sets at a version ONNX Runtime runs, takes one float32 input of a batch of
 observations, ``(batch, width)``, and gives either the action logits, ``(batch, actions)``
 floats (the action is their argmax), or the actions themselves, ``(batch,)`` or
-``(batch, 1)`` integers; and when it answers a trial batch of zero observations so.
+``(batch, 1)`` integers; and when it answers a trial batch of zero observations so. A network
+that steers continuously (its actions ``turn_side``, ``turn_up``) gives the turn itself,
+``(batch, 2)`` floats.
 """
 
 from __future__ import annotations
@@ -22,6 +24,8 @@ import onnx
 import onnxruntime
 from numpy.typing import NDArray
 from onnx import AttributeProto, GraphProto, TensorProto
+
+from nanonav.engine.worlds import Steering
 
 # The operator sets of ONNX itself (the default domain is spelled both ways) and of ONNX-ML
 STANDARD_DOMAINS = frozenset({"", "ai.onnx", "ai.onnx.ml"})
@@ -44,7 +48,7 @@ MAX_ELEMENTS = 1_000_000
 # Operators whose outputs' sizes or running time the graph alone does not bound
 UNBOUNDED_OPERATORS = frozenset({"Loop", "Scan", "If", "SequenceMap"})
 
-Output = Literal["logits", "actions"]
+Output = Literal["logits", "actions", "turn"]
 
 
 class InvalidModel(ValueError):
@@ -70,7 +74,8 @@ class Memory:
 
 @dataclass(frozen=True)
 class ModelInfo:
-    """What a checked model is: its operator set version, whether it gives logits or actions,
+    """What a checked model is: its operator set version, whether it gives logits, actions or a
+    turn,
     the input and output it is run by, and a recurrent model's memory."""
 
     opset: int
@@ -242,10 +247,13 @@ def _session(data: bytes) -> onnxruntime.InferenceSession:
     return onnxruntime.InferenceSession(data, options, providers=["CPUExecutionProvider"])
 
 
-def check_model(data: bytes, width: int, actions: int, *, max_bytes: int) -> ModelInfo:
+def check_model(
+    data: bytes, width: int, actions: int, *, max_bytes: int, continuous: bool = False
+) -> ModelInfo:
     """Check that ``data`` is an ONNX model that decides from ``width`` observation columns
-    among ``actions`` actions (``InvalidModel`` saying what is wrong if not), by reading the
-    graph and running it once on a batch of zero observations."""
+    among ``actions`` actions, or ``continuous``ly a turn of ``actions`` parts
+    (``InvalidModel`` saying what is wrong if not), by reading the graph and running it once
+    on a batch of zero observations."""
     model = _parsed(data, max_bytes)
     opset = _check_contents(model)
     weights = {tensor.name for tensor in model.graph.initializer}
@@ -284,7 +292,7 @@ def check_model(data: bytes, width: int, actions: int, *, max_bytes: int) -> Mod
         raise InvalidModel(
             f"the model failed on a batch of {TRIAL_ROWS} zero observations: {_first_line(error)}"
         ) from None
-    kind = _kind(np.asarray(answer[0]), actions)
+    kind = _kind(np.asarray(answer[0]), actions, continuous)
     for m, kept in zip(memory, answer[1:], strict=True):
         if np.asarray(kept).shape != m.zeros(TRIAL_ROWS).shape:
             raise InvalidModel(
@@ -328,18 +336,24 @@ def _memory(
     return tuple(found)
 
 
-def _kind(answer: NDArray[Any], actions: int) -> Output:
-    """Whether a trial answer is logits or actions; InvalidModel if it is neither."""
+def _kind(answer: NDArray[Any], actions: int, continuous: bool) -> Output:
+    """Whether a trial answer is logits or actions, or for a ``continuous`` network a turn of
+    ``actions`` parts; InvalidModel if it is not."""
     rows = TRIAL_ROWS
+    floats = "a turn must be floats" if continuous else "logits must be"
     if answer.dtype.kind == "f":
         if answer.shape != (rows, actions):
             raise InvalidModel(
                 f"the model's first output is floats of shape {list(answer.shape)} for "
-                f"{rows} observations: logits must be (batch, {actions}), one per action"
+                f"{rows} observations: {floats} (batch, {actions}), one per "
+                f"{'part' if continuous else 'action'}"
             )
         if not np.isfinite(answer).all():
-            raise InvalidModel("the model's logits for zero observations are not finite")
-        return "logits"
+            raise InvalidModel("the model's answer for zero observations is not finite")
+        return "turn" if continuous else "logits"
+    if continuous:
+        detail = f"{floats} (batch, {actions})"
+        raise InvalidModel(f"the model's first output is {answer.dtype}: {detail}")
     if answer.dtype.kind in "iu":
         if answer.shape not in ((rows,), (rows, 1)):
             raise InvalidModel(
@@ -371,8 +385,10 @@ class NetworkPolicy:
     """A checked model, deciding for many robots in one inference call (in parts of
     ``INFERENCE_ROWS`` for more)."""
 
-    def __init__(self, data: bytes, width: int, actions: int, *, max_bytes: int) -> None:
-        self.info = check_model(data, width, actions, max_bytes=max_bytes)
+    def __init__(
+        self, data: bytes, width: int, actions: int, *, max_bytes: int, continuous: bool = False
+    ) -> None:
+        self.info = check_model(data, width, actions, max_bytes=max_bytes, continuous=continuous)
         self._session = _session(data)
         self.width = width
         self._kept: list[NDArray[np.float32]] | None = None
@@ -382,13 +398,20 @@ class NetworkPolicy:
         """Whether the network carries a memory from decision to decision (recurrent)."""
         return bool(self.info.memory)
 
+    @property
+    def steering(self) -> Steering:
+        """``continuous`` where the network answers a turn (rows x parts of floats), else
+        ``discrete`` (an action number a row)."""
+        return "continuous" if self.info.output == "turn" else "discrete"
+
     def forget(self) -> None:
         """Start every robot's memory afresh at the next call (a new set of episodes)."""
         self._kept = None
 
-    def __call__(self, observations: NDArray[np.float64]) -> NDArray[np.int64]:
-        """The action of each row of ``observations``; a recurrent network's row k carries the
-        memory row k had at the last call (the same robot, call after call, until ``forget``)."""
+    def __call__(self, observations: NDArray[np.float64]) -> NDArray[Any]:
+        """The action of each row of ``observations`` (a continuous network's turn, a row of
+        floats); a recurrent network's row k carries the memory row k had at the last call (the
+        same robot, call after call, until ``forget``)."""
         rows = np.ascontiguousarray(observations, dtype=np.float32)
         memory = self.info.memory
         count = rows.shape[0]
@@ -406,6 +429,11 @@ class NetworkPolicy:
                 kept[_along(m, part)] = new
             parts.append(np.asarray(answer[0]))
         answer = parts[0] if len(parts) == 1 else np.concatenate(parts)
+        if self.info.output == "turn":
+            if answer.shape != (rows.shape[0], answer.shape[-1]) or not np.isfinite(answer).all():
+                raise ValueError("the model's turns are not finite, one row an observation")
+            turns: NDArray[np.float64] = answer.astype(np.float64)
+            return turns
         if self.info.output == "logits":
             if answer.shape != (rows.shape[0], answer.shape[-1]) or not np.isfinite(answer).all():
                 raise ValueError("the model's logits are not finite, one row an observation")

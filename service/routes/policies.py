@@ -18,6 +18,7 @@ from nanonav.policy import (
     layout_of,
     network_layout,
     policy_values,
+    steering_of,
 )
 from nanonav.rl.onnx_policy import RULE as MODEL_RULE
 from nanonav.rl.onnx_policy import InvalidModel, check_model, model_labels
@@ -146,7 +147,10 @@ def _keep_network(
                 raise InvalidPolicy((field,), detail, LAYOUT_RULE)
         assert observation is not None and actions is not None
         layout = network_layout(observation, actions)
-        info = check_model(model, len(observation), len(actions), max_bytes=limit)
+        info = check_model(
+            model, len(observation), len(actions), max_bytes=limit,
+            continuous=steering_of(actions) == "continuous",
+        )  # fmt: skip
     except InvalidPolicy as error:
         raise _refused(error) from None
     except InvalidModel as error:

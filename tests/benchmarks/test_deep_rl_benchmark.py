@@ -1,5 +1,6 @@
 """The deep-learning benchmark still runs end to end (a smoke run: a few thousand decisions of
-training, two fresh seeds) and prints every learner beside both baselines, the paired
+training, two fresh seeds), with the learners steering by the action set or by a continuous
+turn, and prints every learner beside both baselines, the paired
 differences with Holm's p, and the training rate beside CartPole's (nothing is asserted of
 what is learned)."""
 
@@ -14,11 +15,13 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 import deep_rl
 
 
+@pytest.mark.parametrize("steering", ["discrete", "continuous"])
 def test_deep_rl_benchmark_prints_each_learner_beside_the_baselines(
-    capsys: pytest.CaptureFixture[str],
+    steering: str, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    assert deep_rl.main(["--quick"]) == 0
+    assert deep_rl.main(["--quick", "--steering", steering]) == 0
     out = capsys.readouterr().out
+    assert f"the deep learners steering {steering}ly" in out
     for algo in ("ppo", "recurrent-ppo"):
         trained = rf"^  {algo}\s+R = 0.5 um: [\d,]+ decisions in \d+ s, ([\d,]+) decisions/s"
         rate = re.search(trained, out, re.M)

@@ -68,3 +68,33 @@ def test_a_scenario_that_is_not_one_is_refused_naming_the_field(
     assert main(args) == 2
     assert "robots.count" in capsys.readouterr().err
     assert not (tmp_path / "out").exists()
+
+
+def test_a_continuous_turn_is_trained_and_exported_as_a_turn(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "turn"
+    swimmers = tmp_path / "swimmers.json"
+    swimmers.write_text(json.dumps({"physics": {"time_limit_s": 2.0}}))
+    args = ["train", "--preset", "tumour-microswimmers", "--scenario", str(swimmers),
+            "--steering", "continuous", "--steps", "64", "--envs", "2", "--out", str(out),
+            "--no-progress"]  # fmt: skip
+    assert main(args) == 0
+    assert json.loads((out / "training.json").read_text())["steering"] == "continuous"
+    session = ort.InferenceSession(str(out / "policy.onnx"), providers=["CPUExecutionProvider"])
+    meta = session.get_modelmeta().custom_metadata_map
+    assert json.loads(meta["nanonav.actions"]) == ["turn_side", "turn_up"]
+    assert "gradient_side" in json.loads(meta["nanonav.observation"])
+    width = session.get_inputs()[0].shape[1]
+    turn = session.run(["turn"], {"observation": np.ones((3, width), np.float32)})[0]
+    assert turn.shape == (3, 2) and np.all(np.abs(turn) <= 1.0)
+    capsys.readouterr()
+    for refused, says in (
+        (["--algo", "dqn", "--preset", "tumour-microswimmers"], "dqn chooses among actions"),
+        (["--preset", "paper-single"], "needs physics.model 'active_brownian'"),
+    ):
+        wrong = ["train", *refused, "--steering", "continuous", "--steps", "8", "--out",
+                 str(tmp_path / "no")]  # fmt: skip
+        assert main(wrong) == 2
+        assert says in capsys.readouterr().err
+    assert not (tmp_path / "no").exists()

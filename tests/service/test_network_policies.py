@@ -44,6 +44,14 @@ def network(api: Api, model: bytes | None = None, **body: Any) -> dict[str, Any]
     )
 
 
+def succeeds(api: Api, settings: Settings, job: int) -> None:
+    """The worker runs the next job, ``job``, to success."""
+    claim = api.store.claim("test", lease_s=30)
+    assert claim is not None and claim.job.id == job
+    record = run_job(api.store, claim, settings, threading.Event())
+    assert record is not None and record.status is JobStatus.SUCCEEDED, record
+
+
 def test_a_network_is_kept_shown_and_listed_as_a_network(api: Api) -> None:
     model = models.mlp(len(OBSERVATION), len(ACTIONS))
     sent = network(api, model, name="mlp")
@@ -194,7 +202,39 @@ def test_a_recurrent_network_is_kept_with_its_memory_and_evaluated_at_once(
         "each row one robot: robots.schedule must be 'simultaneous'"
     )
     job = api.client.post("/jobs", json={**EVALUATE, "policy_from": source}).json()["id"]
-    claim = api.store.claim("test", lease_s=30)
-    assert claim is not None and claim.job.id == job
-    record = run_job(api.store, claim, api_settings, threading.Event())
-    assert record is not None and record.status is JobStatus.SUCCEEDED, record
+    succeeds(api, api_settings, job)
+
+
+def test_a_network_that_turns_steers_active_brownian_robots(
+    api: Api, api_settings: Settings
+) -> None:
+    """A network whose actions are a continuous turn (``turn_side``, ``turn_up``) reads the
+    gradient in the body frame, is refused where robots cannot turn, and is evaluated by a
+    worker where they can."""
+    swimmers = {**EVALUATE, "physics": {"model": "active_brownian"}}
+    reads = list(observation_of(Scenario.model_validate(swimmers), "continuous").labels)
+    assert "gradient_side" in reads
+    turns = ["turn_side", "turn_up"]
+    sent = network(api, models.mlp(len(reads), 2), observation=reads, actions=turns)
+    assert sent["kind"] == "network" and sent["action_set"] == "steering"
+    assert api.client.get(sent["links"]["self"]).json()["actions"] == turns
+    source, n = sent["policy_from"], sent["id"]
+    cases = [
+        ({"onnx": encoded(models.mlp(len(reads), 3)), "observation": reads, "actions": turns},
+         "#/onnx", "policy_model", "a turn must be floats (batch, 2)"),
+        ({"onnx": encoded(models.mlp(len(OBSERVATION), 2)), "observation": OBSERVATION,
+          "actions": turns}, "#/observation", "policy_layout", "gradient_forward"),
+    ]  # fmt: skip
+    for body, pointer, rule, detail in cases:
+        found = refused(api, body)
+        assert found[:2] == (pointer, rule) and detail in found[2], found
+    pointer, rule, detail = refused(api, {**EVALUATE, "policy_from": source}, "/jobs")
+    assert (pointer, rule) == ("#/policy_from", "policy_unusable")
+    assert detail == (
+        f"policy {n} steers by a continuous turn (turn_side, turn_up): physics.model must be "
+        "'active_brownian'"
+    )
+    job = api.client.post("/jobs", json={**swimmers, "policy_from": source}).json()["id"]
+    succeeds(api, api_settings, job)
+    metrics = api.client.get(f"/jobs/{job}/metrics").json()
+    assert metrics["work"]["decide_calls"] > 0 and len(metrics["worlds"]) == 3

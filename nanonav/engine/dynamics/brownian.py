@@ -130,6 +130,22 @@ def _unit(x: float, y: float, z: float) -> tuple[float, float, float]:
 
 
 @njit(cache=True, error_model="numpy", inline="always")
+def _turned_across(
+    nx: float, ny: float, nz: float, ex: float, ey: float, ez: float, fx: float, fy: float,
+    fz: float, a: float, b: float, size: float, angle: float,
+) -> tuple[float, float, float]:  # fmt: skip
+    """The unit vector n turned by ``angle`` toward a e + b f, of length ``size`` (e and f
+    unit vectors across n and each other)."""
+    c = math.cos(angle)
+    s = math.sin(angle) / size
+    return _unit(
+        c * nx + s * (a * ex + b * fx),
+        c * ny + s * (a * ey + b * fy),
+        c * nz + s * (a * ez + b * fz),
+    )
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def diffuse_heading(
     rng: np.random.Generator, nx: float, ny: float, nz: float, sigma: float
 ) -> tuple[float, float, float]:
@@ -143,14 +159,7 @@ def diffuse_heading(
     g = math.sqrt(g1 * g1 + g2 * g2)
     if g == 0.0:
         return nx, ny, nz
-    theta = sigma * g
-    c = math.cos(theta)
-    s = math.sin(theta) / g
-    return _unit(
-        c * nx + s * (g1 * ex + g2 * fx),
-        c * ny + s * (g1 * ey + g2 * fy),
-        c * nz + s * (g1 * ez + g2 * fz),
-    )
+    return _turned_across(nx, ny, nz, ex, ey, ez, fx, fy, fz, g1, g2, g, sigma * g)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -182,6 +191,46 @@ def turn_toward(
     c = math.cos(largest)
     s = math.sin(largest)
     return _unit(c * nx + s * ux, c * ny + s * uy, c * nz + s * uz)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def body_frame(
+    nx: float, ny: float, nz: float, sx: float, sy: float, sz: float
+) -> tuple[float, float, float, float, float, float]:
+    """A robot's two body axes across its heading n: ``side``, the last side axis s carried
+    along as the heading turns (s with its part along n taken out; the heading's tangent
+    basis where s is zero or nearly along n, as at the start or after a tumble), and ``up``,
+    n x side. Carried so, the axes turn with the body and a turn held over steps keeps its
+    sense (the body's roll about n is not modelled)."""
+    dot = sx * nx + sy * ny + sz * nz
+    ex = sx - dot * nx
+    ey = sy - dot * ny
+    ez = sz - dot * nz
+    norm = math.sqrt(ex * ex + ey * ey + ez * ez)
+    if norm < 1e-3:
+        ex, ey, ez, _, _, _ = _tangent_basis(nx, ny, nz)
+    else:
+        ex /= norm
+        ey /= norm
+        ez /= norm
+    return ex, ey, ez, ny * ez - nz * ey, nz * ex - nx * ez, nx * ey - ny * ex
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def turn_in_body(
+    nx: float, ny: float, nz: float, sx: float, sy: float, sz: float, u_side: float,
+    u_up: float, largest: float,
+) -> tuple[float, float, float]:  # fmt: skip
+    """The unit heading n turned toward ``u_side`` side + ``u_up`` up (the body axes of
+    ``body_frame``, s its side axis) by ``largest`` radians times the turn's size, |u| capped
+    at 1: a continuous steering command, as a fraction of the largest turn a step allows
+    (n unchanged where u is zero)."""
+    size = math.sqrt(u_side * u_side + u_up * u_up)
+    if size == 0.0 or largest <= 0.0:
+        return nx, ny, nz
+    ex, ey, ez, fx, fy, fz = body_frame(nx, ny, nz, sx, sy, sz)
+    angle = largest * min(1.0, size)
+    return _turned_across(nx, ny, nz, ex, ey, ez, fx, fy, fz, u_side, u_up, size, angle)
 
 
 @njit(cache=True, error_model="numpy")

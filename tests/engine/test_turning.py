@@ -1,0 +1,158 @@
+"""Continuous steering (``Worlds(steering="continuous")``, active Brownian): a robot reads its
+sensed gradient each step in its body frame and turns by a command (side, up) in that frame,
+at most the largest turn a step allows."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import pytest
+
+from nanonav.engine import phases, qlearning
+from nanonav.engine.dynamics.brownian import body_frame, turn_in_body
+from nanonav.engine.worlds import Worlds, observation_of
+from nanonav.scenario import Scenario, deep_merge
+
+BROWNIAN: dict[str, Any] = {
+    "physics": {"model": "active_brownian", "time_limit_s": 5.0},
+    "space": {"size": 200.0},
+    "obstacles": {"count": 0},
+    "cells": {"count": 1},
+}
+# no diffusion: a swimmer's path is its steering alone
+STILL = deep_merge(BROWNIAN, {"physics": {"diffusion_um2_s": 0.0, "rotational_diffusion_s": 0.0}})
+
+
+def _worlds(data: dict[str, Any], steering: str, seed: int = 11) -> Worlds:
+    worlds = Worlds(Scenario.model_validate(data), 1, "simultaneous", steering=steering)  # type: ignore[arg-type]
+    worlds.seed([seed])
+    worlds.step(None, np.ones(1, dtype=np.bool_))
+    return worlds
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.linalg.norm(v)
+
+
+def test_the_body_frame_is_orthonormal_and_carried_along_a_small_turn() -> None:
+    rng = np.random.default_rng(5)
+    for _ in range(200):
+        n = _unit(rng.normal(size=3))
+        kept = rng.normal(size=3)
+        side = np.array(body_frame(*n, *kept))
+        e, f = side[:3], side[3:]
+        frame = np.array([n, e, f])
+        np.testing.assert_allclose(frame @ frame.T, np.eye(3), atol=1e-12)
+        np.testing.assert_allclose(np.cross(n, e), f, atol=1e-12)  # right-handed
+        # the heading turns a little: the side axis moves by about as little
+        turned = _unit(n + 0.01 * rng.normal(size=3))
+        e2 = np.array(body_frame(*turned, *e)[:3])
+        assert np.linalg.norm(e2 - e) < 0.05
+    # no side axis yet (zeros), or one along the heading: the heading's tangent basis
+    n = np.array([0.0, 0.0, 1.0])
+    assert abs(np.dot(body_frame(*n, 0.0, 0.0, 0.0)[:3], n)) < 1e-12
+    assert abs(np.dot(body_frame(*n, 0.0, 0.0, 2.0)[:3], n)) < 1e-12
+
+
+@pytest.mark.parametrize(("u_side", "u_up"), [(1.0, 0.0), (0.0, -0.5), (0.3, 0.4), (3.0, 4.0)])
+def test_a_turn_is_its_share_of_the_largest_toward_its_direction(
+    u_side: float, u_up: float
+) -> None:
+    n = _unit(np.array([0.2, -0.5, 0.8]))
+    frame = np.array(body_frame(*n, 1.0, 0.0, 0.0))
+    e, f = frame[:3], frame[3:]
+    largest = 0.3
+    turned = np.array(turn_in_body(*n, *e, u_side, u_up, largest))
+    size = math.hypot(u_side, u_up)
+    assert math.acos(np.clip(np.dot(n, turned), -1, 1)) == pytest.approx(largest * min(1.0, size))
+    # toward u_side e + u_up f: the turned heading's part across n points there
+    across = turned - np.dot(turned, n) * n
+    np.testing.assert_allclose(_unit(across), _unit(u_side * e + u_up * f), atol=1e-12)
+    # no command, no turn
+    np.testing.assert_allclose(turn_in_body(*n, *e, 0.0, 0.0, largest), n)
+
+
+def test_a_held_turn_swims_a_circle_at_the_largest_turn_rate() -> None:
+    """In a still world a full side turn held over an interval turns the heading by the
+    largest turn each step, in one plane: the robot's steps are the sides of a regular
+    polygon, each turned from the last by that angle."""
+    data = deep_merge(STILL, {"learning": {"decision_interval_s": 0.5}})
+    worlds = _worlds(data, "continuous")
+    hold = worlds.scenario.decision_steps
+    largest = worlds.params.turn
+    assert largest > 0.0 and hold > 1
+    start = worlds.batch.s.heading[0, 0].copy()
+    where = worlds.batch.s.pos[0, 0].copy()
+    worlds.step(np.array([[[1.0, 0.0]]]), np.zeros(1, dtype=np.bool_))
+    assert worlds.steps(0) == hold
+    end = worlds.batch.s.heading[0, 0]
+    assert np.dot(start, end) == pytest.approx(math.cos(hold * largest), abs=1e-9)
+    # the chord of hold sides of length v dt, each turned by the largest turn
+    side = worlds.scenario.physics.swim_speed_um_s * worlds.scenario.physics.step_s
+    chord = side * math.sin(hold * largest / 2) / math.sin(largest / 2)
+    moved = np.linalg.norm(worlds.batch.s.pos[0, 0] - where)
+    assert moved == pytest.approx(abs(chord), rel=1e-9)
+    assert moved < 0.5 * hold * side  # it turned round, not straight on
+
+
+def test_turning_as_the_gradient_rule_steers_reproduces_it() -> None:
+    """An agent that turns toward the gradient it reads in its body frame (as far as a step
+    allows) swims the path of ``steer_up_gradient`` in a noisy world: the same draws in the
+    same order, the gradient read once a step."""
+    data = deep_merge(BROWNIAN, {"physics": {"time_limit_s": 3.0}})
+    step_s = Scenario.model_validate(data).physics.step_s
+    data = deep_merge(data, {"learning": {"decision_interval_s": step_s}})  # a decision a step
+    rule = _worlds(data, "discrete")
+    turner = _worlds(data, "continuous")
+    largest = turner.params.turn
+    up = np.array([[qlearning.STEERING_ACTIONS.index("steer_up_gradient")]], dtype=np.int64)
+    stay = np.zeros(1, dtype=np.bool_)
+    steps = 0
+    while not rule.over[0]:
+        g = turner.obs[0, 0, phases.OBS_GRADIENT : phases.OBS_GRADIENT + 3]
+        across = math.hypot(g[1], g[2])
+        turn = np.zeros((1, 1, 2))
+        # (the rule turns by nothing where the gradient's square underflows to 0)
+        if across > 0.0 and g[0] * g[0] + g[1] * g[1] + g[2] * g[2] > 0.0:
+            angle = math.atan2(across, g[0])
+            turn[0, 0] = np.array([g[1], g[2]]) / across * min(1.0, angle / largest)
+        rule.step(up, stay)
+        turner.step(turn, stay)
+        steps += 1
+        np.testing.assert_allclose(turner.batch.s.pos, rule.batch.s.pos, atol=1e-6)
+        assert turner.over[0] == rule.over[0]
+    assert steps > 100
+    # the rule never reads its gradient into the observation; the turner does, every step
+    assert not rule.obs[0, 0, phases.OBS_GRADIENT : phases.OBS_GRADIENT + 3].any()
+
+
+def test_the_observation_names_the_body_frames_gradient() -> None:
+    scenario = Scenario.model_validate(BROWNIAN)
+    discrete = observation_of(scenario)
+    continuous = observation_of(scenario, "continuous")
+    assert "gradient_x" not in discrete.labels
+    labels = continuous.labels
+    assert labels[:5] == ("reading", "reading_change", "gradient_forward", "gradient_side",
+                          "gradient_up")  # fmt: skip
+    assert np.all(continuous.high[2:5] > 1e30)
+
+
+def test_continuous_steering_refuses_what_it_cannot_do() -> None:
+    with pytest.raises(ValueError, match="active_brownian"):
+        Worlds(Scenario.model_validate({}), 1, "simultaneous", steering="continuous")
+    with pytest.raises(ValueError, match="steering"):
+        Worlds(Scenario.model_validate(BROWNIAN), 1, "simultaneous", steering="sideways")  # type: ignore[arg-type]
+    worlds = _worlds(BROWNIAN, "continuous")
+    stay = np.zeros(1, dtype=np.bool_)
+    with pytest.raises(ValueError, match="shape"):
+        worlds.step(np.zeros((1, 1)), stay)
+    with pytest.raises(ValueError, match="finite"):
+        worlds.step(np.array([[[np.nan, 0.0]]]), stay)
+    # out of range is clipped: as a full turn
+    a = _worlds(STILL, "continuous")
+    b = _worlds(STILL, "continuous")
+    a.step(np.array([[[5.0, 0.0]]]), stay)
+    b.step(np.array([[[1.0, 0.0]]]), stay)
+    np.testing.assert_array_equal(a.batch.s.heading, b.batch.s.heading)
