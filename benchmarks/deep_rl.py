@@ -11,7 +11,9 @@ swimming at 10 um/s for 60 s), robots of radius 0.5, 1, 2 and 5 um. Every robot 
 second (the physics' default decision interval, or ``--decision-interval-s``) and holds its
 action; the robots decide together (the simultaneous schedule), for every policy alike. The
 deep learners choose among the steering actions, or with ``--steering continuous`` turn by a
-continuous (side, up) command in the body frame, observing the gradient in that frame.
+continuous (side, up) command in the body frame, observing the gradient in that frame (the
+mean of its readings over the interval); they are then compared with the gradient rule
+written as such a turn too (``nanonav.rl.rules.TurnUpGradient``), run by the same path.
 
 - Training, on design seeds (world k of the 16 trained together drawn from seed 5000 + k):
   PPO (MlpPolicy, the library's default hyperparameters) through ``NanoNavVecEnv``, one robot
@@ -50,6 +52,7 @@ from nanonav.engine import simulate
 from nanonav.engine.worlds import STEERINGS, Steering, action_labels, observation_of
 from nanonav.rl.evaluate import evaluate
 from nanonav.rl.onnx_policy import NetworkPolicy
+from nanonav.rl.rules import TurnUpGradient
 from nanonav.scenario import Scenario, preset_scenario
 
 PRESET = "tumour-microswimmers"
@@ -59,6 +62,8 @@ FRESH_SEEDS = 9400
 ENVS = 16
 LEARNERS = ("ppo", "recurrent-ppo")
 BASELINES = ("gradient", "q_learning")
+# the gradient rule as a continuous turn (``nanonav.rl.rules``), beside learners that turn so
+TURN_RULE = "turn_up_gradient"
 
 
 # the decision interval, s (None: the physics' default), set once by main
@@ -118,6 +123,10 @@ def run_one(job: tuple[str, float, int, int, str, Steering, float | None]) -> fl
     """The share of robots that reach the cell in one evaluation run."""
     policy, radius, seed, worlds, where, steering, interval = job
     INTERVAL["s"] = interval
+    if policy == TURN_RULE:
+        s = scenario(radius, seed, "q_learning", worlds)
+        rule = TurnUpGradient(s)
+        return float(evaluate(s, rule, steering="continuous").summary["success_rate"])
     if policy in BASELINES:
         episodes = 50 if policy == "q_learning" else 0
         return float(
@@ -165,6 +174,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true", help="a smoke run")
     args = parser.parse_args(argv)
     steering, interval = args.steering, args.decision_interval_s
+    baselines = (*BASELINES, TURN_RULE) if steering == "continuous" else BASELINES
     radii = tuple(float(r) for r in args.radii.split(",")) if args.radii else RADII
     decisions = {"ppo": args.decisions, "recurrent-ppo": args.recurrent_decisions}
     seeds = range(args.seeds_from, args.seeds_from + args.seeds)
@@ -184,7 +194,7 @@ def main(argv: list[str] | None = None) -> int:
         jobs = [
             (policy, r, seed, worlds, where.get((policy, r), ""), steering, interval)
             for r in radii
-            for policy in (*BASELINES, *LEARNERS)
+            for policy in (*baselines, *LEARNERS)
             for seed in seeds
         ]
         reached = dict(zip(jobs, pool.map(run_one, jobs), strict=True))
@@ -213,7 +223,7 @@ def main(argv: list[str] | None = None) -> int:
             for seed in seeds
         ]
 
-    comparisons = [(r, learner, base) for r in radii for learner in LEARNERS for base in BASELINES]
+    comparisons = [(r, learner, base) for r in radii for learner in LEARNERS for base in baselines]
     found = {c: _paired(shares(c[1], c[0]), shares(c[2], c[0])) for c in comparisons}
     adjusted = dict(
         zip(comparisons, stats.holm([found[c].p_value or 1.0 for c in comparisons]), strict=True)
@@ -221,10 +231,10 @@ def main(argv: list[str] | None = None) -> int:
     print(f"Share reached, and each deep learner minus each baseline ({len(comparisons)} "
           "comparisons; Holm's p over all of them):")  # fmt: skip
     for r in radii:
-        cells = "  ".join(f"{p} {mean_ci(shares(p, r))}" for p in (*BASELINES, *LEARNERS))
+        cells = "  ".join(f"{p} {mean_ci(shares(p, r))}" for p in (*baselines, *LEARNERS))
         print(f"R = {r:g} um: {cells}")
         for learner in LEARNERS:
-            for base in BASELINES:
+            for base in baselines:
                 d = found[(r, learner, base)]
                 if d.mean_difference is None or d.ci_low is None or d.ci_high is None:
                     continue

@@ -204,11 +204,15 @@ def delivered(p: KernelParams, sim: Sim, i: int, cell: int, t: int) -> None:
 
 @njit(cache=True, error_model="numpy", inline="always")
 def body_gradient(p: KernelParams, rng: np.random.Generator, sim: Sim, i: int) -> None:
-    """Robot ``i`` reads its spatial gradient (as ``steer_up_gradient`` does) into its
-    observation's gradient columns, along its heading, side and up axes; the side axis
-    (``brownian.body_frame``) is kept for the turn it may then command."""
+    """Robot ``i`` reads its spatial gradient (as ``steer_up_gradient`` does) along its
+    heading, side and up axes, and its observation's gradient columns keep the mean of its
+    readings since its last decision (one reading where it decides every step): a robot that
+    holds a turn over an interval integrates its sensor over it, in its own frame. The side
+    axis (``brownian.body_frame``) is kept for the turn it may then command."""
     s = sim.s
     pc = sim.pc
+    t = pc.clock[CLOCK_STEP]
+    kept = 0 if t == 0 else (t - 1) % p.hold  # readings already in the mean
     gx, gy, gz = _sensed_gradient(p, rng, s, i)
     hx = s.heading[i, 0]
     hy = s.heading[i, 1]
@@ -218,9 +222,19 @@ def body_gradient(p: KernelParams, rng: np.random.Generator, sim: Sim, i: int) -
     pc.side[i, 0] = ex
     pc.side[i, 1] = ey
     pc.side[i, 2] = ez
-    pc.obs[i, OBS_GRADIENT] = gx * hx + gy * hy + gz * hz
-    pc.obs[i, OBS_GRADIENT + 1] = gx * ex + gy * ey + gz * ez
-    pc.obs[i, OBS_GRADIENT + 2] = gx * fx + gy * fy + gz * fz
+    forward = gx * hx + gy * hy + gz * hz
+    side = gx * ex + gy * ey + gz * ez
+    up = gx * fx + gy * fy + gz * fz
+    obs = pc.obs
+    if kept == 0:
+        obs[i, OBS_GRADIENT] = forward
+        obs[i, OBS_GRADIENT + 1] = side
+        obs[i, OBS_GRADIENT + 2] = up
+    else:
+        share = 1.0 / (kept + 1)
+        obs[i, OBS_GRADIENT] += share * (forward - obs[i, OBS_GRADIENT])
+        obs[i, OBS_GRADIENT + 1] += share * (side - obs[i, OBS_GRADIENT + 1])
+        obs[i, OBS_GRADIENT + 2] += share * (up - obs[i, OBS_GRADIENT + 2])
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -241,12 +255,13 @@ def read_state(
         gap = cell_d - p.reach_distance
         obs[i, OBS_READING] = c
         obs[i, OBS_CHANGE] = c - s.prev_conc[i]
-        obs[i, OBS_GRADIENT] = 0.0
-        obs[i, OBS_GRADIENT + 1] = 0.0
-        obs[i, OBS_GRADIENT + 2] = 0.0
         if p.turning:
             # a robot that turns by itself reads its gradient each step, in its body frame
             body_gradient(p, rng, sim, i)
+        else:
+            obs[i, OBS_GRADIENT] = 0.0
+            obs[i, OBS_GRADIENT + 1] = 0.0
+            obs[i, OBS_GRADIENT + 2] = 0.0
         obs[i, OBS_OBSTACLE] = 1.0 if s.blocked[i] else 0.0
         obs[i, OBS_CELL] = min(gap, p.cell_sensing_radius)
         return _steering_state(p, c, c > s.prev_conc[i], s.blocked[i], gap <= p.cell_sensing_radius)

@@ -112,7 +112,8 @@ def observation_of(scenario: Scenario, steering: Steering = "discrete") -> Obser
     """The observation of a robot of ``scenario`` steered so (``OBSERVATION_LABELS`` says what
     each column is; a column the scenario never fills, such as the signal without
     communication, is left out). A robot that steers continuously reads its sensed gradient
-    each step along its heading, side and up axes (``BODY_GRADIENT_LABELS``)."""
+    each step along its heading, side and up axes, and observes the mean of its readings since
+    its last decision (``BODY_GRADIENT_LABELS``)."""
     low, high = _bounds(scenario, steering)
     columns = np.flatnonzero(low != high)
     names = list(OBSERVATION_LABELS)

@@ -67,7 +67,8 @@ class NanoNavEnv(gymnasium.Env[NDArray[np.float64], np.int64]):
     ``steering="continuous"`` (active_brownian), a ``Box`` turn (side, up) in the robot's body
     frame, each -1 .. 1 of the largest turn a step allows (``physics.max_turn_rate_rad_s``),
     held over the decision interval as a steady turn, and the gradient columns hold the
-    sensed gradient along the robot's heading, side and up axes, read each step. Reward: the
+    sensed gradient along the robot's heading, side and up axes, read each step and averaged
+    over the steps since the last decision. Reward: the
     scenario's (paper 2.7). Terminated when the robot reaches a cell (delivers its payload),
     truncated at ``learning.max_steps`` or once every cell is treated. ``info["state"]`` is the
     tabular state the engine's learner would see (``state_labels`` names them), so that a

@@ -13,6 +13,7 @@ import pytest
 from nanonav.engine import phases, qlearning
 from nanonav.engine.dynamics.brownian import body_frame, turn_in_body
 from nanonav.engine.worlds import Worlds, observation_of
+from nanonav.rl.rules import TurnUpGradient
 from nanonav.scenario import Scenario, deep_merge
 
 BROWNIAN: dict[str, Any] = {
@@ -99,25 +100,20 @@ def test_a_held_turn_swims_a_circle_at_the_largest_turn_rate() -> None:
 
 def test_turning_as_the_gradient_rule_steers_reproduces_it() -> None:
     """An agent that turns toward the gradient it reads in its body frame (as far as a step
-    allows) swims the path of ``steer_up_gradient`` in a noisy world: the same draws in the
-    same order, the gradient read once a step."""
+    allows: ``rl.rules.TurnUpGradient``) swims the path of ``steer_up_gradient`` in a noisy
+    world: the same draws in the same order, the gradient read once a step."""
     data = deep_merge(BROWNIAN, {"physics": {"time_limit_s": 3.0}})
     step_s = Scenario.model_validate(data).physics.step_s
     data = deep_merge(data, {"learning": {"decision_interval_s": step_s}})  # a decision a step
     rule = _worlds(data, "discrete")
     turner = _worlds(data, "continuous")
-    largest = turner.params.turn
+    decide = TurnUpGradient(turner.scenario)
+    columns = observation_of(turner.scenario, "continuous").columns
     up = np.array([[qlearning.STEERING_ACTIONS.index("steer_up_gradient")]], dtype=np.int64)
     stay = np.zeros(1, dtype=np.bool_)
     steps = 0
     while not rule.over[0]:
-        g = turner.obs[0, 0, phases.OBS_GRADIENT : phases.OBS_GRADIENT + 3]
-        across = math.hypot(g[1], g[2])
-        turn = np.zeros((1, 1, 2))
-        # (the rule turns by nothing where the gradient's square underflows to 0)
-        if across > 0.0 and g[0] * g[0] + g[1] * g[1] + g[2] * g[2] > 0.0:
-            angle = math.atan2(across, g[0])
-            turn[0, 0] = np.array([g[1], g[2]]) / across * min(1.0, angle / largest)
+        turn = decide(turner.obs[0][:, columns]).reshape(1, 1, 2)
         rule.step(up, stay)
         turner.step(turn, stay)
         steps += 1
@@ -126,6 +122,32 @@ def test_turning_as_the_gradient_rule_steers_reproduces_it() -> None:
     assert steps > 100
     # the rule never reads its gradient into the observation; the turner does, every step
     assert not rule.obs[0, 0, phases.OBS_GRADIENT : phases.OBS_GRADIENT + 3].any()
+
+
+def test_a_decision_observes_the_mean_gradient_read_since_the_last() -> None:
+    """Held over an interval, a robot integrates its gradient readings: what it observes at a
+    decision is the mean of the interval's readings, each in its frame as it read it (the same
+    worlds stepped one step a decision give those readings one by one)."""
+    data = deep_merge(BROWNIAN, {"learning": {"decision_interval_s": 0.05}})
+    held = _worlds(data, "continuous")
+    hold = held.scenario.decision_steps
+    assert hold == 5
+    step_s = held.scenario.physics.step_s
+    each = _worlds(deep_merge(data, {"learning": {"decision_interval_s": step_s}}), "continuous")
+    columns = slice(phases.OBS_GRADIENT, phases.OBS_GRADIENT + 3)
+    np.testing.assert_array_equal(held.obs[0, 0, columns], each.obs[0, 0, columns])
+    stay = np.zeros(1, dtype=np.bool_)
+    still = np.zeros((1, 1, 2))  # no turn: the same draws either way
+    for _ in range(4):
+        readings = []
+        for _ in range(hold):
+            each.step(still, stay)
+            readings.append(each.obs[0, 0, columns].copy())
+        held.step(still, stay)
+        np.testing.assert_allclose(held.obs[0, 0, columns], np.mean(readings, axis=0),
+                                   rtol=1e-9, atol=1e-300)  # fmt: skip
+        assert np.any(readings[0] != readings[-1])
+        np.testing.assert_array_equal(held.batch.s.pos, each.batch.s.pos)
 
 
 def test_the_observation_names_the_body_frames_gradient() -> None:

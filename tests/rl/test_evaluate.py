@@ -13,6 +13,7 @@ from nanonav.engine import qlearning, simulate
 from nanonav.engine.worlds import observation_of
 from nanonav.rl import evaluate as evaluate_module
 from nanonav.rl.evaluate import PolicyFailed, evaluate
+from nanonav.rl.rules import TurnUpGradient
 from nanonav.scenario import Scenario, ScenarioError
 
 TIMINGS = ("duration_s",)
@@ -160,24 +161,6 @@ def test_a_network_with_a_memory_decides_for_every_robot_at_once_only() -> None:
         evaluate(swarm_in_turns, policy)
 
 
-def toward_the_gradient(largest: float, at: int) -> Any:
-    """Turns toward the gradient a robot reads in its body frame (columns ``at`` .. ``at + 2``:
-    forward, side, up), as far as a step allows: what ``steer_up_gradient`` does."""
-
-    def decide(rows: Any) -> Any:
-        g = rows[:, at : at + 3]
-        across = np.hypot(g[:, 1], g[:, 2])
-        turns = np.zeros((rows.shape[0], 2))
-        # the rule turns by nothing where the gradient's square underflows to 0
-        moves = (across > 0.0) & ((g * g).sum(axis=1) > 0.0)
-        angle = np.arctan2(across[moves], g[moves, 0])
-        share = np.minimum(1.0, angle / largest) / across[moves]
-        turns[moves] = g[moves, 1:] * share[:, None]
-        return turns
-
-    return decide
-
-
 def test_a_continuous_turn_up_the_gradient_meets_the_gradient_rule() -> None:
     """A turn decided from outside, each step, toward the gradient read in the body frame:
     world for world what ``simulate`` gives the ``gradient`` rule to one robot (the same draws
@@ -197,9 +180,7 @@ def test_a_continuous_turn_up_the_gradient_meets_the_gradient_rule() -> None:
          "policy": "gradient"}}
     )  # fmt: skip
     by_rule = simulate(rule)
-    at = observation_of(s, "continuous").labels.index("gradient_forward")
-    largest = s.physics.max_turn_rate_rad_s * s.physics.step_s
-    by_turns = evaluate(s, toward_the_gradient(largest, at), steering="continuous")
+    by_turns = evaluate(s, TurnUpGradient(s), steering="continuous")
     assert by_turns.trajectory is not None and by_rule.trajectory is not None
     np.testing.assert_allclose(by_turns.trajectory.robots, by_rule.trajectory.robots, atol=1e-6)
     for turned, ruled in zip(by_turns.worlds, by_rule.worlds, strict=True):
