@@ -49,11 +49,11 @@ from science import mean_ci
 
 from nanonav import stats
 from nanonav.engine import simulate
-from nanonav.engine.worlds import STEERINGS, Steering, action_labels, observation_of
+from nanonav.engine.worlds import action_labels, observation_of
 from nanonav.rl.evaluate import evaluate
 from nanonav.rl.onnx_policy import NetworkPolicy
 from nanonav.rl.rules import TurnUpGradient
-from nanonav.scenario import Scenario, preset_scenario
+from nanonav.scenario import STEERINGS, Scenario, Steering, preset_scenario
 
 PRESET = "tumour-microswimmers"
 RADII = (0.5, 1.0, 2.0, 5.0)

@@ -20,11 +20,15 @@ from nanonav.engine import qlearning
 from nanonav.engine.worlds import (
     BODY_GRADIENT_LABELS,
     OBSERVATION_LABELS,
-    Steering,
     observation_of,
 )
 from nanonav.rl.evaluate import REMEMBERS_AT_ONCE, decides_at_once
-from nanonav.scenario import ActionSet, CommunicationModel, Scenario
+from nanonav.scenario import (
+    ActionSet,
+    CommunicationModel,
+    Scenario,
+    Steering,
+)
 from nanonav.store.errors import JobNotFound, ResultsUnavailable
 from nanonav.store.models import JobStatus
 from nanonav.store.policies import (

@@ -39,6 +39,10 @@ PresetName = Literal[
 ]
 FieldModel = Literal["gaussian", "inverse_square", "diffusion", "sampled_gaussian"]
 Schedule = Literal["sequential", "simultaneous"]
+# How an agent outside steers an active Brownian robot: by the action set's numbers, or by a
+# continuous turn (side, up) in the robot's body frame (``nanonav.engine.worlds.Worlds``).
+Steering = Literal["discrete", "continuous"]
+STEERINGS: tuple[Steering, ...] = ("discrete", "continuous")
 RobotStart = Literal["anywhere", "corner"]
 Policy = Literal[
     "q_learning",

@@ -16,8 +16,7 @@ from typing import Any
 
 from nanonav.cli.common import EXIT_OK, Subcommands, UsageError, positive
 from nanonav.cli.run import load_scenario
-from nanonav.engine.worlds import STEERINGS
-from nanonav.scenario import PRESETS
+from nanonav.scenario import PRESETS, STEERINGS
 
 ALGOS = ("ppo", "recurrent-ppo", "dqn")
 RL_EXTRA = "pip install torch==2.13.0, then pip install 'nanonav[rl]'"

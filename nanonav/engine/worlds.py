@@ -9,7 +9,7 @@ environments' spaces, the policies sent as ONNX models and the README alike.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from typing import Any, Literal, NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 from numba.typed import List
@@ -24,7 +24,7 @@ from nanonav.engine.simulate import (
 )
 from nanonav.engine.state import SCHEDULE_CODES, KernelParams, Recording
 from nanonav.engine.world import DYNAMICS_STREAM, EVALUATION_STREAM, raise_for_layout, stream
-from nanonav.scenario import Scenario, Schedule
+from nanonav.scenario import STEERINGS, Scenario, Schedule, Steering
 
 # No history is recorded: the cap only keeps kernel_params from refusing a large swarm.
 _NO_HISTORY_CAP = 2**62
@@ -44,11 +44,6 @@ OBSERVATION_LABELS = (
 )
 # The gradient's columns where robots steer continuously: read each step in the body frame.
 BODY_GRADIENT_LABELS = ("gradient_forward", "gradient_side", "gradient_up")
-# How an agent outside steers an active Brownian robot: by the action set's numbers, or by a
-# continuous turn (side, up) in the robot's body frame, each -1 .. 1 of the largest turn a step
-# allows (``dynamics.brownian.turn_in_body``).
-Steering = Literal["discrete", "continuous"]
-STEERINGS: tuple[Steering, ...] = ("discrete", "continuous")
 
 
 def as_scenario(scenario: Scenario | Mapping[str, Any] | None) -> Scenario:

@@ -25,7 +25,6 @@ from stable_baselines3.common.vec_env import VecEnv
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvIndices, VecEnvStepReturn
 
 from nanonav.engine.worlds import (
-    Steering,
     Worlds,
     action_labels,
     as_scenario,
@@ -35,6 +34,7 @@ from nanonav.engine.worlds import (
 )
 from nanonav.env.robot import ScenarioLike, action_space_of
 from nanonav.rl.onnx_policy import METADATA_ACTIONS, METADATA_OBSERVATION
+from nanonav.scenario import Steering
 
 
 class NanoNavVecEnv(VecEnv):

@@ -13,7 +13,6 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from numpy.typing import NDArray
 
 from nanonav.engine.worlds import (
-    Steering,
     Worlds,
     action_labels,
     as_scenario,
@@ -21,7 +20,7 @@ from nanonav.engine.worlds import (
     state_labels,
     with_robots,
 )
-from nanonav.scenario import Scenario
+from nanonav.scenario import Scenario, Steering
 
 ScenarioLike = Scenario | Mapping[str, Any] | None
 

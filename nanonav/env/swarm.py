@@ -12,7 +12,6 @@ from numpy.typing import NDArray
 from pettingzoo import ParallelEnv
 
 from nanonav.engine.worlds import (
-    Steering,
     Worlds,
     action_labels,
     as_scenario,
@@ -20,7 +19,7 @@ from nanonav.engine.worlds import (
     state_labels,
 )
 from nanonav.env.robot import ScenarioLike, action_space_of, turn_of
-from nanonav.scenario import Schedule
+from nanonav.scenario import Schedule, Steering
 
 
 class SwarmSpaces:

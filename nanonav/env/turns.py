@@ -10,9 +10,9 @@ import numpy as np
 from numpy.typing import NDArray
 from pettingzoo import AECEnv
 
-from nanonav.engine.worlds import Steering
 from nanonav.env.robot import ScenarioLike, turn_of
 from nanonav.env.swarm import SwarmSpaces
+from nanonav.scenario import Steering
 
 
 class NanoNavAECEnv(SwarmSpaces, AECEnv[str, NDArray[np.float64], Any]):

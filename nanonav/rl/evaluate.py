@@ -37,8 +37,8 @@ from nanonav.engine.simulate import (
 )
 from nanonav.engine.state import Social, Swarm, Treatment
 from nanonav.engine.world import DYNAMICS_STREAM, EVALUATION_STREAM, stream
-from nanonav.engine.worlds import Steering, Worlds, observation_of
-from nanonav.scenario import Scenario, ScenarioError
+from nanonav.engine.worlds import Worlds, observation_of
+from nanonav.scenario import Scenario, ScenarioError, Steering
 
 # (rows, observation width) float64 in the scenario's units -> (rows,) action numbers, or
 # steering continuously (rows, 2) turns

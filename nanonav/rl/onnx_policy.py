@@ -25,7 +25,7 @@ import onnxruntime
 from numpy.typing import NDArray
 from onnx import AttributeProto, GraphProto, TensorProto
 
-from nanonav.engine.worlds import Steering
+from nanonav.scenario import Steering
 
 # The operator sets of ONNX itself (the default domain is spelled both ways) and of ONNX-ML
 STANDARD_DOMAINS = frozenset({"", "ai.onnx", "ai.onnx.ml"})
