@@ -36,7 +36,7 @@ def compile_part(part: str) -> None:
         raise ValueError(f"no part {part!r}: one of {', '.join(PARTS)}")
 
 
-def compile_all(timeout_s: float = 600.0) -> list[str]:
+def compile_all(timeout_s: float = 1200.0) -> list[str]:
     """Compile every part, each in a process of its own, all at once; returns a line per part
     (how long it took, or how it failed: the tests that use it will then fail in their own
     words)."""

@@ -202,7 +202,7 @@ def delivered(p: KernelParams, sim: Sim, i: int, cell: int, t: int) -> None:
         radio_room.broadcast(p, s.pos, s.active, sim.so, sim.radio, sim.found, i)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def body_gradient(p: KernelParams, rng: np.random.Generator, sim: Sim, i: int) -> None:
     """Robot ``i`` reads its spatial gradient (as ``steer_up_gradient`` does) along its
     heading, side and up axes, and its observation's gradient columns keep the mean of its
@@ -235,6 +235,23 @@ def body_gradient(p: KernelParams, rng: np.random.Generator, sim: Sim, i: int) -
         obs[i, OBS_GRADIENT] += share * (forward - obs[i, OBS_GRADIENT])
         obs[i, OBS_GRADIENT + 1] += share * (side - obs[i, OBS_GRADIENT + 1])
         obs[i, OBS_GRADIENT + 2] += share * (up - obs[i, OBS_GRADIENT + 2])
+
+
+@njit(cache=True, error_model="numpy")
+def body_turn(p: KernelParams, sim: Sim, i: int) -> None:
+    """Robot ``i`` turns as the agent's turn of its decision says, held in the body frame (a
+    steady turn). (Neither this nor ``body_gradient`` is inlined: only robots steered
+    continuously call them, and inlined at every call site of ``act`` and ``perceive`` they
+    would lengthen every schedule's compilation.)"""
+    s = sim.s
+    pc = sim.pc
+    nx, ny, nz = brownian.turn_in_body(
+        s.heading[i, 0], s.heading[i, 1], s.heading[i, 2], pc.side[i, 0], pc.side[i, 1],
+        pc.side[i, 2], pc.turn[i, 0], pc.turn[i, 1], p.turn,
+    )  # fmt: skip
+    s.heading[i, 0] = nx
+    s.heading[i, 1] = ny
+    s.heading[i, 2] = nz
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -437,14 +454,7 @@ def act(
             ty = pc.way[i, 1]
             tz = pc.way[i, 2]
         if code == TURN:
-            # the agent's turn of this decision, held in the body frame (a steady turn)
-            nx, ny, nz = brownian.turn_in_body(
-                hx, hy, hz, pc.side[i, 0], pc.side[i, 1], pc.side[i, 2], pc.turn[i, 0],
-                pc.turn[i, 1], p.turn,
-            )  # fmt: skip
-            s.heading[i, 0] = nx
-            s.heading[i, 1] = ny
-            s.heading[i, 2] = nz
+            body_turn(p, sim, i)
         else:
             _steer(p, rng, s, i, code, sx, sy, sz, tx, ty, tz)
         s.prev_conc[i] += p.memory_weight * (c - s.prev_conc[i])

@@ -154,9 +154,11 @@ def _act_on(
         pc = sim.pc
         pc.turn[i, 0] = min(1.0, max(-1.0, turns[i, 0]))
         pc.turn[i, 1] = min(1.0, max(-1.0, turns[i, 1]))
-        act(p, rng, sim, i, t, TURN, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-        return
-    code, dx, dy, dz, gx, gy, gz = command(p, sim, i, action, directions)
+        code, dx, dy, dz, gx, gy, gz = TURN, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    else:
+        code, dx, dy, dz, gx, gy, gz = command(p, sim, i, action, directions)
+    # one call of act, which is inlined wherever it is called: a second would double the
+    # compiled schedule, and its compilation's time and memory
     act(p, rng, sim, i, t, code, dx, dy, dz, gx, gy, gz)
 
 
