@@ -282,6 +282,11 @@ class Worlds:
             return (self.count, self.robots, 2)
         return (self.count, self.robots)
 
+    def blank_actions(self) -> NDArray[Any]:
+        """Zeros shaped and typed as ``step``'s actions (integers, or turns steering
+        continuously), for a caller to fill in."""
+        return np.zeros(self.action_shape, dtype=np.float64 if self.continuous else np.int64)
+
     def in_action_set(self, actions: NDArray[Any]) -> bool:
         """Whether every one of ``actions`` is an integer of the action set (steering
         continuously: a finite number)."""

@@ -68,9 +68,7 @@ class NanoNavVecEnv(VecEnv):
             dtype=np.float32,
         )  # fmt: skip
         super().__init__(num_envs, observations, action_space_of(self._worlds))
-        self._actions: NDArray[Any] = np.zeros(self._worlds.action_shape)
-        if not self._worlds.continuous:
-            self._actions = self._actions.astype(np.int64)
+        self._actions = self._worlds.blank_actions()
         self._all = np.ones(num_envs, dtype=np.bool_)
         self._none = np.zeros(num_envs, dtype=np.bool_)
 

@@ -43,9 +43,7 @@ class SwarmSpaces:
         self.observation_labels = self._seen.labels
         self.action_labels = action_labels(self.scenario, steering)
         # what a step's actions are: action numbers, or a turn (side, up) per robot
-        self._actions: NDArray[Any] = np.zeros(self._worlds.action_shape)
-        if not self._worlds.continuous:
-            self._actions = self._actions.astype(np.int64)
+        self._actions = self._worlds.blank_actions()
         self.state_labels = state_labels(self.scenario)
 
     def observation_space(self, agent: str) -> spaces.Box:

@@ -229,10 +229,7 @@ class _Round:
             (np.repeat(np.arange(b.count), robots), np.tile(np.arange(robots), b.count))
             for b in batches
         ]
-        actions = [
-            np.zeros(b.action_shape, dtype=np.float64 if b.continuous else np.int64)
-            for b in batches
-        ]
+        actions = [b.blank_actions() for b in batches]
         none_fresh = [np.zeros(b.count, dtype=np.bool_) for b in batches]
         for b in batches:
             b.step(None, np.ones(b.count, dtype=np.bool_))
