@@ -10,7 +10,7 @@ PORT ?= 8000
 TEST_PROCESSES ?= 3
 export HOST PORT
 
-.PHONY: run test lint typecheck pytest bench clean
+.PHONY: run test lint typecheck pytest docs docs-check bench clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -42,7 +42,7 @@ $(VENV)/.installed-postgres: $(VENV)/.installed
 run: $(RUN_NEEDS)
 	$(BIN)/python -m nanonav.run_local
 
-test: $(VENV)/.installed-test lint typecheck pytest
+test: $(VENV)/.installed-test lint typecheck docs-check pytest
 
 lint: $(VENV)/.installed-test
 	$(BIN)/ruff check .
@@ -54,10 +54,24 @@ typecheck: $(VENV)/.installed-test
 pytest: $(VENV)/.installed-test
 	$(BIN)/python -m pytest -q -n $(TEST_PROCESSES)
 
+# The documentation site: the reference pages are written from the code, then built into site/.
+$(VENV)/.installed-docs: $(VENV)/.installed
+	$(BIN)/python -m pip install --quiet -e '.[docs]'
+	touch $@
+
+docs: $(VENV)/.installed-docs
+	$(BIN)/python docs/_scripts/reference.py
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict
+
+# In `make test`: a stale reference page or a broken link or anchor fails.
+docs-check: $(VENV)/.installed-test
+	$(BIN)/python docs/_scripts/reference.py --check
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --quiet --site-dir $$(mktemp -d)
+
 bench: $(VENV)/.installed
 	$(BIN)/python benchmarks/engine.py
 	$(BIN)/python benchmarks/cost.py
 	$(BIN)/python benchmarks/service.py
 
 clean:
-	rm -rf $(VENV) var .mypy_cache .ruff_cache .pytest_cache
+	rm -rf $(VENV) var site .mypy_cache .ruff_cache .pytest_cache

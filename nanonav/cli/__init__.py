@@ -16,6 +16,7 @@ import os
 import sys
 from collections.abc import Callable
 
+import nanonav
 from nanonav.cli import policies, remote, run, service, train
 from nanonav.cli.common import (
     EXIT_FAILED,
@@ -41,6 +42,7 @@ def build_parser() -> argparse.ArgumentParser:
         "reached; 2 input to fix (here, or as the server judged it); 130 interrupted; 141 "
         "the output's reader left early (as `| head` does).",
     )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {nanonav.__version__}")
     subcommands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     run.add_run(subcommands)
     service.add_api(subcommands)
