@@ -9,25 +9,20 @@ num_envs=N, vectorization_mode="vector_entry_point")`` work (or, without the imp
 
 from __future__ import annotations
 
-import gymnasium
-
 from nanonav.engine.worlds import OBSERVATION_LABELS
+from nanonav.env.extra import EnvExtraMissing, register  # first of the envs: see its docstring
 from nanonav.env.robot import NanoNavEnv, NanoNavVectorEnv
 from nanonav.env.swarm import NanoNavParallelEnv
 from nanonav.env.turns import NanoNavAECEnv
 
 ENV_ID = "NanoNav-v0"
 
-if ENV_ID not in gymnasium.registry:
-    gymnasium.register(
-        id=ENV_ID,
-        entry_point="nanonav.env.robot:NanoNavEnv",
-        vector_entry_point="nanonav.env.robot:NanoNavVectorEnv",
-    )
+register(ENV_ID)
 
 __all__ = [
     "ENV_ID",
     "OBSERVATION_LABELS",
+    "EnvExtraMissing",
     "NanoNavAECEnv",
     "NanoNavEnv",
     "NanoNavParallelEnv",
