@@ -242,7 +242,7 @@ def _fetch(args: argparse.Namespace) -> int:
         else:
             found = _job_files(api, args.id)
         written = _write(args.out, found)
-    print(f"Wrote {len(written)} files to {args.out}:")
+    print(f"Wrote {plural(len(written), 'file')} to {args.out}:")
     for path in written:
         print(f"  {path.name:<28} {_size(path.stat().st_size):>9}")
     return EXIT_OK

@@ -24,7 +24,7 @@ from nanonav.cli.common import (
     read_json_object,
     validation_messages,
 )
-from nanonav.cli.tables import format_table
+from nanonav.cli.tables import format_table, plural
 from nanonav.scenario import PRESETS, Scenario, ScenarioError
 
 if TYPE_CHECKING:
@@ -92,7 +92,7 @@ def _run(args: argparse.Namespace) -> int:
     else:
         print(format_table(document))
         if written:
-            print(f"\nWrote {len(written)} files to {args.out}")
+            print(f"\nWrote {plural(len(written), 'file')} to {args.out}")
     return EXIT_OK
 
 

@@ -22,6 +22,7 @@ from matplotlib.image import imread
 
 from nanonav.cli import main
 from nanonav.client import JOB_PICTURES, SWARM_PICTURES, Client, Job, Study
+from nanonav.engine import qlearning
 from tests.client.test_client import CROWDED, LONG, STUDY, TINY
 from tests.conftest import LiveApi
 from tests.processes import clean_environment, free_port
@@ -255,6 +256,19 @@ def test_fetch_of_a_baseline_job_writes_no_qtable_picture(
     assert "qtable.json" in written and "trajectory.png" in written
     assert "qtable.png" not in written
     assert json.loads((tmp_path / "qtable.json").read_text())["greedy"] == []
+
+
+def test_fetch_of_a_table_policy_writes_one_file_and_says_file(
+    live_api: LiveApi, tmp_path: Path, capsys: pytest.CaptureFixture[str], api: Client
+) -> None:
+    states, actions = qlearning.labels("behaviors")
+    policy = api.send_policy(states, actions, values=np.zeros((len(states), len(actions))))
+    args = ["fetch", "--policy", str(policy.id), "--out", str(tmp_path), "--url", live_api.url]
+    assert main(args) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0] == f"Wrote 1 file to {tmp_path}:"
+    assert [line.split()[0] for line in lines[1:]] == ["policy.json"]
+    assert json.loads((tmp_path / "policy.json").read_text())["states"] == states
 
 
 def test_fetch_writes_a_studys_table_and_pictures(
