@@ -7,7 +7,6 @@ process groups, so a Ctrl-C reaches this supervisor only, which then stops them 
 
 from __future__ import annotations
 
-import json
 import signal
 import subprocess
 import sys
@@ -20,10 +19,13 @@ from types import FrameType
 
 from pydantic import ValidationError
 from sqlalchemy.engine import make_url
+from sqlalchemy.exc import SQLAlchemyError
 
 from nanonav.cli.common import validation_messages
 from nanonav.settings import Settings
+from nanonav.store import JobStore
 from nanonav.store.migrate import upgrade
+from nanonav.store.queue import PRESENCE_WINDOW_S
 
 READY_TIMEOUT_S = 60.0
 STOP_TIMEOUT_S = 20.0
@@ -42,14 +44,13 @@ def _wait_until_ready(url: str, api: subprocess.Popen[bytes], stop: threading.Ev
     return False
 
 
-def _workers_seen(url: str) -> int:
-    """How many workers the API has seen lately (0 if it cannot say)."""
+def _workers_seen(store: JobStore) -> int:
+    """How many workers were seen lately, read from the database (0 if it cannot say): asking
+    the API's /healthz twice a second would fill its access log while a worker compiles."""
     try:
-        with urllib.request.urlopen(f"{url}/healthz", timeout=2) as response:
-            health = json.load(response)
-    except (urllib.error.URLError, OSError, ValueError):
+        return store.census(seen_within_s=PRESENCE_WINDOW_S).workers
+    except SQLAlchemyError:
         return 0
-    return int((health.get("workers") or {}).get("seen", 0))
 
 
 def _stop(children: list[subprocess.Popen[bytes]]) -> None:
@@ -92,6 +93,7 @@ def main() -> int:
     worker = subprocess.Popen([sys.executable, "-m", "worker"], start_new_session=True)
     children = [api, worker]
     url = f"http://{settings.host}:{settings.port}"
+    store = JobStore.from_url(settings.database_url, busy_timeout_s=settings.store_busy_timeout_s)
     try:
         if _wait_until_ready(url, api, stop):
             command = Path(sys.executable).with_name("nanonav")
@@ -104,7 +106,7 @@ def main() -> int:
         # a starting worker compiles the engine first: say when jobs will run
         worker_ready = False
         while not stop.is_set():
-            if not worker_ready and _workers_seen(url):
+            if not worker_ready and _workers_seen(store):
                 worker_ready = True
                 print("nanonav: a worker is ready; submitted jobs run now", flush=True)
             if any(child.poll() is not None for child in children):
@@ -115,6 +117,7 @@ def main() -> int:
             stop.wait(0.5)
     finally:
         print("nanonav: stopping the API and the worker", flush=True)
+        store.close()
         _stop(children)
     print("nanonav: stopped", flush=True)
     return 0

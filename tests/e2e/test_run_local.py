@@ -58,6 +58,8 @@ def test_run_local_migrates_serves_runs_a_job_and_stops_on_ctrl_c(tmp_path: Path
         shown = re.search(r"the command line is (\S+)", log.read_text())
         assert shown is not None and Path(shown.group(1)).is_file()
         until_logged(process, log, "a worker is ready", deadline)
+        # waiting for the worker logs nothing: only the one poll that found the API up
+        assert log.read_text().count('"GET /healthz HTTP/1.1" 200') == 1, log.read_text()
         with httpx.Client(base_url=f"http://127.0.0.1:{port}", timeout=10) as client:
             health = client.get("/healthz").json()
             assert health["workers"]["seen"] == 1 and health["note"] is None
@@ -72,6 +74,7 @@ def test_run_local_migrates_serves_runs_a_job_and_stops_on_ctrl_c(tmp_path: Path
     text = log.read_text()
     assert "nanonav: stopped" in text
     assert "Traceback" not in text
+    assert f'"GET /jobs/{job_id} HTTP/1.1" 200' in text, "real requests are still logged"
 
 
 def test_worker_concurrency_runs_jobs_in_several_processes(tmp_path: Path) -> None:
