@@ -57,19 +57,30 @@ def significant(value: Any) -> str:
     return "n/a" if value is None else f"{float(value):.3g}"
 
 
+def nanomolar(value: Any) -> str:
+    """A concentration in nM to three significant figures, with its unit: ``2.3e-05 nM``, never
+    a bare ``0.00``."""
+    return "n/a" if value is None else f"{significant(value)} nM"
+
+
+def micrometres(value: Any) -> str:
+    """A length in µm, to two decimals, with its unit."""
+    return number(value, suffix=" µm")
+
+
 # In the active Brownian physics: the same metrics with their units
 PHYSICAL: dict[str, tuple[str, Callable[[Any], str]]] = {
-    "final_distance": ("Final Distance (um)", number),
-    "average_distance": ("Average Distance (um)", number),
-    "average_concentration": ("Average Biomarker Concentration (nM)", significant),
+    "final_distance": ("Final Distance", micrometres),
+    "average_distance": ("Average Distance", micrometres),
+    "average_concentration": ("Average Biomarker Concentration", nanomolar),
 }
 
 
 def rows(document: Mapping[str, Any]) -> list[tuple[str, str, str]]:
     """(parameter, result, 95% interval over the evaluation worlds) for each Table 1 metric;
     the interval is empty when there is none (one world, or a metric without spread). In the
-    active Brownian physics lengths are labelled in um, concentrations in nM, and steps with
-    how long one lasts."""
+    active Brownian physics lengths are given in µm and concentrations in nM (each value with
+    its unit), and steps with how long one lasts."""
     summary = document.get("summary") or {}
     uncertainty = document.get("uncertainty") or {}
     physics = (document.get("scenario") or {}).get("physics") or {}

@@ -1,5 +1,5 @@
 """Table 1's rows, as the command line and the dashboard show them: in the active Brownian
-physics each length says um, the concentration nM (to three significant figures, as pM
+physics each length says µm, the concentration nM (to three significant figures, as pM
 readings would all print 0.00), and a step how long it lasts."""
 
 from __future__ import annotations
@@ -25,8 +25,19 @@ def test_physical_rows_carry_their_units() -> None:
     }
     shown = {label: value for label, value, _ in table1.rows(document)}
     assert shown["Total Steps (of 0.01 s)"] == "1200.00"
-    assert shown["Final Distance (um)"] == "40.40"
-    assert shown["Average Biomarker Concentration (nM)"] == "0.00174"
+    assert shown["Final Distance"] == "40.40 µm"
+    assert shown["Average Distance"] == "71.05 µm"
+    assert shown["Average Biomarker Concentration"] == "0.00174 nM"
+
+
+def test_a_physical_concentration_keeps_its_digits_and_unit_in_the_interval() -> None:
+    document = {
+        "summary": {**SUMMARY, "average_concentration": 2.3e-05},
+        "uncertainty": {"average_concentration": {"ci_low": 1.04e-05, "ci_high": 4.1e-05}},
+        "scenario": {"physics": {"model": "active_brownian", "dt_s": 0.01}},
+    }
+    shown = {label: (value, interval) for label, value, interval in table1.rows(document)}
+    assert shown["Average Biomarker Concentration"] == ("2.3e-05 nM", "[1.04e-05 nM, 4.1e-05 nM]")
 
 
 def test_lattice_rows_are_the_papers() -> None:

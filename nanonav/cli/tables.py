@@ -54,7 +54,7 @@ def format_table(document: Mapping[str, Any]) -> str:
         f"Table 1: {scenario.get('preset') or 'custom scenario'}, seed {scenario['seed']}, "
         f"{plural(robots, 'robot')}, {plural(int(scenario['cells']['count']), 'cell')}, "
         f"{scenario['robots']['policy']}, "
-        f"{scenario['learning']['episodes']} training episodes, then "
+        f"{plural(int(scenario['learning']['episodes']), 'training episode')}, then "
         + (f"the mean over {plural(int(worlds), 'evaluation world')}" if worlds else "evaluation")
     )
     columns = ("Parameter", "Result", "95% CI over worlds" if worlds else "")
@@ -62,14 +62,17 @@ def format_table(document: Mapping[str, Any]) -> str:
     if robots > 1 and robots_rows:
         lines += ["", "Per robot (the first evaluation world):"]
         shown = robots_rows[:MAX_ROBOT_ROWS]
+        physical = (scenario.get("physics") or {}).get("model") == "active_brownian"
+        length = table1.micrometres if physical else number
+        concentration = table1.nanomolar if physical else number
         robot_rows = [
             (
                 str(row.get("robot")),
                 number(row.get("reached")),
                 number(row.get("total_steps")),
-                number(row.get("final_distance")),
-                number(row.get("average_distance")),
-                number(row.get("average_concentration")),
+                length(row.get("final_distance")),
+                length(row.get("average_distance")),
+                concentration(row.get("average_concentration")),
                 number(row.get("collisions")),
                 number(row.get("path_efficiency")),
             )

@@ -431,13 +431,13 @@ def _draw(store: JobStore, job_id: int, name: str, stored_as: str) -> bytes:
 
 
 def _check_treatment(store: JobStore, job_id: int) -> None:
-    """404 for a job without the swarm's numbers, before a drawing is queued."""
+    """404 for a job whose robots deliver no payload, before a drawing is queued."""
     scenario = store.get(job_id).scenario
     if not pictures.treatment_drawn(scenario):
         raise NoTreatment(
-            f"job {job_id} has no treatment to draw: its robots take up no space "
-            "(robots.exclusion), its cells cannot be treated (cells.capacity) and its robots do "
-            "not signal (communication.model)"
+            f"job {job_id} has no treatment to draw: its robots deliver no payload, as its cells "
+            "cannot be treated (cells.capacity is null) and its robots do not signal "
+            "(communication.model is 'none')"
         )
 
 

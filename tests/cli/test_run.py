@@ -2,6 +2,7 @@
 
 import io
 import json
+import re
 import signal
 import subprocess
 import sys
@@ -282,8 +283,17 @@ def test_a_physical_preset_runs_and_prints_its_units(
     )
     out = capsys.readouterr().out
     assert code == 0
-    assert "Total Steps (of 0.01 s)" in out and "Final Distance (um)" in out
-    assert "Average Biomarker Concentration (nM)" in out
+    assert "Total Steps (of 0.01 s)" in out and "1 training episode," in out
+    assert "um" not in out.split() and "(um)" not in out
+    lines = out.splitlines()
+    distance = next(line for line in lines if line.startswith("Final Distance"))
+    assert re.search(r"\d\.\d\d µm", distance)
+    concentration = next(line for line in lines if line.startswith("Average Biomarker"))
+    # three significant figures and the unit, never a bare 0.00
+    assert re.search(r"\d(\.\d+)?(e-\d+)? nM", concentration)
+    robots = lines[lines.index("Per robot (the first evaluation world):") + 3 :][:3]
+    assert all(" nM" in row and " µm" in row for row in robots)
+    assert not any(" 0.00 " in row.split("µm")[-1] for row in robots)
     document = json.loads((out_dir / "metrics.json").read_text(encoding="utf-8"))
     assert document["physics"]["time_limit_s"] == pytest.approx(1.0)
     with np.load(out_dir / "result.npz") as arrays:

@@ -56,19 +56,28 @@ PICTURE_NAMES: tuple[str, ...] = (
 )
 """The keys of ``render_all``: also the file names (``<name>.png``) the command line writes;
 ``qtable`` only for a result that learned a Q-table (Q-learning), ``treatment`` only for one
-with the swarm's numbers (``treatment.has_treatment``)."""
+whose robots deliver payloads (``treatment.has_treatment``)."""
 
 OPTIONAL_PICTURES = frozenset({"qtable", "treatment"})
 """The pictures only some results have (``render`` refuses the others with ``ValueError``)."""
 
-VERSIONS: dict[str, int] = {"learning": 3, "qtable": 2, "trajectory": 2}
+VERSIONS: dict[str, int] = {
+    "learning": 3,
+    "qtable": 2,
+    "trajectory": 3,
+    "treatment": 2,
+    "concentration": 2,
+}
 """The version of each picture's drawing, for the pictures past their first (the others are at
 1). It goes up when a picture drawn before would now be drawn differently, so that a copy kept
 of the older drawing is not served again. 2: ``learning`` of a result stored without its
 trajectory shows the greedy evaluation too; ``trajectory`` of a swarm's result colours its
 robots by what they did and the signal they read, and its treated cells apart. 3: an active
 Brownian ``learning`` gives each episode's length in seconds. ``qtable`` 2: each greedy dot's
-area is its action gap, given beside the visits."""
+area is its action gap, given beside the visits. ``trajectory`` 3, ``treatment`` 2 and
+``concentration`` 2: lengths in µm (not um), an active Brownian cell drawn to
+scale, a swarm that delivers no payload (robots that only take up space) drawn as the paper's,
+counts in the right number, a payload axis from 0."""
 
 
 def version(name: str) -> int:
@@ -102,8 +111,8 @@ def render(
 
 def render_all(result: SimulationResult, *, scale: ColourScale = "auto") -> dict[str, bytes]:
     """Every picture the result has, keyed by ``PICTURE_NAMES`` (the Q-table only if it learned
-    one, the treatment only with the swarm's numbers); the field is evaluated once for the four
-    heatmaps."""
+    one, the treatment only if its robots deliver payloads); the field is evaluated once for the
+    four heatmaps."""
     planes = ("xy", "xz", "yz")
     slices = heatmap_slices(result, planes)
     resolved = resolve_scale(result, scale)

@@ -34,8 +34,13 @@ MAX_LINE_POINTS = 2000
 
 
 def length_unit(scenario: Scenario) -> str:
-    """What lengths are measured in: um in the active Brownian physics, else simulation units."""
-    return "um" if scenario.physics.model == "active_brownian" else "length units"
+    """What lengths are measured in: µm in the active Brownian physics, else simulation units."""
+    return "µm" if scenario.physics.model == "active_brownian" else "length units"
+
+
+def counted(count: int, word: str, plural: str | None = None) -> str:
+    """``1 cancer cell``, ``2 cancer cells``: a count with its noun in the right number."""
+    return f"{count} {word if count == 1 else plural or word + 's'}"
 
 
 def step_label(scenario: Scenario) -> str:

@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 from matplotlib.artist import Artist
-from matplotlib.colors import Normalize
+from matplotlib.colors import Normalize, to_rgb
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
@@ -24,12 +24,14 @@ from nanonav.pictures.job.common import (
     ROBOT_BLUE,
     START_GREEN,
     concentration_unit,
+    counted,
     evaluation_trajectory,
     last_row,
     length_unit,
     sized_figure,
     thin,
 )
+from nanonav.pictures.job.treatment import delivers_payloads
 
 # Beyond these counts the picture stays readable and fast by drawing fewer paths.
 MAX_ROBOT_PATHS = 30
@@ -132,14 +134,16 @@ class SwarmView:
 
 def swarm_view(result: SimulationResult) -> SwarmView | None:
     """The swarm's state at the end, or None for a result without the swarm's numbers
-    (``swarm_metrics``) or whose episode did not record who delivered where (stored before it
-    was recorded)."""
+    (``swarm_metrics``), whose robots deliver no payload (``delivers_payloads``: robots that
+    only take up space are drawn as the paper's, reached or not) or whose episode did not
+    record who delivered where (stored before it was recorded)."""
     trajectory = result.trajectory
     if (
         trajectory is None
         or trajectory.delivered_to is None
         or trajectory.cell_loads is None
         or not swarm_metrics(result.scenario)
+        or not delivers_payloads(result.scenario)
     ):
         return None
     robots = trajectory.robots.shape[1]
@@ -163,6 +167,41 @@ def swarm_view(result: SimulationResult) -> SwarmView | None:
         signal=signal,
         message=message,
     )
+
+
+def cell_radius(result: SimulationResult) -> float | None:
+    """A cell's radius in the scenario's lengths where it has one (the active Brownian cell,
+    ``physics.cell_radius_um``); None on the lattice, whose cells are points."""
+    physics = result.scenario.physics
+    return physics.cell_radius_um if physics.model == "active_brownian" else None
+
+
+def _draw_cells_to_scale(ax: Any, result: SimulationResult, centres: NDArray[np.float64]) -> None:
+    """Each cell where it ended as a translucent red sphere of its radius, to the scale of the
+    obstacles and the cube (the star marks its centre over it); nothing for point cells."""
+    radius = cell_radius(result)
+    if radius is None or len(centres) == 0:
+        return
+    faces, grey = sphere_mesh(centres, radius)
+    shade = 0.55 + 0.6 * grey  # the obstacles' light, on red
+    colours = np.column_stack(
+        [np.clip(shade * c, 0.0, 1.0) for c in to_rgb(CELL_RED)] + [np.full(len(grey), 0.45)]
+    )
+    ax.add_collection3d(
+        Poly3DCollection(
+            faces,
+            facecolors=colours,
+            edgecolors=colours,
+            linewidths=0.2,
+            zorder=1,
+            label="cell to scale",
+        )
+    )
+
+
+def _cell_patch(radius: float) -> Patch:
+    return Patch(facecolor=CELL_RED, alpha=0.45, edgecolor=CELL_RED,
+                 label=f"cell, {radius:g} µm radius to scale")  # fmt: skip
 
 
 def _cube_axes(ax: Any, result: SimulationResult) -> None:
@@ -218,6 +257,7 @@ def trajectory_figure(result: SimulationResult) -> Figure:
     for j in drawn:
         ax.plot(*thin(trajectory.cells[:, j]).T, color=CELL_RED, linewidth=1.1, alpha=0.8,
                 zorder=2)  # fmt: skip
+    _draw_cells_to_scale(ax, result, trajectory.cells[-1])
     star = 170 if cells_total <= MAX_CELL_PATHS else 110 if cells_total <= 20 else 60
     ax.scatter(*trajectory.cells[-1].T, color=CELL_RED, marker="*", s=star, edgecolors="black",
                linewidths=0.7, depthshade=False, zorder=5, label="cell at the end")  # fmt: skip
@@ -243,7 +283,8 @@ def trajectory_figure(result: SimulationResult) -> Figure:
     reached_total = int(np.count_nonzero(trajectory.reached))
     title = (
         f"Paths of the {who} and the {cells}, evaluation episode\n"
-        f"{reached_total} of {robots_total} reached a cell in {trajectory.length} steps"
+        f"{reached_total} of {robots_total} reached a cell in "
+        f"{counted(trajectory.length, 'step')}"
     )
     if notes:
         title += f"; {' and '.join(notes)} drawn"
@@ -251,14 +292,16 @@ def trajectory_figure(result: SimulationResult) -> Figure:
     fig.legend(
         handles=_trajectory_handles(
             bool(reached.any()), bool((~reached).any()), len(trajectory.obstacles_at(-1)) > 0,
-            trajectory.obstacles_move,
+            trajectory.obstacles_move, cell_radius(result),
         ),
         loc="outside lower center", ncols=4, frameon=False, fontsize="small",
     )  # fmt: skip
     return fig
 
 
-def _trajectory_handles(reached: bool, failed: bool, obstacles: bool, moving: bool) -> list[Artist]:
+def _trajectory_handles(
+    reached: bool, failed: bool, obstacles: bool, moving: bool, radius: float | None
+) -> list[Artist]:
     handles: list[Artist] = [
         Line2D([], [], color=ROBOT_BLUE, label="robot path"),
         Line2D([], [], color=START_GREEN, marker="o", markeredgecolor="white", linestyle="",
@@ -275,6 +318,8 @@ def _trajectory_handles(reached: bool, failed: bool, obstacles: bool, moving: bo
         handles.append(Line2D([], [], color=ROBOT_BLUE, marker="X", markersize=8,
                               markeredgecolor="white", linestyle="",
                               label="robot end, not reached"))  # fmt: skip
+    if radius is not None:
+        handles.append(_cell_patch(radius))
     if obstacles:
         handles.append(Patch(facecolor="0.45", edgecolor="0.3",
                              label="obstacle at the end" if moving else "obstacle"))  # fmt: skip
@@ -302,6 +347,7 @@ def _swarm_figure(result: SimulationResult, trajectory: Trajectory, view: SwarmV
     star = 170 if cells_total <= MAX_CELL_PATHS else 110 if cells_total <= 20 else 60
     treated = np.zeros(cells_total, dtype=np.bool_) if view.treated is None else view.treated
     ends = trajectory.cells[-1]
+    _draw_cells_to_scale(ax, result, ends)
     untreated = "cell at the end" if view.treated is None else "cell to treat"
     if (~treated).any():
         ax.scatter(*ends[~treated].T, color=CELL_RED, marker="*", s=star, edgecolors="black",
@@ -336,14 +382,14 @@ def _swarm_figure(result: SimulationResult, trajectory: Trajectory, view: SwarmV
         f"Paths of the {who} and the {cells}, evaluation episode\n"
         f"{int(delivered.sum())} of {robots_total} delivered "
         f"{'its payload' if robots_total == 1 else 'their payloads'} in "
-        f"{trajectory.length} steps{treated_text}"
+        f"{counted(trajectory.length, 'step')}{treated_text}"
     )
     if notes:
         title += f"\n{' and '.join(notes)} drawn; every robot's end marked"
     fig.suptitle(title, fontsize="medium")
     fig.legend(
         handles=_swarm_handles(view, shown, len(trajectory.obstacles_at(-1)) > 0,
-                               trajectory.obstacles_move),
+                               trajectory.obstacles_move, cell_radius(result)),
         loc="outside lower center", ncols=4, frameon=False, fontsize="small",
     )  # fmt: skip
     return fig
@@ -379,7 +425,9 @@ def _draw_carrying(
         ax.scatter(*ends.T, color=CARRYING_ORANGE, edgecolors="white", **style)
 
 
-def _swarm_handles(view: SwarmView, shown: int, obstacles: bool, moving: bool) -> list[Artist]:
+def _swarm_handles(
+    view: SwarmView, shown: int, obstacles: bool, moving: bool, radius: float | None
+) -> list[Artist]:
     """The legend of what the swarm's picture shows, and only that (``shown``: paths drawn)."""
     delivered = view.delivered
     carrying = ~delivered
@@ -425,6 +473,8 @@ def _swarm_handles(view: SwarmView, shown: int, obstacles: bool, moving: bool) -
     else:
         handles.append(Line2D([], [], color=CARRYING_ORANGE, markeredgecolor="white",
                               label="still carrying", **cross))  # fmt: skip
+    if radius is not None:
+        handles.append(_cell_patch(radius))
     if obstacles:
         handles.append(Patch(facecolor="0.45", edgecolor="0.3",
                              label="obstacle at the end" if moving else "obstacle"))  # fmt: skip

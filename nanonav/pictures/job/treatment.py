@@ -1,6 +1,7 @@
 """The swarm's treatment over the steps: how many cells were treated, and how many payloads each
-cell had received, in the evaluation episode. Only a run that reports the swarm's numbers
-(robots that take up space, cells that can be treated, or robots that signal) has it."""
+cell had received, in the evaluation episode. Only a run whose robots deliver payloads (cells
+that can be treated, or robots that signal once bound) has it: robots that only take up space
+carry nothing to deliver."""
 
 from __future__ import annotations
 
@@ -19,7 +20,14 @@ from numpy.typing import NDArray
 from nanonav.engine import SimulationResult, Trajectory
 from nanonav.engine.simulate import swarm_metrics
 from nanonav.pictures.figure import png
-from nanonav.pictures.job.common import CELL_RED, evaluation_trajectory, sized_figure, step_label
+from nanonav.pictures.job.common import (
+    CELL_RED,
+    counted,
+    evaluation_trajectory,
+    sized_figure,
+    step_label,
+)
+from nanonav.scenario import Scenario
 
 # Up to this many cells, each cell's payloads are a line of its own with a legend entry; more
 # are stacked, a band per cell, whose top is every payload delivered.
@@ -34,38 +42,40 @@ _CELL_COLOURS = (
 
 
 def treatment_drawn(scenario: Mapping[str, Any]) -> bool:
-    """Whether a job of the resolved scenario ``scenario`` (as JSON) has the treatment picture:
-    whether its run reports the swarm's numbers (``nanonav.engine.simulate.swarm_metrics``),
-    read off the plain document so that listing jobs validates none."""
-    robots = scenario.get("robots") or {}
+    """Whether a job of the resolved scenario ``scenario`` (as JSON) has the treatment picture
+    (``delivers_payloads``), read off the plain document so that listing jobs validates none."""
     cells = scenario.get("cells") or {}
     communication = scenario.get("communication") or {}
-    return (
-        bool(robots.get("exclusion"))
-        or cells.get("capacity") is not None
-        or (communication.get("model") or "none") != "none"
-    )
+    return cells.get("capacity") is not None or (communication.get("model") or "none") != "none"
+
+
+def delivers_payloads(scenario: Scenario) -> bool:
+    """Whether the robots of ``scenario`` carry payloads to the cells: when the cells take them
+    (``cells.capacity``) or a robot bound to a cell signals (``communication.model``). Robots
+    that only take up space (``robots.exclusion``) report the swarm's numbers but deliver
+    nothing."""
+    return treatment_drawn(scenario.model_dump(mode="json", include={"cells", "communication"}))
 
 
 def has_treatment(result: SimulationResult) -> bool:
-    """Whether ``result`` has the swarm's numbers (``swarm_metrics``) and the cell loads its
-    episode recorded (every episode records them, the paper's too, but only a swarm's are
-    drawn)."""
+    """Whether ``result``'s robots deliver payloads (``delivers_payloads``) and its episode
+    recorded the cell loads (every episode records them, the paper's too, but only a swarm's
+    that delivers are drawn)."""
     trajectory = result.trajectory
     return (
         trajectory is not None
         and trajectory.cell_loads is not None
         and swarm_metrics(result.scenario)
+        and delivers_payloads(result.scenario)
     )
 
 
 def _loads(result: SimulationResult) -> tuple[Trajectory, NDArray[np.int64]]:
     trajectory = evaluation_trajectory(result)
-    if trajectory.cell_loads is None or not swarm_metrics(result.scenario):
+    if trajectory.cell_loads is None or not has_treatment(result):
         raise ValueError(
-            "this result has no treatment to draw: only a run whose robots take up space "
-            "(robots.exclusion), whose cells can be treated (cells.capacity) or whose robots "
-            "signal (communication.model) reports the payloads each cell received"
+            "this result has no treatment to draw: only a run whose cells can be treated "
+            "(cells.capacity) or whose robots signal (communication.model) delivers payloads"
         )
     return trajectory, trajectory.cell_loads
 
@@ -110,7 +120,7 @@ def treatment_figure(result: SimulationResult) -> Figure:
     handles: list[Artist] = [
         Line2D([], [], color=CELL_RED, linewidth=1.8, label=what),
         Line2D([], [], color=_CAPACITY_GREY, linestyle="--", linewidth=1.0,
-               label=f"all {cells} cells"),
+               label="the cell" if cells == 1 else f"all {cells} cells"),
     ]  # fmt: skip
     if cells <= MAX_CELL_LINES:
         handles += _draw_cell_lines(loads_ax, steps, loads, capacity)
@@ -145,14 +155,16 @@ def _all_treated_at(steps: NDArray[np.int64], counts: NDArray[np.int64], cells: 
 def _draw_cell_lines(
     ax: Axes, steps: NDArray[np.int64], loads: NDArray[np.int64], capacity: int | None
 ) -> list[Artist]:
-    """A step line per cell, nudged apart so that cells with the same load stay visible."""
+    """A step line per cell, nudged up apart so that cells with the same load stay visible (a
+    payload count is never negative, nor is its axis: the line at 0 is drawn over the frame)."""
     cells = loads.shape[1]
     top = int(loads.max(initial=0))
-    nudge = 0.06 * np.linspace(-1.0, 1.0, cells) if cells > 1 else np.zeros(1)
+    nudge = 0.12 * np.linspace(0.0, 1.0, cells) if cells > 1 else np.zeros(1)
     handles: list[Artist] = []
     for j in range(cells):
         colour = _CELL_COLOURS[j % len(_CELL_COLOURS)]
-        ax.step(steps, loads[:, j] + nudge[j], where="post", color=colour, linewidth=1.6)
+        ax.step(steps, loads[:, j] + nudge[j], where="post", color=colour, linewidth=1.6,
+                clip_on=False)  # fmt: skip
         handles.append(Line2D([], [], color=colour, linewidth=1.6, label=f"cell {j}"))
     if capacity is not None:
         ax.axhline(capacity, color=_CAPACITY_GREY, linestyle="-.", linewidth=1.0)
@@ -160,7 +172,7 @@ def _draw_cell_lines(
                               label=f"capacity: {_payloads(capacity)} treat"
                                     f"{'s' if capacity == 1 else ''} a cell"))  # fmt: skip
         top = max(top, capacity)
-    ax.set_ylim(-0.3, top * 1.1 + 0.5)
+    ax.set_ylim(0, top * 1.1 + 0.5)
     ax.set_title("payloads each cell had received", fontsize="medium")
     return handles
 
@@ -177,7 +189,9 @@ def _draw_cell_stack(
     ax.step(steps, total, where="post", color=_TOTAL_GREY, linewidth=1.2)
     top = int(total.max(initial=0))
     handles: list[Artist] = [
-        Patch(facecolor=colours[0], alpha=0.85, label=f"a band per cell ({cells} cells)"),
+        Patch(
+            facecolor=colours[0], alpha=0.85, label=f"a band per cell ({counted(cells, 'cell')})"
+        ),
         Line2D([], [], color=_TOTAL_GREY, linewidth=1.2, label="payloads delivered in all"),
     ]
     if capacity is not None:
@@ -205,25 +219,29 @@ def _treatment_title(
     robots = trajectory.robots.shape[1]
     if capacity is None:
         return (
-            f"Payloads delivered to the {cells} cancer cells, evaluation episode\n"
-            f"{_payloads(delivered)} from {robots} robots reached {int(counts[-1])} cells in "
-            f"{trajectory.length} steps"
+            f"Payloads delivered to {_the_cells(cells)}, evaluation episode\n"
+            f"{_payloads(delivered)} from {counted(robots, 'robot')} reached "
+            f"{counted(int(counts[-1]), 'cell')} in {counted(trajectory.length, 'step')}"
         )
     treated = (
         f"every cell treated at step {done}"
         if done is not None
-        else f"{int(counts[-1])} of {cells} treated in {trajectory.length} steps"
+        else f"{int(counts[-1])} of {cells} treated in {counted(trajectory.length, 'step')}"
     )
     return (
-        f"Treatment of the {cells} cancer cells ({_payloads(capacity)} treat"
+        f"Treatment of {_the_cells(cells)} ({_payloads(capacity)} treat"
         f"{'s' if capacity == 1 else ''} a cell), "
         "evaluation episode\n"
-        f"{treated}; {_payloads(delivered)} from {robots} robots"
+        f"{treated}; {_payloads(delivered)} from {counted(robots, 'robot')}"
     )
 
 
 def _payloads(count: int) -> str:
-    return f"{count} payload{'' if count == 1 else 's'}"
+    return counted(count, "payload")
+
+
+def _the_cells(cells: int) -> str:
+    return "the cancer cell" if cells == 1 else f"the {cells} cancer cells"
 
 
 def treatment_png(result: SimulationResult) -> bytes:

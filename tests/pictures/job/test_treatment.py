@@ -8,10 +8,10 @@ import pytest
 from matplotlib.collections import PolyCollection
 
 from nanonav.engine import SimulationResult
-from nanonav.engine.simulate import swarm_metrics
 from nanonav.pictures.job import PICTURE_NAMES, render, render_all, treatment_drawn
 from nanonav.pictures.job.treatment import (
     MAX_CELL_LINES,
+    delivers_payloads,
     has_treatment,
     treated_counts,
     treatment_figure,
@@ -80,6 +80,8 @@ def loaded(cells: int, capacity: int | None) -> SimulationResult:
             replace(trajectory, cell_loads=loads, delivered_to=np.array([-1])),
             robots={"count": 1, "exclusion": True},
             cells={"count": cells, "capacity": capacity},
+            # without a capacity, robots that signal once bound still deliver payloads
+            communication={"model": "none" if capacity is not None else "attractant"},
         ),
         summary={"robots_per_cell": 1.0, "most_robots_on_a_cell": 3, "bumps": 0},
     )
@@ -127,17 +129,18 @@ def test_a_stored_result_draws_the_same_treatment_and_an_older_one_none(
 
 
 @pytest.mark.parametrize(
-    "overrides",
+    ("overrides", "delivers"),
     [
-        {},
-        {"robots": {"exclusion": True}},
-        {"cells": {"capacity": 2}},
-        {"communication": {"model": "broadcast"}, "robots": {"policy": "rule"}},
+        ({}, False),
+        ({"robots": {"exclusion": True}}, False),  # the swarm's numbers, but no payload
+        ({"cells": {"capacity": 2}}, True),
+        ({"communication": {"model": "broadcast"}, "robots": {"policy": "rule"}}, True),
     ],
 )
 def test_the_service_knows_from_the_scenario_alone_which_jobs_have_it(
-    overrides: dict[str, object],
+    overrides: dict[str, object], delivers: bool
 ) -> None:
     scenario = Scenario.model_validate(overrides)
-    assert treatment_drawn(scenario.model_dump(mode="json")) == swarm_metrics(scenario)
+    assert treatment_drawn(scenario.model_dump(mode="json")) is delivers
+    assert delivers_payloads(scenario) is delivers
     assert treatment_drawn(preset_scenario("diffuse-tumour").model_dump(mode="json"))
