@@ -11,7 +11,7 @@ from typing import Any
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from nanonav.studies.report import METRICS
+from nanonav.studies.report import METRICS, WALL_CLOCK_COLUMN
 
 PARQUET_MEDIA_TYPE = "application/vnd.apache.parquet"
 
@@ -51,7 +51,7 @@ def _column(column: str, rows: Sequence[dict[str, Any]]) -> pa.Array:
 def _type(column: str, rows: Sequence[dict[str, Any]]) -> pa.DataType:
     if column in ("job_id", "seed"):
         return pa.int64()
-    if column in METRICS:
+    if column in METRICS or column == WALL_CLOCK_COLUMN:
         return pa.float64()
     values = [row[column] for row in rows if row.get(column) is not None]
     if values and all(isinstance(v, bool) for v in values):

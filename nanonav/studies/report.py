@@ -20,18 +20,22 @@ from nanonav import stats
 from nanonav.engine.metrics import RANGES, SWARM
 from nanonav.studies.spec import GridValue, StudySpec
 
-# The paper's Table 1 (its duration included), then success, collisions and path efficiency:
-# every study reports them.
+# The paper's Table 1, then success, collisions and path efficiency: every study reports them.
+# Table 1's duration is left out: it is the wall-clock time a run took on whatever machine ran
+# it, not a result of the scenario, so it is neither summarised, drawn nor compared.
 PAPER_METRICS = (
     "total_steps",
     "final_distance",
     "average_distance",
     "average_concentration",
-    "duration_s",
     "success_rate",
     "collisions",
     "path_efficiency",
 )
+WALL_CLOCK = "duration_s"
+"""A job's wall-clock time per evaluation world (Table 1's duration), kept for the export only."""
+WALL_CLOCK_COLUMN = "wall_clock_duration_s"
+"""The export's column of ``WALL_CLOCK``, named so that no one takes it for a result."""
 # The swarm's numbers (``nanonav.engine.metrics``): only runs whose robots take up space, treat
 # cells or signal have them, so a study reports each only once one of its jobs has it.
 SWARM_METRICS: tuple[str, ...] = SWARM
@@ -55,10 +59,10 @@ class JobOutcome:
 
 
 def study_metrics(document: dict[str, Any]) -> dict[str, Any]:
-    """The metrics a study reads of a succeeded job's metrics document: the paper's, and those
-    of the swarm's its run has."""
+    """The metrics a study reads of a succeeded job's metrics document: the paper's, those of
+    the swarm's its run has, and its wall-clock time (``WALL_CLOCK``, for the export)."""
     summary = document.get("summary") or {}
-    return {key: summary.get(key) for key in PAPER_METRICS} | {
+    return {key: summary.get(key) for key in (*PAPER_METRICS, WALL_CLOCK)} | {
         key: summary[key] for key in SWARM_METRICS if key in summary
     }
 
@@ -187,8 +191,9 @@ def comparisons(
 def table(
     values: Sequence[dict[str, GridValue]], jobs: Sequence[JobOutcome]
 ) -> list[dict[str, Any]]:
-    """A row per job: its id, seed, every grid value, status and the metrics the study reports
-    (``reported_metrics``; empty unless it succeeded), in job order."""
+    """A row per job: its id, seed, every grid value, status, the metrics the study reports
+    (``reported_metrics``; empty unless it succeeded) and its wall-clock time per world
+    (``WALL_CLOCK_COLUMN``), in job order."""
     metrics = reported_metrics(jobs)
     rows = []
     for job in sorted(jobs, key=lambda j: j.job_id):
@@ -196,10 +201,12 @@ def table(
         row.update(values[job.point])
         row["status"] = job.status
         row.update({metric: _value(job, metric) for metric in metrics})
+        row[WALL_CLOCK_COLUMN] = _value(job, WALL_CLOCK)
         rows.append(row)
     return rows
 
 
 def table_columns(spec: StudySpec, jobs: Sequence[JobOutcome]) -> list[str]:
-    """The table's columns: ids, grid keys, status and the metrics a study of ``jobs`` reports."""
-    return ["job_id", "seed", *spec.grid, "status", *reported_metrics(jobs)]
+    """The table's columns: ids, grid keys, status, the metrics a study of ``jobs`` reports and
+    the wall-clock time per world, last."""
+    return ["job_id", "seed", *spec.grid, "status", *reported_metrics(jobs), WALL_CLOCK_COLUMN]

@@ -172,7 +172,7 @@ def test_a_study_runs_and_its_statistics_match_the_jobs(
             assert row[metric] == float(csv_row[metric])
 
     assert "policies" in study["links"]["plots"]  # its q_learning points learn tables
-    for name in (*METRICS, "duration_s", "learning", "policies"):
+    for name in (*METRICS, "learning", "policies"):
         response = api.client.get(f"/studies/{study['id']}/plots/{name}.png")
         assert response.status_code == 200, response.text
         image = decode_png(response.content)

@@ -12,12 +12,15 @@ import pytest
 from nanonav.studies.report import (
     METRICS,
     PAPER_METRICS,
+    WALL_CLOCK,
+    WALL_CLOCK_COLUMN,
     JobOutcome,
     learning_curve,
     report,
     status_of,
     study_metrics,
     table,
+    table_columns,
 )
 from nanonav.studies.spec import StudySpec, point_values
 
@@ -100,7 +103,8 @@ def test_a_job_keeps_its_study_metrics_and_a_binned_learning_curve() -> None:
     ]
     document = {"summary": {"total_steps": 7, "robots": 1}, "episodes": episodes}
     kept = study_metrics(document)
-    assert kept["total_steps"] == 7 and "robots" not in kept and set(kept) == set(PAPER_METRICS)
+    assert kept["total_steps"] == 7 and "robots" not in kept
+    assert set(kept) == {*PAPER_METRICS, WALL_CLOCK}  # the wall-clock time, for the export
     curve = learning_curve(document)
     assert len(curve["episode"]) == 200
     assert curve["episode"][0] == 2.0 and curve["steps"][0] == 2.0  # mean of episodes 0..4
@@ -114,5 +118,20 @@ def test_the_table_has_a_row_per_job_with_empty_metrics_unless_it_succeeded() ->
     rows = table(point_values(SPEC), JOBS)
     assert [r["job_id"] for r in rows] == list(range(1, 9))
     assert rows[3] == {"job_id": 4, "seed": 2, "robots.policy": "gradient", "status": "failed",
-                       **{m: None for m in METRICS}}  # fmt: skip
+                       **{m: None for m in METRICS}, WALL_CLOCK_COLUMN: None}  # fmt: skip
     assert rows[0]["total_steps"] == 100.0
+
+
+def test_the_wall_clock_time_is_exported_but_never_summarised_drawn_or_compared() -> None:
+    """How long a job took is the machine's, not the scenario's: no interval, chart or paired
+    test of it, only a column of the export that says it is wall-clock time."""
+    jobs = [
+        JobOutcome(i + 1, point, seed, "succeeded", {"total_steps": 10.0, WALL_CLOCK: 0.5 + i})
+        for i, (point, seed) in enumerate((p, s) for p in (0, 1) for s in (1, 2, 3, 4))
+    ]
+    found = report(SPEC, point_values(SPEC), jobs)
+    assert WALL_CLOCK not in found["metrics"] and WALL_CLOCK not in METRICS
+    assert all(WALL_CLOCK not in point["metrics"] for point in found["points"])
+    assert all(WALL_CLOCK not in c["metrics"] for c in found["comparisons"])
+    assert table_columns(SPEC, jobs)[-1] == WALL_CLOCK_COLUMN == "wall_clock_duration_s"
+    assert [row[WALL_CLOCK_COLUMN] for row in table(point_values(SPEC), jobs)][:2] == [0.5, 1.5]

@@ -17,6 +17,8 @@ from nanonav.studies.report import (
     METRICS,
     PAPER_METRICS,
     SWARM_METRICS,
+    WALL_CLOCK,
+    WALL_CLOCK_COLUMN,
     JobOutcome,
     report,
     reported_metrics,
@@ -87,7 +89,7 @@ def test_a_study_whose_jobs_have_them_reports_tables_and_exports_them() -> None:
     assert comparison["metrics"]["bumps"]["n"] == 3
     assert comparison["metrics"]["bumps"]["mean_difference"] == pytest.approx(0.0)
     columns = table_columns(SPEC, jobs)
-    assert columns[-len(METRICS) :] == list(METRICS)
+    assert columns[-len(METRICS) - 1 :] == [*METRICS, WALL_CLOCK_COLUMN]
     rows = table(point_values(SPEC), jobs)
     parquet = pq.read_table(io.BytesIO(to_parquet(columns, rows)))
     for key in SWARM:
@@ -134,6 +136,6 @@ def test_treated_and_undelivered_shares_are_proportions_with_intervals_in_0_1() 
 
 def test_a_job_keeps_the_swarms_numbers_only_when_its_run_reports_them() -> None:
     paper = study_metrics({"summary": {"total_steps": 7.0, "robots": 3}})
-    assert set(paper) == set(PAPER_METRICS)
+    assert set(paper) == {*PAPER_METRICS, WALL_CLOCK}
     swarm = study_metrics({"summary": {"total_steps": 7.0, **swarm_numbers(1)}})
-    assert set(swarm) == set(METRICS) and swarm["treated_fraction"] == TREATED[0]
+    assert set(swarm) == {*METRICS, WALL_CLOCK} and swarm["treated_fraction"] == TREATED[0]

@@ -1,5 +1,6 @@
 """A study's pictures: one metric against the swept numeric parameter (a line per compared
-method, CI bars), or grouped bars when no swept parameter is numeric; the mean learning
+method, CI bars; the compared parameter itself when it is the only numeric one), or grouped bars
+when no swept parameter is numeric; the mean learning
 curves of every grid point with CI bands; and what the learners of each grid point learned.
 This module picks what goes on which axis; drawing is ``charts``'s."""
 
@@ -13,6 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from nanonav import stats
+from nanonav.engine.metrics import RANGES
 from nanonav.pictures.study import charts
 from nanonav.policy import habits
 from nanonav.studies.report import METRICS, PAPER_METRICS, JobOutcome
@@ -31,13 +33,17 @@ EVERY_STUDYS_PICTURES = (*PAPER_METRICS, "learning")
 """The pictures every study has, whatever its jobs report."""
 SECONDS_PANEL = "time per episode (s)"
 """The first learning panel of a study whose every point is active Brownian: steps x dt_s."""
-VERSION = 3
+VERSION = 4
 """The version of the drawing of every picture of a study: it goes up when a picture drawn
 before would now be drawn differently, so that a copy kept of the older drawing is drawn again.
 2: series and groups named in words (``robots policy: q_learning``, not
 ``robots.policy=q_learning``), and a metric's title no longer says its interval is Student t's
 (bounded metrics have others: ``nanonav.stats``). 3: an active Brownian study's learning curves
-give each episode's length in seconds."""
+give each episode's length in seconds. 4: a study that sweeps only its compared number draws it
+as a line, a share's axis runs from 0 to 1, episodes are whole numbers, a study without
+training episodes says so, and the wall-clock duration is no metric."""
+NO_EPISODES = "no training episodes in this study"
+"""What the learning picture of a study whose finished jobs trained for no episode says."""
 
 
 def _numeric(values: Sequence[GridValue]) -> bool:
@@ -45,10 +51,15 @@ def _numeric(values: Sequence[GridValue]) -> bool:
 
 
 def axis_key(spec: StudySpec) -> str | None:
-    """The grid key drawn along x: the first swept numeric key that is not compared."""
-    return next(
+    """The grid key drawn along x: the first swept numeric key that is not compared, else the
+    compared key itself when it is numeric (a study that compares robot counts, say, and sweeps
+    nothing else draws the counts as a line, not a bar per count)."""
+    found = next(
         (k for k, values in spec.grid.items() if k != spec.compare and _numeric(values)), None
     )
+    if found is None and spec.compare is not None and _numeric(spec.grid[spec.compare]):
+        return spec.compare
+    return found
 
 
 def readable_key(key: str) -> str:
@@ -147,7 +158,7 @@ def metric_png(spec: StudySpec, report: dict[str, Any], metric: str) -> bytes:
     ]
     title = f"{spec.name or 'Study'}: {metric.replace('_', ' ')}, mean with 95% CI"
     x_label = None if axis is None else readable_key(axis)
-    return charts.metric_png(metric, drawn, x_label=x_label, title=title)
+    return charts.metric_png(metric, drawn, x_label=x_label, title=title, bounds=RANGES[metric])
 
 
 def learning_png(
@@ -163,15 +174,12 @@ def learning_png(
     if seconds:
         titles["steps"] = SECONDS_PANEL
     panels: dict[str, list[charts.Series]] = {title: [] for title in titles.values()}
+    finished = [job for job in jobs if job.status == "succeeded" and job.curve is not None]
     for index, point_values in enumerate(values):
-        curves = [
-            job.curve
-            for job in jobs
-            if job.point == index and job.status == "succeeded" and job.curve is not None
-        ]
-        if not curves:
+        curves = [job.curve for job in finished if job.point == index and job.curve is not None]
+        length = min((len(c["episode"]) for c in curves), default=0)
+        if length == 0:
             continue
-        length = min(len(c["episode"]) for c in curves)
         episodes = curves[0]["episode"][:length]
         label = _label(point_values, list(spec.grid)) or "base scenario"
         for key, title in titles.items():
@@ -188,4 +196,9 @@ def learning_png(
                     [d.ci_high for d in described],
                 )
             )
-    return charts.learning_png(panels, title=f"{spec.name or 'Study'}: learning curves")
+    return charts.learning_png(
+        panels,
+        title=f"{spec.name or 'Study'}: learning curves",
+        empty=NO_EPISODES if finished else charts.NO_DATA,
+        shares={titles["success_rate"]},
+    )

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 import numbers
-from collections.abc import Hashable, Mapping, Sequence
+from collections.abc import Collection, Hashable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -24,7 +24,7 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
-from matplotlib.ticker import NullLocator
+from matplotlib.ticker import MaxNLocator, NullLocator
 from matplotlib.typing import LineStyleType
 from numpy.typing import NDArray
 
@@ -146,11 +146,11 @@ def _style_axes(ax: Axes) -> None:
     ax.set_axisbelow(True)
 
 
-def _say_no_data(ax: Axes) -> None:
+def _say_no_data(ax: Axes, text: str = NO_DATA) -> None:
     ax.text(
         0.5,
         0.5,
-        NO_DATA,
+        text,
         transform=ax.transAxes,
         ha="center",
         va="center",
@@ -173,7 +173,7 @@ def _error_bars(
         return
     below = np.clip(mean[shown] - low[shown], 0.0, None)
     above = np.clip(high[shown] - mean[shown], 0.0, None)
-    ax.errorbar(
+    drawn = ax.errorbar(
         x[shown],
         mean[shown],
         yerr=np.vstack([below, above]),
@@ -183,6 +183,8 @@ def _error_bars(
         capsize=4,
         capthick=1.4,
     )
+    for part in (*drawn.lines[1], *drawn.lines[2]):
+        part.set_clip_on(False)  # a cap at a share's 0 or 1 sits on the frame, whole
 
 
 def _draw_lines(ax: Axes, series: Sequence[Series], styles: Mapping[str, _Style]) -> list[Artist]:
@@ -291,8 +293,26 @@ def _legend(fig: Figure, handles: list[Artist]) -> None:
     )
 
 
+def _keep_to_share(series: Sequence[Series]) -> list[Series]:
+    """Each mean and bound of a share inside [0, 1]: an interval made to stay there does, but a
+    rounding past 1 must not lift the axis."""
+
+    def inside(values: Sequence[float | None]) -> list[float | None]:
+        return [None if v is None else min(max(float(v), 0.0), 1.0) for v in values]
+
+    return [
+        Series(one.label, one.x, inside(one.mean), inside(one.low), inside(one.high))
+        for one in series
+    ]
+
+
 def metric_png(
-    metric: str, series: Sequence[Series], *, x_label: str | None, title: str | None = None
+    metric: str,
+    series: Sequence[Series],
+    *,
+    x_label: str | None,
+    title: str | None = None,
+    bounds: tuple[float, float] | None = None,
 ) -> bytes:
     """One metric (mean and confidence interval) for each series at each swept value.
 
@@ -300,8 +320,12 @@ def metric_png(
     apart on x so their bars do not hide each other; the axis is logarithmic when the values are
     positive and span a factor of 100 or more. Otherwise (policies, field models: names), a
     grouped bar chart, one group per x in first-seen order. Without any mean to draw, the axes
-    say so, and the PNG is still valid and of the same size.
+    say so, and the PNG is still valid and of the same size. A share (``bounds`` (0, 1)) is drawn
+    on an axis from exactly 0 to 1, its error bars whole on the frame where they reach it.
     """
+    share = bounds == (0.0, 1.0)
+    if share:
+        series = _keep_to_share(series)
     fig = new_figure(*METRIC_FIGSIZE)
     ax = fig.add_subplot()
     handles: list[Artist] = []
@@ -312,6 +336,10 @@ def metric_png(
         handles = _draw_lines(ax, series, _styles(series))
     else:
         handles = _draw_bars(ax, series, _styles(series))
+    if share:
+        ax.set_ylim(0.0, 1.0)
+        for line in ax.get_lines():
+            line.set_clip_on(False)  # a mean of 1 keeps its whole marker
     ax.set_ylabel(_readable(metric), fontsize=_LABEL_SIZE)
     if x_label:
         ax.set_xlabel(x_label, fontsize=_LABEL_SIZE)
@@ -370,13 +398,20 @@ def _draw_curve(ax: Axes, one: Series, style: _Style) -> None:
     )
 
 
-def learning_png(panels: Mapping[str, Sequence[Series]], *, title: str | None = None) -> bytes:
+def learning_png(
+    panels: Mapping[str, Sequence[Series]],
+    *,
+    title: str | None = None,
+    empty: str = NO_DATA,
+    shares: Collection[str] = (),
+) -> bytes:
     """Mean learning curves with their confidence bands, one panel per quantity (the key is the
-    panel's y label), stacked on a shared episode axis.
+    panel's y label), stacked on a shared episode axis with whole-numbered ticks.
 
     Curves longer than ``MAX_CURVE_POINTS`` are drawn as bin averages (of the mean and of each
-    bound), so thousands of episodes draw quickly. A panel without data says so; with no panel
-    at all, one empty panel does.
+    bound), so thousands of episodes draw quickly. A panel without data says ``empty`` (why
+    there is none); with no panel at all, one empty panel does. The panels named in ``shares``
+    run from exactly 0 to 1, their bands kept inside.
     """
     count = max(len(panels), 1)
     fig = new_figure(LEARNING_WIDTH, LEARNING_PANEL_HEIGHT * count)
@@ -384,17 +419,21 @@ def learning_png(panels: Mapping[str, Sequence[Series]], *, title: str | None = 
     styles = _styles([one for group in panels.values() for one in group])
     drawn = False
     if not panels:
-        _say_no_data(axes[0])
+        _say_no_data(axes[0], empty)
     for ax, (name, group) in zip(axes, panels.items(), strict=False):
         ax.set_ylabel(name, fontsize=_LABEL_SIZE)
         _style_axes(ax)
         if not any(_has_data(one) for one in group):
-            _say_no_data(ax)
+            _say_no_data(ax, empty)
             continue
-        for one in group:
+        share = name in shares
+        for one in _keep_to_share(group) if share else group:
             _draw_curve(ax, one, styles[one.label])
+        if share:
+            ax.set_ylim(0.0, 1.0)
         drawn = True
     axes[-1].set_xlabel("episode", fontsize=_LABEL_SIZE)
+    axes[-1].xaxis.set_major_locator(MaxNLocator(integer=True))
     if title:
         fig.suptitle(title, fontsize=_TITLE_SIZE)
     if drawn:

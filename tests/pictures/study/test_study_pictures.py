@@ -7,9 +7,13 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 import pytest
+from matplotlib.figure import Figure
 from matplotlib.image import imread
+from matplotlib.lines import Line2D
 
+from nanonav.pictures.figure import png as figure_png
 from nanonav.pictures.study import (
+    NO_EPISODES,
     SECONDS_PANEL,
     axis_key,
     charts,
@@ -18,7 +22,7 @@ from nanonav.pictures.study import (
     metric_png,
     policies_png,
 )
-from nanonav.studies.report import METRICS, JobOutcome, report
+from nanonav.studies.report import METRICS, JobOutcome, learning_curve, report
 from nanonav.studies.spec import StudySpec, point_values
 
 
@@ -91,6 +95,7 @@ class Received:
         *,
         x_label: str | None,
         title: str | None = None,
+        bounds: tuple[float, float] | None = None,
     ) -> bytes:
         self.labels.append([s.label for s in series])
         self.xs.append([x for s in series for x in s.x])
@@ -98,7 +103,11 @@ class Received:
         return b""
 
     def learning(
-        self, panels: Mapping[str, Sequence[charts.Series]], *, title: str | None = None
+        self,
+        panels: Mapping[str, Sequence[charts.Series]],
+        *,
+        title: str | None = None,
+        **_: object,
     ) -> bytes:
         self.labels.extend([s.label for s in group] for group in panels.values())
         return b""
@@ -181,3 +190,88 @@ def test_the_policies_picture_shows_each_learning_points_habits(
     ]
     assert rows[0].shares == pytest.approx({"a": 2 / 3, "b": 1 / 3})
     assert rows[0].note == "100% of visits, mean gap 1, 3 seeds"
+
+
+class Drawn:
+    """The figures the charts save, kept (and still saved: the PNGs are real)."""
+
+    def __init__(self, monkeypatch: pytest.MonkeyPatch) -> None:
+        self.figures: list[Figure] = []
+        saved = figure_png
+
+        def keep(figure: Figure) -> bytes:
+            self.figures.append(figure)
+            return saved(figure)
+
+        monkeypatch.setattr(charts, "png", keep)
+
+    def texts(self) -> list[str]:
+        return [t.get_text() for f in self.figures for ax in f.axes for t in ax.texts]
+
+
+def untrained(study: StudySpec) -> list[JobOutcome]:
+    """Every job succeeded, none trained: each keeps the curve of no episode, as a worker does."""
+    empty = learning_curve({"summary": {}, "episodes": []})
+    assert empty["episode"] == []
+    return [
+        JobOutcome(j.job_id, j.point, j.seed, j.status, j.metrics, empty)
+        for j in outcomes(study, False)
+    ]
+
+
+def test_a_finished_study_without_training_episodes_says_so(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    drawn = Drawn(monkeypatch)
+    study = spec({"robots.policy": ["gradient", "rule"]}, "robots.policy")
+    image = decode(learning_png(study, point_values(study), untrained(study)))
+    assert image[..., :3].std() > 0.01
+    assert set(drawn.texts()) == {NO_EPISODES}
+    queued = [JobOutcome(j.job_id, j.point, j.seed, "queued", None) for j in untrained(study)]
+    learning_png(study, point_values(study), queued)
+    assert set(drawn.texts()) == {NO_EPISODES, charts.NO_DATA}  # nothing has finished yet
+
+
+def test_a_study_that_sweeps_only_its_compared_number_draws_a_line(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    counts: list[object] = [1, 2, 5, 10, 20]
+    study = spec({"robots.count": counts}, "robots.count")
+    assert axis_key(study) == "robots.count"
+    received = Received(monkeypatch)
+    found = report(study, point_values(study), outcomes(study, False))
+    metric_png(study, found, "total_steps")
+    assert received.labels == [["all seeds"]] and received.xs == [counts]
+    assert received.x_labels == ["robots count"]
+    monkeypatch.undo()
+    drawn = Drawn(monkeypatch)
+    decode(metric_png(study, found, "total_steps"))
+    (ax,) = drawn.figures[0].axes
+    assert not ax.patches  # no bars
+    (line,) = [line for line in ax.get_lines() if line.get_linestyle() == "-"]  # not the caps
+    assert np.asarray(line.get_xdata()).tolist() == counts
+
+
+def test_a_shares_axis_runs_from_0_to_1_and_episodes_are_whole(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    drawn = Drawn(monkeypatch)
+    study = spec({"robots.policy": ["q_learning", "gradient"]}, "robots.policy")
+    jobs = [
+        JobOutcome(j.job_id, j.point, j.seed, j.status, (j.metrics or {}) | {"success_rate": 1.0},
+                   j.curve)
+        for j in outcomes(study, True)
+    ]  # fmt: skip
+    found = report(study, point_values(study), jobs)
+    decode(metric_png(study, found, "success_rate"))
+    (ax,) = drawn.figures[-1].axes
+    assert ax.get_ylim() == (0.0, 1.0)
+    caps = [c for c in ax.get_children() if isinstance(c, Line2D) and c.get_marker() == "_"]
+    assert caps and not any(c.get_clip_on() for c in caps)  # a cap at 1 drawn whole
+    decode(metric_png(study, found, "total_steps"))
+    assert drawn.figures[-1].axes[0].get_ylim()[1] > 1.0  # only shares are kept to [0, 1]
+    decode(learning_png(study, point_values(study), jobs))
+    steps, success, _ = drawn.figures[-1].axes
+    assert success.get_ylim() == (0.0, 1.0)
+    ticks = [t for t in steps.get_xticks() if steps.get_xlim()[0] <= t <= steps.get_xlim()[1]]
+    assert ticks and all(float(t).is_integer() for t in ticks)
