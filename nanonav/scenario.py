@@ -5,7 +5,7 @@ Every field has a default and a bound, unknown keys are rejected, and a ``preset
 values that explicit fields override. Two physics: ``lattice`` (the paper's), where lengths are in
 simulation units (the paper's cube is 50 units a side), times in steps and concentrations in
 arbitrary units relative to ``biomarker.peak``; and ``active_brownian``, where every length is in
-um, every time in s (a step is ``physics.dt_s``) and every concentration in nM, and the
+µm, every time in s (a step is ``physics.dt_s``) and every concentration in nM, and the
 quantities only it has carry their unit in their name (``physics``).
 """
 
@@ -77,8 +77,9 @@ BROWNIAN_SIGNAL = ("diffusion_um2_s", "decay_rate_s", "release_molecules_s")
 MAX_EXACT_INT = 2**53 - 1
 MAX_STEPS = 1_000_000  # learning.max_steps: the longest episode
 # The active Brownian learner's defaults, chosen on design seeds 5000-5007 at robot radii 0.5, 1,
-# 2 and 5 um (benchmarks/decision_interval.py; README, "Decisions in physical time"): a decision
-# every second, and the visits schedule's exponent 0.6 (1 left the table unsettled there).
+# 2 and 5 µm (benchmarks/decision_interval.py; docs/explanation/learning.md, "Decisions in
+# physical time"): a decision every second, and the visits schedule's exponent 0.6 (1 left the
+# table unsettled there).
 BROWNIAN_DECISION_INTERVAL_S = 1.0
 BROWNIAN_ALPHA_EXPONENT = 0.6
 
@@ -109,11 +110,11 @@ LARGEST_DECAY_RATE = 50.0  # per step: a decay_rate of 1 (all of it) taken as th
 
 BOLTZMANN_J_K = 1.380649e-23  # exact since the 2019 SI
 AVOGADRO_PER_MOL = 6.02214076e23  # exact since the 2019 SI
-MOLECULES_PER_UM3_PER_NM = AVOGADRO_PER_MOL * 1e-9 / 1e15  # 1 nM in molecules per um^3: 0.6022
+MOLECULES_PER_UM3_PER_NM = AVOGADRO_PER_MOL * 1e-9 / 1e15  # 1 nM in molecules per µm³: 0.6022
 
 
 def stokes_einstein_um2_s(temperature_k: float, viscosity_mpa_s: float, radius_um: float) -> float:
-    """D_T = k_B T / (6 pi eta R) of a sphere, um^2/s."""
+    """D_T = k_B T / (6 pi eta R) of a sphere, µm²/s."""
     return (
         BOLTZMANN_J_K
         * temperature_k
@@ -193,9 +194,9 @@ class Space(_Part):
         50.0,
         ge=1.0,
         le=1000.0,
-        description="Side of the cube, in length units (um in physics.model active_brownian; "
+        description="Side of the cube, in length units (µm in physics.model active_brownian; "
         "paper 2.4: 50). The cube spans "
-        "[-size/2, size/2] on every axis. At least 1 (in um: less than a cell).",
+        "[-size/2, size/2] on every axis. At least 1 (in µm: less than a cell).",
     )
     walls: bool = Field(
         True,
@@ -341,7 +342,7 @@ class Obstacles(_Part):
         1.5,
         gt=0.0,
         le=100.0,
-        description="Obstacle radius, length units (um in active_brownian); less than a quarter "
+        description="Obstacle radius, length units (µm in active_brownian); less than a quarter "
         "of space.size.",
     )
     motion_std: float = Field(
@@ -372,7 +373,7 @@ class Robots(_Part):
         ge=0.0,
         le=10_000.0,
         description="Range, length units, within which a robot senses where a cell is (in "
-        "active_brownian: um from the robot's surface to the cell's, its receptors' range; the "
+        "active_brownian: µm from the robot's surface to the cell's, its receptors' range; the "
         "paper's state holds the distance to cells). 0: a robot learns of a cell only by "
         "touching it, and must find it from the biomarker alone.",
     )
@@ -583,9 +584,9 @@ def _time_step_bounds(
         (d_r * dt, 0.05, 0.05 / d_r if d_r else math.inf,
          "the heading would turn by D_R dt = {value:.3g} per step (at most 0.05)"),
         (speed * dt, half, half / speed if speed else math.inf,
-         "a step would swim {value:.3g} um, over half of robot_radius_um"),
+         "a step would swim {value:.3g} µm, over half of robot_radius_um"),
         (math.sqrt(2 * d_t * dt), half, half**2 / (2 * d_t) if d_t else math.inf,
-         "a step would jiggle sqrt(2 D_T dt) = {value:.3g} um, over half of robot_radius_um"),
+         "a step would jiggle sqrt(2 D_T dt) = {value:.3g} µm, over half of robot_radius_um"),
     ]  # fmt: skip
 
 
@@ -661,14 +662,15 @@ class Physics(_Part):
     a sphere of robot_radius_um swims at swim_speed_um_s along a heading that diffuses, jiggles
     with translational diffusion, and can only steer (at most max_turn_rate_rad_s); the field is
     the steady state of what each cell secretes, read at the Berg-Purcell limit. Every quantity
-    below belongs to 'active_brownian' (and is refused with 'lattice'); the README gives each
-    default's source. The bounds are physical, and hold what is derived from them (D_T, D_R,
-    dt_s, the step limit) finite and within its own: each says why in its description."""
+    below belongs to 'active_brownian' (and is refused with 'lattice'); the documentation's
+    physics page (docs/explanation/physics.md) gives each default's source. The bounds are
+    physical, and hold what is derived from them (D_T, D_R, dt_s, the step limit) finite and
+    within its own: each says why in its description."""
 
     model: PhysicsModel = Field(
         "lattice",
         description="'lattice' (the paper's model, in simulation units and steps) or "
-        "'active_brownian' (SI: um, s, nM; every length of the scenario is then in um).",
+        "'active_brownian' (SI: µm, s, nM; every length of the scenario is then in µm).",
     )
     dt_s: float | None = Field(
         None,
@@ -680,7 +682,7 @@ class Physics(_Part):
         "largest such step, at most 0.01 s, filled in in the resolved scenario (so a study "
         "over robot_radius_um gets a fitting step at every radius). At least 1e-9 s: within "
         "the other fields' bounds no motion needs a finer step (the finest, 1.2e-9 s, is for "
-        "a 10 nm robot whose D_T is 1e4 um^2/s).",
+        "a 10 nm robot whose D_T is 1e4 µm²/s).",
     )
     time_limit_s: float | None = Field(
         None,
@@ -705,14 +707,14 @@ class Physics(_Part):
         1.0,
         ge=0.01,
         le=50.0,
-        description="Radius of a (spherical) robot, um: from 10 nm, a small nanoparticle, to "
-        "50 um.",
+        description="Radius of a (spherical) robot, µm: from 10 nm, a small nanoparticle, to "
+        "50 µm.",
     )
     swim_speed_um_s: float = Field(
         10.0,
         ge=0.0,
         le=1000.0,
-        description="Self-propulsion speed along the heading, um/s (0: a passive Brownian "
+        description="Self-propulsion speed along the heading, µm/s (0: a passive Brownian "
         "particle).",
     )
     max_turn_rate_rad_s: float = Field(
@@ -726,7 +728,7 @@ class Physics(_Part):
         None,
         ge=0.0,
         le=1e4,
-        description="Translational diffusion D_T, um^2/s. null: Stokes-Einstein, "
+        description="Translational diffusion D_T, µm²/s. null: Stokes-Einstein, "
         "k_B T / (6 pi eta R), filled in in the resolved scenario. At most 1e4, above any "
         "Stokes-Einstein value the other bounds allow (2,930: 10 nm, 0.01 mPa s, 400 K).",
     )
@@ -743,15 +745,15 @@ class Physics(_Part):
         7.5,
         ge=0.5,
         le=100.0,
-        description="Radius of a cancer cell, um; a robot reaches a cell when its surface "
-        "touches the cell's. At least 0.5 um, a bacterium's: no cell is smaller.",
+        description="Radius of a cancer cell, µm; a robot reaches a cell when its surface "
+        "touches the cell's. At least 0.5 µm, a bacterium's: no cell is smaller.",
     )
     cell_diffusion_um2_s: float = Field(
         0.005,
         ge=0.0,
         le=100.0,
-        description="Cells move as a random walk with this diffusion coefficient, um^2/s "
-        "(0.005: about 1.3 um a minute).",
+        description="Cells move as a random walk with this diffusion coefficient, µm²/s "
+        "(0.005: about 1.3 µm a minute).",
     )
     secretion_molecules_s: float = Field(
         100.0,
@@ -764,8 +766,8 @@ class Physics(_Part):
         100.0,
         ge=0.01,
         le=1e4,
-        description="Diffusion coefficient of the biomarker molecule, um^2/s (about 100 for a "
-        "small protein, 60 for an antibody). At least 0.01, a 30 um bead's in water: every "
+        description="Diffusion coefficient of the biomarker molecule, µm²/s (about 100 for a "
+        "small protein, 60 for an antibody). At least 0.01, a 30 µm bead's in water: every "
         "molecule diffuses faster.",
     )
     decay_rate_s: float = Field(
@@ -906,8 +908,8 @@ class Communication(_Part):
         100.0,
         ge=0.01,
         le=1e4,
-        description="Active Brownian: the signal's diffusion coefficient, um^2/s (a small "
-        "protein in tissue: about 100). At least 0.01, a 30 um bead's in water: every molecule "
+        description="Active Brownian: the signal's diffusion coefficient, µm²/s (a small "
+        "protein in tissue: about 100). At least 0.01, a 30 µm bead's in water: every molecule "
         "diffuses faster.",
     )
     decay_rate_s: float = Field(
@@ -931,7 +933,7 @@ class Communication(_Part):
         15.0,
         gt=0.0,
         le=10_000.0,
-        description="Broadcast: how far a message carries, length units (um in active_brownian).",
+        description="Broadcast: how far a message carries, length units (µm in active_brownian).",
     )
     nodes_per_axis: int = Field(
         33,
@@ -962,12 +964,12 @@ class Scenario(_Part):
         "field, no walls, no obstacles) with NanoNav's Q-learning. Hard: "
         "'hard-single' and 'hard-swarm', the paper's worlds with honest sensing (a noise floor "
         "of 0.01 and a detection threshold of 0.005 on the readings, cells sensed within 2 "
-        "units only) and 30 drifting obstacles. Physical (physics.model active_brownian, um "
-        "and s): 'tumour-microswimmers', one tumour cell (7.5 um) among 40 tissue obstacles "
-        "(5 um) in a 150 um cube, 20 robots of 1 um swimming at 10 um/s that sense a cell by "
+        "units only) and 30 drifting obstacles. Physical (physics.model active_brownian, µm "
+        "and s): 'tumour-microswimmers', one tumour cell (7.5 µm) among 40 tissue obstacles "
+        "(5 µm) in a 150 µm cube, 20 robots of 1 µm swimming at 10 µm/s that sense a cell by "
         "touching it and take up space (hard spheres), 60 s; 'tumour-nanorobots', the same "
-        "with robots of 0.2 um; "
-        "'tumour-passive', robots of 1 um that do not swim (uncontrolled, speed 0). The "
+        "with robots of 0.2 µm; "
+        "'tumour-passive', robots of 1 µm that do not swim (uncontrolled, speed 0). The "
         "swarm's: 'diffuse-tumour', 20 small cells that each need 3 payloads, scattered through "
         "a 100-unit cube, each shedding a faint, short-range marker (spread 3, a noise floor "
         "and a detection threshold), among 20 drifting obstacles; 100 robots that take up space "
@@ -1287,7 +1289,7 @@ class Scenario(_Part):
     @property
     def signal_rates(self) -> tuple[float, float, float]:
         """The signal's diffusion coefficient (length^2), decay rate and one bound robot's
-        release (concentration x length^3; in active_brownian nM um^3), per engine step."""
+        release (concentration x length^3; in active_brownian nM µm³), per engine step."""
         comm = self.communication
         if self.physics.model == "active_brownian":
             dt = self.physics.step_s
@@ -1502,7 +1504,8 @@ def deep_merge(base: dict[str, Any], override: dict[str, Any]) -> dict[str, Any]
     return merged
 
 
-# The worlds of the physical question (active Brownian, um and s): see the README.
+# The worlds of the physical question (active Brownian, µm and s): see
+# docs/explanation/learning.md.
 TUMOUR: dict[str, Any] = {
     "physics": {"model": "active_brownian", "time_limit_s": 60.0},
     "space": {"size": 150.0},
@@ -1510,7 +1513,7 @@ TUMOUR: dict[str, Any] = {
     "obstacles": {"count": 40, "radius": 5.0},
     "robots": {"count": 20, "cell_sensing_radius": 0.0, "exclusion": True},
 }
-# The swarm's world (lattice units and steps): see the README's "A swarm that is a swarm".
+# The swarm's world (lattice units and steps): see docs/explanation/swarm.md.
 DIFFUSE_TUMOUR: dict[str, Any] = {
     "space": {"size": 100.0},
     "cells": {"count": 20, "motion_std": 0.05, "start_extent": 0.9, "capacity": 3},
