@@ -23,7 +23,7 @@ written as such a turn too (``nanonav.rl.rules.TurnUpGradient``), run by the sam
   the same worlds: both networks, exported to ONNX, by the service's own path
   (``nanonav.rl.evaluate`` with onnxruntime, as a worker runs a ``policy_from`` network; the
   recurrent one carrying each robot's memory from decision to decision); 'gradient' (steer up the
-  sensed gradient: the strongest fixed rule, README "the physical question") and 'q_learning'
+  sensed gradient: the strongest fixed rule, docs/explanation/learning.md) and 'q_learning'
   (the tabular learner, its default 50 training episodes a seed) by ``simulate``.
 
 Printed: the share of robots that reach the cell (mean over seeds, 95 % interval), each deep

@@ -60,7 +60,7 @@ def bench_scenario(model: str, robots: int, robot_steps: int) -> Scenario:
             "obstacles": {"count": 10},
             "robots": {"count": robots, "policy": "q_learning"},
             "learning": {"episodes": episodes, "max_steps": 1000},
-            # one greedy evaluation world, as the figures in the README were first measured
+            # one greedy evaluation world, as the speed figures were first measured
             "evaluation": {"worlds": 1},
         }
     )

@@ -40,7 +40,7 @@ POLICIES = (
 )
 PRESET = "tumour-microswimmers"
 # The sweeps that choose a setting (decision_interval.py, run_and_tumble.py) choose it on seeds
-# from here on; the README reports it on others.
+# from here on; the documentation reports it on others.
 DESIGN_SEEDS = 5000
 
 J = TypeVar("J", bound=Hashable)
@@ -109,7 +109,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seeds", type=int, default=10)
     parser.add_argument(
         "--seeds-from", type=int, default=0,
-        help="the first seed (the README's figures: 0; replicate on seeds of your own)",
+        help="the first seed (the documentation's figures: 0; replicate on seeds of your own)",
     )  # fmt: skip
     parser.add_argument("--worlds", type=int, default=10, help="evaluation worlds per run")
     parser.add_argument(

@@ -1,5 +1,6 @@
-"""What a learning nanorobot gains over plain chemotaxis, and when: the README's tables, measured
-anew by anyone, with the same seeds for every method and paired comparisons.
+"""What a learning nanorobot gains over plain chemotaxis, and when: the tables of
+docs/explanation/learning.md, measured anew by anyone, with the same seeds for every method and
+paired comparisons.
 
     .venv/bin/python benchmarks/science.py [--quick] [--seeds N] [--seeds-from S] [--out DIR]
 
@@ -472,7 +473,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seeds", type=int, default=20, help="seeds per configuration")
     parser.add_argument(
         "--seeds-from", type=int, default=0,
-        help="the first seed (the README's figures: 0; replicate on seeds of your own)",
+        help="the first seed (the documentation's figures: 0; replicate on seeds of your own)",
     )  # fmt: skip
     parser.add_argument("--out", type=Path, help="write the pictures here")
     parser.add_argument("--quick", action="store_true", help="a smoke run: few seeds, episodes")

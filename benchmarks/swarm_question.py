@@ -101,7 +101,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seeds", type=int, default=10)
     parser.add_argument(
         "--seeds-from", type=int, default=0,
-        help="the first seed (the README's figures: 0; replicate on seeds of your own)",
+        help="the first seed (the documentation's figures: 0; replicate on seeds of your own)",
     )  # fmt: skip
     parser.add_argument("--worlds", type=int, default=3, help="evaluation worlds per run")
     parser.add_argument("--episodes", type=int, default=40, help="q_learning's training")

@@ -1,6 +1,6 @@
 """The design-seed sweeps of the active Brownian physics run end to end on seeds of the caller's
 choosing and print a row per setting, each paired with the gradient (values not asserted here:
-they are measurements, reported in the README with their commands)."""
+they are measurements, reported in the documentation with their commands)."""
 
 import re
 import sys

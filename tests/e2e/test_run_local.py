@@ -162,7 +162,7 @@ def test_the_nanonav_migrate_api_and_worker_commands(
 
 
 def test_run_local_on_postgresql_migrates_and_serves(postgres_url: str, tmp_path: Path) -> None:
-    """The README's ``DATABASE_URL=postgresql://... make run``, on the real server."""
+    """The documentation's ``DATABASE_URL=postgresql://... make run``, on the real server."""
     port = free_port()
     log = tmp_path / "run.log"
     command = [sys.executable, "-m", "nanonav.run_local"]
