@@ -8,6 +8,7 @@ process groups, so a Ctrl-C reaches this supervisor only, which then stops them 
 from __future__ import annotations
 
 import signal
+import socket
 import subprocess
 import sys
 import threading
@@ -44,6 +45,19 @@ def _wait_until_ready(url: str, api: subprocess.Popen[bytes], stop: threading.Ev
     return False
 
 
+def port_in_use(host: str, port: int) -> bool:
+    """Whether something already listens on ``host:port``: then the API could not bind it, and
+    the one answering /healthz there would be another server, taken for this one."""
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    with socket.socket(family, socket.SOCK_STREAM) as probe:
+        probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            probe.bind((host, port))
+        except OSError:
+            return True
+    return False
+
+
 def _workers_seen(store: JobStore) -> int:
     """How many workers were seen lately, read from the database (0 if it cannot say): asking
     the API's /healthz twice a second would fill its access log while a worker compiles."""
@@ -72,6 +86,13 @@ def main() -> int:
         for line in validation_messages(error):
             print(f"nanonav: {line}", file=sys.stderr)
         return 2
+    if port_in_use(settings.host, settings.port):
+        print(
+            f"nanonav: {settings.host}:{settings.port} is in use (another `make run`, or another "
+            f"program): stop it, or choose another port: `make run PORT={settings.port + 1}`",
+            file=sys.stderr,
+        )
+        return 1
     shown = make_url(settings.database_url).render_as_string(hide_password=True)
     print(f"nanonav: migrating {shown}", flush=True)
     upgrade(settings.database_url)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import re
 import signal
+import socket
 import subprocess
 import sys
 import time
@@ -214,3 +215,24 @@ def test_make_run_installs_the_driver_its_database_url_needs(url: str, extra: bo
     ).stdout  # fmt: skip
     assert ("'.[postgres]'" in planned) is extra, planned
     assert planned.rstrip().endswith("-m nanonav.run_local")
+
+
+def test_a_port_in_use_is_one_line_naming_another_before_anything_starts(tmp_path: Path) -> None:
+    """Another server on the port: ``make run`` says so and how to choose another, instead of
+    taking that server's /healthz for its own API's."""
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        done = subprocess.run(
+            [sys.executable, "-m", "nanonav.run_local"],
+            cwd=tmp_path,
+            env=clean_environment(PORT=str(port)),
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
+    assert done.returncode == 1 and done.stdout == ""
+    [line] = done.stderr.splitlines()
+    assert f"127.0.0.1:{port} is in use" in line and f"make run PORT={port + 1}" in line
+    assert not (tmp_path / "var").exists(), "nothing was migrated or started"
