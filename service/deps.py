@@ -15,6 +15,7 @@ from nanonav.store import JobStore, StudyStore
 from nanonav.store.deliveries import DeliveryStore
 from service.drawing import Drawer
 from service.events import Channel
+from service.json_keys import refuse_duplicate_keys
 from service.problems import UnsupportedMediaType
 from service.reports import Reports
 from service.text import refuse_nul
@@ -61,8 +62,9 @@ async def _study_events(request: Request) -> Channel:
 
 
 async def require_json(request: Request) -> None:
-    """A request body, if there is one, must be declared as JSON; and as the route may store
-    what the request holds, no text in it may hold NUL (``service.text``)."""
+    """A request body, if there is one, must be declared as JSON, with no key given twice in
+    an object (``service.json_keys``); and as the route may store what the request holds, no
+    text in it may hold NUL (``service.text``)."""
     if await request.body():
         media = request.headers.get("content-type", "").split(";")[0].strip().lower()
         kind, _, subtype = media.partition("/")
@@ -70,6 +72,7 @@ async def require_json(request: Request) -> None:
             raise UnsupportedMediaType(
                 f"the body must be application/json, not {media or 'undeclared'}"
             )
+    await refuse_duplicate_keys(request)
     await refuse_nul(request)
 
 

@@ -125,9 +125,12 @@ def list_jobs(
     limit: Annotated[int, Query(ge=1, le=100, description="Jobs per page.")] = 20,
     cursor: Cursor = None,
 ) -> JobPage:
-    """A page of jobs, newest first; with API keys, only the caller's own."""
-    if caller.scoped and study is not None and studies.owner_of(study) != caller.owner:
-        raise StudyNotFound(study)
+    """A page of jobs, newest first; with API keys, only the caller's own. A ``study`` that is
+    not there (or is another key's) is a 404."""
+    if study is not None:
+        owner = studies.owner_of(study)
+        if owner is None or (caller.scoped and owner != caller.owner):
+            raise StudyNotFound(study)
     before = None if cursor is None else decode_cursor(cursor)
     page = store.page(
         status=status,

@@ -15,17 +15,16 @@ from importlib import resources
 from pathlib import Path
 from typing import Annotated, Any, get_args
 
-from fastapi import APIRouter, Query, Request
+from fastapi import APIRouter, Depends, Query, Request
 from fastapi import Path as PathParam
 from fastapi.openapi.docs import get_swagger_ui_html
-from fastapi.responses import FileResponse, HTMLResponse, Response
+from fastapi.responses import FileResponse, HTMLResponse, RedirectResponse, Response
 from fastapi.templating import Jinja2Templates
 from pydantic import BaseModel, ConfigDict, Field
 
 from nanonav import table1
 from nanonav.policy import evaluation_scenario
 from nanonav.scenario import (
-    MAX_EXACT_INT,
     PRESETS,
     ActionSet,
     CommunicationModel,
@@ -45,10 +44,12 @@ from nanonav.store.policies import NETWORK, policy_number
 from nanonav.store.queue import PRESENCE_WINDOW_S
 from nanonav.studies.spec import GRID_KEYS
 from service.deps import ReportsDep, SettingsDep, StoreDep, StudiesDep
+from service.json_keys import refuse_duplicate_keys
 from service.numerals import positive_int
 from service.paging import Cursor, decode_cursor, encode_cursor
 from service.problems import Unauthorized
 from service.reports import Reports
+from service.routes.policies import get_policy
 from service.routes.studies import list_studies, study_answer
 from service.schemas import Job
 from service.security import Caller, CallerDep, caller_of, matching_key, owner_of
@@ -75,7 +76,8 @@ STUDY_COLUMNS = ("success_rate", "total_steps", "final_distance", "average_dista
 # And charts these, of those it reports, beside its learning curves.
 STUDY_PICTURES = ("success_rate", "total_steps", "average_distance", "treated_fraction",
                   "time_to_treat_all", "never_delivered")  # fmt: skip
-PageId = Annotated[int, PathParam(ge=1, le=MAX_EXACT_INT)]
+# A page's id is read as the API reads one (``service.ids``): plain digits, or no such page.
+PageId = Annotated[str, PathParam(max_length=40)]
 
 
 def _page(request: Request, name: str, status: int = 200, **context: Any) -> HTMLResponse:
@@ -97,6 +99,11 @@ def _page(request: Request, name: str, status: int = 200, **context: Any) -> HTM
 
 def _missing(request: Request, what: str) -> HTMLResponse:
     return _page(request, "missing.html", status=404, what=what)
+
+
+def _named(kind: str, spelled: str) -> str:
+    """What a missing page names: ``job 7``, or ``job '+7'`` for an id not in plain digits."""
+    return f"{kind} {spelled}" if positive_int(spelled) else f"{kind} {spelled!r}"
 
 
 def _form_choices() -> dict[str, Any]:
@@ -134,6 +141,11 @@ def index(
     source_id, policy_id = positive_int(from_), positive_int(policy)
     source = None if source_id is None else _visible_job(store, caller, source_id)
     evaluated = None if policy_id is None else _visible_policy(store, caller, policy_id)
+    unknown = [
+        f"There is no {_named(kind, given)} to fill the form in from: it holds the defaults."
+        for kind, given, found in (("job", from_, source), ("policy", policy, evaluated))
+        if given and found is None
+    ]
     form = (
         evaluation_scenario(evaluated, _observation(store, evaluated))
         if evaluated
@@ -146,7 +158,7 @@ def index(
     recent = list_studies(studies, caller, limit=5).studies
     return _page(
         request, "index.html", nav="new", jobs=jobs, studies=recent, source=source,
-        evaluated=evaluated, headlines=store.headlines([j.id for j in jobs]),
+        evaluated=evaluated, unknown=unknown, headlines=store.headlines([j.id for j in jobs]),
         form_json=json.dumps(form, indent=2) if form else "{}", **_form_choices(),
     )  # fmt: skip
 
@@ -189,6 +201,23 @@ def policies_page(
     )  # fmt: skip
 
 
+@router.get("/ui/policies/{policy_id}", response_class=HTMLResponse)
+def policy_page(
+    request: Request, policy_id: PageId, store: StoreDep, caller: CallerDep
+) -> HTMLResponse:
+    """A policy: what it chooses among and from, its greedy table or its network's labels, the
+    downloads, and the form that evaluates it."""
+    number = positive_int(policy_id)
+    record = None if number is None else _visible_policy(store, caller, number)
+    if number is None or record is None:
+        return _missing(request, _named("policy", policy_id))
+    try:
+        policy = get_policy(number, store)
+    except PolicyNotFound:  # deleted since it was read
+        return _missing(request, _named("policy", policy_id))
+    return _page(request, "policy.html", nav="policies", policy=policy)
+
+
 @router.get("/ui/jobs", response_class=HTMLResponse)
 def jobs_page(
     request: Request,
@@ -225,13 +254,22 @@ def jobs_page(
     )  # fmt: skip
 
 
+@router.get("/ui/jobs/new")
+def new_job_page(request: Request) -> RedirectResponse:
+    """The new-job form is the home page: this path, as /ui/studies/new is a study's, leads
+    there with its query (``from``, ``policy``)."""
+    query = request.url.query
+    return RedirectResponse("/" + (f"?{query}" if query else ""), status_code=307)
+
+
 @router.get("/ui/jobs/{job_id}", response_class=HTMLResponse)
 def job_page(request: Request, job_id: PageId, store: StoreDep, caller: CallerDep) -> HTMLResponse:
     """A job: its progress live, then its Table 1, pictures and 3-D paths."""
-    job = _visible_job(store, caller, job_id)
+    number = positive_int(job_id)
+    job = None if number is None else _visible_job(store, caller, number)
     if job is None:
-        return _missing(request, f"job {job_id}")
-    metrics = store.metrics(job_id) if job.status == "succeeded" else None
+        return _missing(request, _named("job", job_id))
+    metrics = store.metrics(job.id) if job.status == "succeeded" else None
     stride = 1
     if metrics is not None and metrics.get("worlds"):
         length = int(metrics["worlds"][0].get("episode_steps") or 1)
@@ -304,6 +342,17 @@ def _study_context(
     }
 
 
+def _visible_study(
+    studies: StudiesDep, reports: Reports, study_id: str, caller: Caller
+) -> dict[str, Any] | None:
+    """The study page's context, if ``study_id`` names a study the caller may see."""
+    number = positive_int(study_id)
+    try:
+        return None if number is None else _study_context(studies, reports, number, caller)
+    except StudyNotFound:
+        return None
+
+
 @router.get("/ui/studies/{study_id}", response_class=HTMLResponse)
 def study_page(
     request: Request,
@@ -313,10 +362,9 @@ def study_page(
     caller: CallerDep,
 ) -> HTMLResponse:
     """A study: its jobs filling in live, its table with intervals and paired comparisons."""
-    try:
-        context = _study_context(studies, reports, study_id, caller)
-    except StudyNotFound:
-        return _missing(request, f"study {study_id}")
+    context = _visible_study(studies, reports, study_id, caller)
+    if context is None:
+        return _missing(request, _named("study", study_id))
     return _page(request, "study.html", nav="studies", **context)
 
 
@@ -329,21 +377,31 @@ def study_results(
     caller: CallerDep,
 ) -> HTMLResponse:
     """The study page's results and counts alone, for the page to refresh as jobs finish."""
-    try:
-        context = _study_context(studies, reports, study_id, caller)
-    except StudyNotFound:
-        return _missing(request, f"study {study_id}")
+    context = _visible_study(studies, reports, study_id, caller)
+    if context is None:
+        return _missing(request, _named("study", study_id))
     return templates.TemplateResponse(request, "_study_fragment.html", context)
 
 
 @router.get("/ui/login", response_class=HTMLResponse)
 def login_page(
-    request: Request, next: Annotated[str, Query(max_length=2000)] = "/"
+    request: Request, settings: SettingsDep, next: Annotated[str, Query(max_length=2000)] = "/"
 ) -> HTMLResponse:
     """Where a person pastes an API key; once in, the page goes back to ``next`` if that is a
     path of this site, else to the dashboard."""
     target = same_site_path(next) or "/"
-    return templates.TemplateResponse(request, "login.html", {"next": target, "health": None})
+    context = {"next": target, "health": None, "lasts": lasting(settings.session_ttl_s)}
+    return templates.TemplateResponse(request, "login.html", context)
+
+
+def lasting(seconds: float) -> str:
+    """A session's lifetime in words: ``8 hours``, ``1 day``, ``90 minutes``."""
+    minutes = round(seconds / 60)
+    for unit, size in (("day", 1440), ("hour", 60)):
+        if minutes % size == 0:
+            count = minutes // size
+            return f"{count} {unit}{'' if count == 1 else 's'}"
+    return f"{minutes} minute{'' if minutes == 1 else 's'}"
 
 
 class Login(BaseModel):
@@ -352,7 +410,12 @@ class Login(BaseModel):
     key: str = Field(min_length=1, max_length=1000, description="An API key.")
 
 
-@router.post("/ui/login", status_code=204, response_class=Response)
+@router.post(
+    "/ui/login",
+    status_code=204,
+    response_class=Response,
+    dependencies=[Depends(refuse_duplicate_keys)],
+)
 def login(login: Login, request: Request, settings: SettingsDep) -> Response:
     """Check the key and answer with a signed session token in an HttpOnly, SameSite=Strict
     cookie that lasts NANONAV_SESSION_TTL_S: script cannot read it, another site's requests

@@ -303,3 +303,33 @@ def test_a_policy_is_evaluated_from_the_policies_page(page: Page, site: Site) ->
     assert scenario["policy_from"] == sent["policy_from"] and scenario["seed"] == 4
     assert scenario["learning"]["episodes"] == 0
     assert scenario["learning"]["actions"] == "directions"
+
+
+def test_a_swarm_studys_comparisons_can_be_read_to_their_right_edge_at_1400_pixels(
+    page: Page, site: Site
+) -> None:
+    base = {**QUICK, "robots": {"count": 3, "exclusion": True}, "cells": {"count": 2,
+            "capacity": 1}, "learning": {"episodes": 1, "max_steps": 300}}  # fmt: skip
+    grid = {"robots.policy": ["q_learning", "gradient", "random"],
+            "communication.model": ["none", "broadcast"],
+            "biomarker.detection_threshold": [0, 0.005]}  # fmt: skip
+    study = {"name": "a wide swarm table", "base": base, "grid": grid, "seeds": [1, 2],
+             "compare": "robots.policy"}  # fmt: skip
+    study_id = finished(site, "studies", study)
+    page.set_viewport_size({"width": 1400, "height": 900})
+    page.goto(f"{site.url}/ui/studies/{study_id}")
+    table = page.locator("#comparisons-table")
+    expect(table.locator("tbody tr")).to_have_count(8)
+    assert table.locator("thead th").count() >= 14  # the swarm's metrics: a wide table
+    # both tables are whole in the window, their last column in view without scrolling
+    for name in ("points-table", "comparisons-table"):
+        last = page.locator(f"#{name} thead th").last
+        edge = last.evaluate("(cell) => cell.getBoundingClientRect().right")
+        assert 0 < edge <= 1400, (name, edge)
+    widths = page.evaluate(
+        "Array.from(document.querySelectorAll('.study-table')).map((table) =>"
+        " [table.id, table.scrollWidth, table.parentElement.clientWidth])"
+    )
+    assert len(widths) == 2 and all(inside <= room for _, inside, room in widths), widths
+    assert page.evaluate("document.documentElement.scrollWidth") <= 1400
+    screenshot(page, "swarm-study-1400")

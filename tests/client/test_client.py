@@ -299,7 +299,9 @@ def test_an_ended_study_is_deleted_with_its_jobs(api: Client) -> None:
     with pytest.raises(ApiError) as caught:
         api.study(study.id)
     assert caught.value.status == 404
-    assert list(api.jobs(study=study.id)) == []
+    with pytest.raises(ApiError) as caught:
+        list(api.jobs(study=study.id))
+    assert caught.value.status == 404 and caught.value.title == "Study not found"
     with pytest.raises(ApiError) as caught:
         api.job(jobs[0])
     assert caught.value.status == 404

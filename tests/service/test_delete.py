@@ -95,7 +95,8 @@ def test_an_ended_study_is_deleted_with_its_jobs_report_and_pictures(
         assert_problem(api.client.get(f"/studies/{study_id}{path}"), 404)
     for job_id in jobs:
         assert_problem(api.client.get(f"/jobs/{job_id}"), 404)
-    assert api.client.get(f"/jobs?study={study_id}").json()["jobs"] == []
+    gone = assert_problem(api.client.get(f"/jobs?study={study_id}"), 404)
+    assert gone["detail"] == f"there is no study {study_id}"
     assert api.client.get("/studies").json()["studies"] == []
     assert_problem(api.client.delete(f"/studies/{study_id}"), 404)
 

@@ -11,12 +11,13 @@ from typing import Any
 
 import httpx
 import numpy as np
+import pytest
 
 from nanonav.engine import qlearning
 from nanonav.scenario import Scenario
 from nanonav.settings import Settings
 from nanonav.store import JobStatus, StudyJob, StudyStore
-from tests.conftest import Api
+from tests.conftest import SCRIPTED, Api
 from tests.service.test_security import KEY_A, KEY_B, bearer, served
 from worker.job import run_job
 
@@ -214,7 +215,7 @@ def test_the_policies_page_lists_them_and_the_form_evaluates_one(api: Api) -> No
     per_robot = send_policy(api.client, "directions", "none", robots=3)
     steering = send_policy(api.client, "steering", "broadcast")
     html = api.client.get("/ui/policies").text
-    rows = re.findall(r'<a href="/policies/(\d+)">#\d+</a>', html)
+    rows = re.findall(r'<a href="/ui/policies/(\d+)">#\d+</a>', html)
     assert rows == [str(steering["id"]), str(per_robot["id"])]
     assert f'href="/?policy={per_robot["id"]}"' in html
     assert "one per robot of 3" in html and "broadcast" in html
@@ -245,7 +246,8 @@ def test_another_keys_policies_are_neither_listed_nor_filled_in(sqlite_url: str)
         theirs = api.client.get("/ui/policies", headers=bearer(KEY_B)).text
         assert "No policies yet" in theirs
         assert (
-            f"/policies/{mine['id']}" in api.client.get("/ui/policies", headers=bearer(KEY_A)).text
+            f"/ui/policies/{mine['id']}"
+            in api.client.get("/ui/policies", headers=bearer(KEY_A)).text
         )
         form = api.client.get("/", params={"policy": mine["id"]}, headers=bearer(KEY_B)).text
         assert form_json(form) == {}
@@ -264,3 +266,89 @@ def test_ids_in_a_pages_query_are_ascii_digits_or_ignored(api: Api) -> None:
             assert answer.status_code == 200 and form_json(answer.text) == {}, (name, junk)
         listed = api.client.get(f"/ui/jobs?study={junk}")
         assert listed.status_code == 200 and listed.text.count("<tr>") == 1 + 2, junk
+
+
+# ---------------------------------------------------------------- policies, forms, login
+
+
+def test_a_policys_page_shows_its_greedy_table_and_is_linked_wherever_it_is_named(
+    api: Api,
+) -> None:
+    from tests.service.test_network_policies import OBSERVATION, network
+
+    sent = send_policy(api.client, "directions", "none")
+    states, _ = qlearning.labels("directions", "none")
+    page = api.client.get(f"/ui/policies/{sent['id']}")
+    assert page.status_code == 200 and page.headers["content-type"].startswith("text/html")
+    html = page.text
+    assert f"Policy #{sent['id']}" in html and "directions table" in html
+    assert f'policy_from: "{sent["policy_from"]}"' in markup.unescape(html)
+    assert html.count("<tr><td><code>") == len(states)
+    assert f'href="/?policy={sent["id"]}"' in html and f'href="/policies/{sent["id"]}"' in html
+    # linked from the list, the form that evaluates it and the job that did
+    assert f'href="/ui/policies/{sent["id"]}"' in api.client.get("/ui/policies").text
+    form = api.client.get("/", params={"policy": sent["id"]}).text
+    assert f'<a href="/ui/policies/{sent["id"]}">policy #{sent["id"]}</a>' in form
+    job = api.client.post("/jobs", json=form_json(form)).json()["id"]
+    assert f'href="/ui/policies/{sent["id"]}"' in api.client.get(f"/ui/jobs/{job}").text
+    model = network(api, name="mlp")
+    html = api.client.get(f"/ui/policies/{model['id']}").text
+    assert "A network (an ONNX model)" in html
+    assert all(f"<code>{label}</code>" in html for label in OBSERVATION)
+    assert f'href="/policies/{model["id"]}/model"' in html
+    assert api.client.get(f"/ui/policies/{model['id'] + 1}").status_code == 404
+
+
+def test_the_seed_field_says_a_blank_seed_is_drawn_at_random(api: Api) -> None:
+    seed = re.search(r'<input name="seed"[^>]*>', api.client.get("/").text)
+    assert seed is not None and 'placeholder="random"' in seed.group(0)
+
+
+def test_a_form_asked_to_start_from_what_is_not_there_says_so(api: Api) -> None:
+    for query, note in (
+        ("from=77", "There is no job 77 to fill the form in from: it holds the defaults."),
+        ("from=new", "There is no job &#39;new&#39; to fill the form in from"),
+        ("policy=5", "There is no policy 5 to fill the form in from"),
+    ):
+        page = api.client.get(f"/ui/jobs/new?{query}", follow_redirects=True)
+        assert page.status_code == 200 and str(page.url).endswith(f"/?{query}")
+        assert note in page.text and form_json(page.text) == {}, query
+    assert "unknown-source" not in api.client.get("/").text
+
+
+@pytest.mark.parametrize(("ttl_s", "lasts"), [(None, "8 hours"), (5400, "90 minutes"),
+                                              (86400, "1 day")])  # fmt: skip
+def test_the_login_page_says_how_long_a_session_lasts(
+    sqlite_url: str, ttl_s: float | None, lasts: str
+) -> None:
+    settings = Settings(database_url=sqlite_url, api_keys=f"{KEY_A},{KEY_B}")
+    if ttl_s is not None:
+        settings = settings.model_copy(update={"session_ttl_s": ttl_s})
+    with served(settings) as api:
+        html = api.client.get("/ui/login").text
+    assert f"gives this browser a session for {lasts}" in html
+    assert "Closing the\nbrowser does not end it" in html and "until it closes" not in html
+
+
+def test_with_keys_an_empty_job_list_says_jobs_from_before_keys_are_not_shown(
+    sqlite_url: str,
+) -> None:
+    with served(Settings(database_url=sqlite_url)) as api:
+        before = api.client.post("/jobs", json=TINY, headers=SCRIPTED)
+        assert before.status_code == 202, before.text
+        job = before.json()["id"]
+        assert api.store.get(job).owner == ""
+        assert "ownerless-note" not in api.client.get("/ui/jobs").text
+    settings = Settings(database_url=sqlite_url, api_keys=f"{KEY_A},{KEY_B}")
+    with served(settings) as api:
+        listed = api.client.get("/ui/jobs", headers=bearer(KEY_A)).text
+        assert "No jobs yet." in listed and 'id="ownerless-note"' in listed
+        assert f"/ui/jobs/{job}" not in listed
+        assert api.client.get(f"/jobs/{job}", headers=bearer(KEY_A)).status_code == 404
+        assert api.client.get(f"/ui/jobs/{job}", headers=bearer(KEY_B)).status_code == 404
+        assert api.store.get(job).owner == ""  # kept as it was
+        mine = api.client.post("/jobs", json=TINY, headers=bearer(KEY_A))
+        assert mine.status_code == 202
+        assert "ownerless-note" not in api.client.get("/ui/jobs", headers=bearer(KEY_A)).text
+    with served(Settings(database_url=sqlite_url)) as api:
+        assert f"/ui/jobs/{job}" in api.client.get("/ui/jobs").text

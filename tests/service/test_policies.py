@@ -264,7 +264,8 @@ def test_policies_are_listed_newest_first_a_page_at_a_time_and_deleted(api: Api)
     assert "values" not in first["policies"][0]
     rest = api.client.get(first["next"]).json()
     assert [p["id"] for p in rest["policies"]] == [ids[0]] and rest["next"] is None
-    assert api.client.get(f"/policies/0{ids[1]}").json()["id"] == ids[1]
+    assert api.client.get(f"/policies/policy-{ids[1]}").json()["id"] == ids[1]
+    assert_problem(api.client.get(f"/policies/0{ids[1]}"), 404)
     assert assert_problem(api.client.get("/policies/two"), 422)["errors"][0]["loc"] == [
         "path",
         "policy_id",
