@@ -34,6 +34,7 @@ STUDENT_T = "student_t"  # any real values: mean +- t sd / sqrt(n)
 WILSON = "wilson"  # outcomes that are each 0 or 1: the Wilson score interval
 LOGIT_T = "logit_t"  # values in [0, 1]: the t interval on the logit scale, mapped back
 LOG_T = "log_t"  # values in [0, inf): the t interval on the log scale, mapped back
+POOLED_WILSON = "pooled_wilson"  # shares of trials per seed: Wilson on the pooled trials
 INTERVAL_METHODS = {
     STUDENT_T: "Student t interval of the mean, from the sample standard deviation with n - 1 "
     "degrees of freedom",
@@ -42,11 +43,19 @@ INTERVAL_METHODS = {
     "(half-width t sd / (sqrt(n) m (1 - m))) and mapped back, so it stays inside (0, 1)",
     LOG_T: "Student t interval of the mean taken on the log scale by the delta method "
     "(half-width t sd / (sqrt(n) m)) and mapped back, so it stays above 0",
+    POOLED_WILSON: "Wilson score interval of the share of all trials of all n seeds (a seed's "
+    "value is its share of its trials: robots x worlds, or cells x worlds), with the trials "
+    "counted as the seeds' spread allows: their number divided by the design effect (the "
+    "variance of the pooled share over seeds, as seeds are the independent units, over the "
+    "binomial variance; at least 1) and by (t/z)^2 for n - 1 degrees of freedom, never more "
+    "than the trials themselves (Korn and Graubard's interval for clustered samples)",
 }
 CONFIDENCE_METHOD = (
     f"{DEFAULT_CONFIDENCE:.0%} confidence interval of the mean, made so that it stays in the "
     "metric's range, each named in its 'method': 'student_t' for unbounded metrics (and for mean "
-    "paired differences), 'wilson' for success rates of 0/1 outcomes, 'logit_t' for other "
+    "paired differences), 'pooled_wilson' for a study's shares of trials (success_rate, "
+    "treated_fraction, never_delivered: Wilson on the seeds' pooled trials, their number cut "
+    "to what the spread between seeds allows), 'wilson' for 0/1 outcomes, 'logit_t' for other "
     "metrics in [0, 1], 'log_t' for metrics that cannot be negative"
 )
 TEST_METHOD = (
@@ -175,8 +184,9 @@ def _expit(x: float) -> float:
     return 1.0 / (1.0 + math.exp(-x)) if x >= 0 else math.exp(x) / (1.0 + math.exp(x))
 
 
-def _wilson(p: float, n: int, confidence: float) -> tuple[float, float]:
-    """The Wilson score interval of a proportion ``p`` of ``n`` outcomes."""
+def _wilson(p: float, n: float, confidence: float) -> tuple[float, float]:
+    """The Wilson score interval of a proportion ``p`` of ``n`` outcomes (``n`` may be an
+    effective number, not a whole one)."""
     z = float(stats.norm.ppf(0.5 + confidence / 2))
     centre = (p + z * z / (2 * n)) / (1 + z * z / n)
     half = z / (1 + z * z / n) * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n))
@@ -203,6 +213,69 @@ def describe(
     if bounds not in (None, (0.0, 1.0), (0.0, math.inf)):
         raise ValueError(f"bounds must be None, (0, 1) or (0, inf), not {bounds!r}")
     return _describe(_finite_array(values, "values"), confidence, bounds)
+
+
+def describe_share(
+    shares: Sequence[float],
+    trials: Sequence[float],
+    confidence: float = DEFAULT_CONFIDENCE,
+) -> Description:
+    """The share of successes over seeds, each seed's value ``shares[i]`` the share of its
+    ``trials[i]`` trials (a success rate over robots x worlds, a treated fraction over cells x
+    worlds), with a ``confidence`` interval that respects both what the trials say and that
+    only seeds are independent (``POOLED_WILSON``).
+
+    The mean is the pooled share, sum(shares x trials) / sum(trials) (with equal trials, the
+    mean of the shares). The interval is Wilson's for that share of ``n_eff`` trials:
+
+    - ``v``, the variance of the pooled share estimated from the spread between seeds (the
+      ratio estimator's, ``k / (k - 1) sum((m_i / N)^2 (p_i - p)^2)`` for ``k`` seeds with
+      ``m_i`` trials, ``N`` in all): the seeds are the independent units, and the trials of one
+      seed (its robots, its worlds, its one learned table) are not independent of each other;
+    - ``n_eff = min(N, p (1 - p) / v x (z / t_{k-1})^2)``: the trials counted as many as
+      independent ones would give that variance (``N`` over the design effect, which is taken
+      as at least 1), then fewer for ``v``'s own uncertainty with few seeds (Korn and
+      Graubard, 1998); when the seeds do not differ at all, or the share is 0 or 1, the
+      binomial variance is all there is, and ``n_eff`` is ``N``.
+
+    So every seed at 1.0 over 600 trials in all gives [0.994, 1], shorter than one failure in
+    600 does, and 200 successes of 200 trials give [0.981, 1], not the [0.72, 1] of ten seeds
+    taken as ten trials. Its coverage, checked by simulation in ``tests/test_stats.py``
+    (4,000 synthetic studies a case), is 94.4 % to 96.8 % from shares of 0.005 to 0.995, with
+    independent trials or seeds and worlds that differ (intra-class correlation up to 0.1), 5
+    to 30 seeds; it falls to about 91 % with 10 seeds of strongly clustered trials (0.05)
+    near a share of 0.03, where few seeds say little about the spread.
+    ``sd`` is the seeds' standard deviation; with one seed there is no interval.
+    ``ValueError`` for shares outside [0, 1], trials not positive, or lengths that differ.
+    """
+    _check_confidence(confidence)
+    values = _finite_array(shares, "shares")
+    weights = _finite_array(trials, "trials")
+    if len(values) != len(weights):
+        raise ValueError(f"{len(values)} shares but {len(weights)} trial counts")
+    if np.any((values < 0.0) | (values > 1.0)):
+        raise ValueError("shares must lie in [0, 1]")
+    if np.any(weights <= 0.0):
+        raise ValueError("every seed needs at least one trial")
+    k = len(values)
+    if k == 0:
+        return Description(0, None, None, None, None, POOLED_WILSON)
+    total = math.fsum(weights.tolist())
+    equal = bool(np.all(weights == weights[0]))
+    mean = exact_mean(values) if equal else math.fsum((values * weights).tolist()) / total
+    mean = min(max(mean, 0.0), 1.0)
+    if k == 1:
+        return Description(1, mean, None, None, None, POOLED_WILSON)
+    sd = 0.0 if np.all(values == values[0]) else float(values.std(ddof=1))
+    spread = k / (k - 1) * math.fsum(((weights / total) ** 2 * (values - mean) ** 2).tolist())
+    binomial = mean * (1.0 - mean)
+    effective = total
+    if spread > 0.0 and binomial > 0.0:
+        z = float(stats.norm.ppf(0.5 + confidence / 2))
+        t = _t_quantile(0.5 + confidence / 2, k - 1)
+        effective = min(total, binomial / spread * (z / t) ** 2)
+    low, high = _wilson(mean, effective, confidence)
+    return Description(k, mean, sd, low, high, POOLED_WILSON)
 
 
 @lru_cache(maxsize=1024)

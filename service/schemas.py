@@ -554,17 +554,22 @@ class Interval(BaseModel):
     """A metric over a grid point's succeeded seeds."""
 
     n: int = Field(description="Succeeded jobs with a value for this metric.")
-    mean: float | None
+    mean: float | None = Field(
+        description="The mean over those seeds; for a share of trials (success_rate, "
+        "treated_fraction, never_delivered), the share of all their trials pooled."
+    )
     sd: float | None = Field(description="Sample standard deviation (n - 1); null when n < 2.")
     ci_low: float | None = Field(
-        description="95% interval of the mean, inside the metric's range (see method)."
+        description="95% interval of the mean, inside the metric's range (see method); the "
+        "seeds are its independent units."
     )
     ci_high: float | None
     method: str = Field(
         "student_t",
-        description="How the interval was made: 'student_t', 'wilson' (0/1 outcomes), "
-        "'logit_t' (other values in [0, 1]) or 'log_t' (values that cannot be negative); the "
-        "study's 'interval' says each in words.",
+        description="How the interval was made: 'pooled_wilson' (a share of trials: Wilson on "
+        "the seeds' pooled trials, counted only as many as the spread between seeds allows), "
+        "'student_t', 'wilson' (0/1 outcomes), 'logit_t' (other values in [0, 1]) or 'log_t' "
+        "(values that cannot be negative); the study's 'interval' says each in words.",
     )
 
 

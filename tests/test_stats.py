@@ -385,3 +385,135 @@ def test_holm_lies_between_the_raw_p_value_and_bonferroni_and_keeps_their_ranks(
 def test_holm_refuses_what_is_not_a_p_value(bad: list[float]) -> None:
     with pytest.raises(ValueError):
         stats.holm(bad)
+
+
+# ---------------------------------------------------------------- shares of trials over seeds
+
+
+def test_a_perfect_column_draws_a_shorter_bar_than_one_with_a_failure() -> None:
+    """30 seeds of 20 trials: all succeed, or one trial of 600 fails. Seeds taken as 30 trials
+    gave the perfect column [0.886, 1], longer than the other's logit t [0.987, 0.9998]."""
+    perfect = stats.describe_share([1.0] * 30, [20] * 30)
+    one_failure = stats.describe_share([1.0] * 29 + [0.95], [20] * 30)
+    assert perfect.method == one_failure.method == stats.POOLED_WILSON
+    assert perfect.mean == 1.0 and perfect.ci_high == 1.0
+    assert perfect.ci_low == pytest.approx(600 / (600 + 1.959963984540054**2))  # Wilson at 1
+    assert one_failure.mean == pytest.approx(599 / 600)
+    assert one_failure.ci_low is not None and one_failure.ci_high is not None
+    assert one_failure.ci_low < perfect.ci_low < 1.0
+    assert 1.0 - perfect.ci_low < one_failure.ci_high - one_failure.ci_low
+
+
+def test_all_200_trials_succeeding_over_ten_seeds_is_not_ten_trials() -> None:
+    """The command line showed 1 [0.7225, 1] for 200 successes of 200: ten seeds as ten
+    trials. Their trials say more."""
+    assert describe([1.0] * 10, bounds=(0.0, 1.0)).ci_low == pytest.approx(0.7225, abs=1e-4)
+    found = stats.describe_share([1.0] * 10, [20] * 10)
+    assert found.n == 10 and found.ci_low == pytest.approx(200 / (200 + 1.959963984540054**2))
+
+
+def wilson_low(share: float, n: float) -> float:
+    z = 1.959963984540054
+    centre = (share + z * z / (2 * n)) / (1 + z * z / n)
+    return centre - z / (1 + z * z / n) * math.sqrt(share * (1 - share) / n + z * z / (4 * n * n))
+
+
+def test_seeds_that_differ_more_than_their_trials_allow_widen_the_interval() -> None:
+    """The same pooled share of 50 %: seeds at 0.5 each (no more spread than the binomial's:
+    Wilson on the 1,000 trials) against seeds at 0.1 and 0.9 (the spread between seeds counts
+    the trials as about ten: p (1 - p) / v (z / t_9)^2, v = sd^2 / 10 (9 / 10) (10 / 9))."""
+    alike = stats.describe_share([0.5] * 10, [100] * 10)
+    apart = stats.describe_share([0.1, 0.9] * 5, [100] * 10)
+    assert alike.mean == apart.mean == 0.5
+    assert alike.ci_low == pytest.approx(wilson_low(0.5, 1000))
+    spread = 10 / 9 * sum((0.1 / 1) ** 2 * (v - 0.5) ** 2 for v in [0.1, 0.9] * 5)
+    z, t = 1.959963984540054, float(scipy_stats.t.ppf(0.975, 9))
+    effective = 0.25 / spread * (z / t) ** 2
+    assert effective == pytest.approx(10.56, abs=0.01)
+    assert apart.ci_low == pytest.approx(wilson_low(0.5, effective))
+    assert apart.ci_high == pytest.approx(1.0 - wilson_low(0.5, effective))
+
+
+def test_unequal_trials_pool_into_the_share_of_all_trials() -> None:
+    found = stats.describe_share([1.0, 0.0, 0.5], [10, 30, 20])
+    assert found.mean == pytest.approx(20 / 60)
+    assert found.n == 3 and found.sd == pytest.approx(0.5)
+
+
+@pytest.mark.parametrize(
+    ("shares", "trials"),
+    [([0.5, 1.2], [10, 10]), ([0.5, -0.1], [10, 10]), ([0.5, 0.5], [10, 0]), ([0.5], [1, 2])],
+)
+def test_shares_outside_0_1_and_seeds_without_trials_are_refused(
+    shares: list[float], trials: list[float]
+) -> None:
+    with pytest.raises(ValueError):
+        stats.describe_share(shares, trials)
+
+
+def test_no_seed_or_one_seed_has_no_interval() -> None:
+    assert stats.describe_share([], []).mean is None
+    one = stats.describe_share([0.25], [40])
+    assert one.mean == 0.25 and one.ci_low is None and one.ci_high is None
+
+
+def synthetic_shares(
+    rng: np.random.Generator,
+    share: float,
+    seeds: int,
+    trials: tuple[int, int],
+    correlation: tuple[float, float],
+) -> np.ndarray:  # type: ignore[type-arg]
+    """One study's seed values of a true ``share``: each seed draws its own success probability
+    (Beta, intra-class correlation ``correlation[0]``: its learned table), each of its worlds
+    one around it (``correlation[1]``: the world's layout), and each of its robots succeeds
+    with the world's probability; a seed's value is its share of robots x worlds
+    (``trials``)."""
+    robots, worlds = trials
+
+    def beta(mean: np.ndarray, rho: float, shape: tuple[int, ...]) -> np.ndarray:  # type: ignore[type-arg]
+        if rho == 0.0:
+            return np.broadcast_to(mean, shape).astype(float)
+        inside = np.clip(mean, 1e-12, 1 - 1e-12)
+        return rng.beta(inside * (1 / rho - 1), (1 - inside) * (1 / rho - 1), shape)
+
+    per_seed = beta(np.array(share), correlation[0], (seeds,))
+    per_world = beta(per_seed[:, None], correlation[1], (seeds, worlds))
+    successes = rng.binomial(robots, per_world).sum(axis=1)
+    return successes / (robots * worlds)  # type: ignore[no-any-return]
+
+
+COVERAGE_REPLICATIONS = 4000
+# Wilson's interval is itself approximate: at these numbers of trials its coverage wanders by
+# about 1.5 points about 95 % as the share moves, so that much is allowed beyond the noise.
+APPROXIMATION = 0.015
+
+
+@pytest.mark.parametrize(
+    ("share", "seeds", "trials", "correlation"),
+    [
+        (0.5, 10, (20, 10), (0.0, 0.0)),  # independent trials
+        (0.995, 30, (1, 20), (0.0, 0.0)),  # near 1: one robot, 20 worlds
+        (0.005, 30, (1, 20), (0.0, 0.0)),  # near 0
+        (0.5, 30, (20, 10), (0.05, 0.05)),  # seeds and worlds that differ
+        (0.97, 30, (20, 10), (0.02, 0.02)),
+        (0.03, 30, (20, 10), (0.02, 0.02)),
+        (0.5, 5, (20, 10), (0.1, 0.0)),  # five seeds that differ much
+    ],
+)
+def test_the_share_interval_covers_the_true_share_in_about_95_percent_of_studies(
+    share: float, seeds: int, trials: tuple[int, int], correlation: tuple[float, float]
+) -> None:
+    """Many synthetic studies of a known share: the interval holds it in 95 % of them, within
+    three binomial standard errors of that many replications (plus ``APPROXIMATION``)."""
+    rng = np.random.default_rng(20250611)
+    robots, worlds = trials
+    held = 0
+    for _ in range(COVERAGE_REPLICATIONS):
+        values = synthetic_shares(rng, share, seeds, trials, correlation)
+        found = stats.describe_share(values.tolist(), [robots * worlds] * seeds)
+        assert found.ci_low is not None and found.ci_high is not None
+        held += found.ci_low <= share <= found.ci_high
+    coverage = held / COVERAGE_REPLICATIONS
+    error = math.sqrt(0.95 * 0.05 / COVERAGE_REPLICATIONS)
+    assert abs(coverage - 0.95) <= 3 * error + APPROXIMATION, coverage

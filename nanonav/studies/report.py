@@ -18,7 +18,8 @@ import numpy as np
 
 from nanonav import stats
 from nanonav.engine.metrics import RANGES, SWARM
-from nanonav.studies.spec import GridValue, StudySpec
+from nanonav.scenario import Scenario
+from nanonav.studies.spec import GridValue, StudySpec, points
 
 # The paper's Table 1, then success, collisions and path efficiency: every study reports them.
 # Table 1's duration is left out: it is the wall-clock time a run took on whatever machine ran
@@ -40,6 +41,23 @@ WALL_CLOCK_COLUMN = "wall_clock_duration_s"
 # cells or signal have them, so a study reports each only once one of its jobs has it.
 SWARM_METRICS: tuple[str, ...] = SWARM
 METRICS = PAPER_METRICS + SWARM_METRICS
+SHARES_OF: dict[str, str] = {
+    "success_rate": "robots",
+    "never_delivered": "robots",
+    "treated_fraction": "cells",
+}
+"""The metrics that are a share of trials in each evaluation world, and what the trials are: a
+job's success rate is the share of its robots x worlds that reached a cell, its treated
+fraction the share of its cells x worlds treated. Their intervals pool the seeds' trials
+(``nanonav.stats.describe_share``)."""
+
+
+def trials(scenario: Scenario, metric: str) -> int:
+    """How many trials a job of ``scenario`` counts ``metric``'s share over (``SHARES_OF``)."""
+    counted = scenario.robots.count if SHARES_OF[metric] == "robots" else scenario.cells.count
+    return counted * scenario.evaluation.worlds
+
+
 # A job's learning curve is kept at most this many points long (episodes averaged in bins).
 CURVE_POINTS = 200
 CURVE_KEYS = ("steps", "success_rate", "mean_return")
@@ -120,11 +138,15 @@ def _value(job: JobOutcome, metric: str) -> float | None:
 def report(
     spec: StudySpec, values: Sequence[dict[str, GridValue]], jobs: Sequence[JobOutcome]
 ) -> dict[str, Any]:
-    """The statistics of a study whose grid points have ``values`` (in point order)."""
+    """The statistics of a study whose grid points have ``values`` (in point order): each
+    metric's mean over the seeds that succeeded with its interval, a share of trials
+    (``SHARES_OF``) by ``stats.describe_share`` over the seeds' pooled trials, any other metric
+    by ``stats.describe`` within its range; and the paired comparisons."""
     by_point: dict[int, list[JobOutcome]] = {i: [] for i in range(len(values))}
     for job in jobs:
         by_point[job.point].append(job)
     metrics = reported_metrics(jobs)
+    scenarios = [point.scenario for point in points(spec)]
     point_rows = []
     for index, point_values in enumerate(values):
         members = by_point[index]
@@ -132,7 +154,12 @@ def report(
         described = {}
         for metric in metrics:
             sample = [v for v in (_value(j, metric) for j in members) if v is not None]
-            described[metric] = stats.describe(sample, bounds=RANGES[metric]).to_dict()
+            if metric in SHARES_OF:
+                each = trials(scenarios[index], metric)
+                found = stats.describe_share(sample, [each] * len(sample))
+            else:
+                found = stats.describe(sample, bounds=RANGES[metric])
+            described[metric] = found.to_dict()
         point_rows.append(
             {"index": index, "values": point_values, "jobs": dict(counts), "metrics": described}
         )

@@ -68,12 +68,33 @@ def signed_rank_p(differences: list[float]) -> float:
     return min(1.0, hits / len(patterns))
 
 
+def pooled_wilson(values: list[float], trials: int) -> tuple[float, float]:
+    """Wilson on the seeds' pooled trials, counted as their spread allows (``describe_share``)."""
+    mean, n = statistics.fmean(values), len(values)
+    total = trials * n
+    spread = n / (n - 1) * sum((1 / n) ** 2 * (v - mean) ** 2 for v in values)
+    z = 1.959963984540054
+    effective = float(total)
+    if spread > 0 and 0 < mean < 1:
+        effective = min(total, mean * (1 - mean) / spread * (z / T_975_2) ** 2)
+    centre = (mean + z * z / (2 * effective)) / (1 + z * z / effective)
+    half = (
+        z
+        / (1 + z * z / effective)
+        * math.sqrt(mean * (1 - mean) / effective + z * z / (4 * effective * effective))
+    )
+    return max(0.0, centre - half), min(1.0, centre + half)
+
+
 def interval_of(
-    values: list[float], bounds: tuple[float, float] | None, method: str
+    values: list[float], bounds: tuple[float, float] | None, method: str, trials: int
 ) -> tuple[float, float]:
-    """The 95 % interval of three values worked out here, for the method the range calls for."""
+    """The 95 % interval of three values worked out here, for the method the range calls for
+    (a share of ``trials`` per seed pools them)."""
     mean, n = statistics.fmean(values), len(values)
     sd = statistics.stdev(values)
+    if method == "pooled_wilson":
+        return pooled_wilson(values, trials)
     outcomes = bounds == (0.0, 1.0) and all(v in (0.0, 1.0) for v in values)
     if sd == 0.0 and not outcomes:  # n outcomes alike still leave a proportion uncertain
         return mean, mean
@@ -128,7 +149,10 @@ def test_a_study_runs_and_its_statistics_match_the_jobs(
             assert got["n"] == 3
             assert got["mean"] == pytest.approx(mean, rel=1e-12, abs=1e-12)
             assert got["sd"] == pytest.approx(sd, rel=1e-9, abs=1e-12)
-            low, high = interval_of(values, RANGES[metric], got["method"])
+            summary = summaries[(policy, count, 1)]
+            trials = int(summary["robots"]) * int(summary["worlds"])
+            low, high = interval_of(values, RANGES[metric], got["method"], trials)
+            assert (got["method"] == "pooled_wilson") == (metric == "success_rate")
             assert got["ci_low"] == pytest.approx(low, rel=1e-9, abs=1e-9)
             assert got["ci_high"] == pytest.approx(high, rel=1e-9, abs=1e-9)
 

@@ -11,6 +11,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
+from nanonav import stats
 from nanonav.engine.metrics import SWARM
 from nanonav.studies.export import to_csv, to_parquet
 from nanonav.studies.report import (
@@ -26,7 +27,7 @@ from nanonav.studies.report import (
     table,
     table_columns,
 )
-from nanonav.studies.spec import StudySpec, point_values
+from nanonav.studies.spec import StudySpec, point_values, points
 
 SPEC = StudySpec.model_validate(
     {"grid": {"communication.model": ["none", "attractant"]}, "seeds": [1, 2, 3],
@@ -124,12 +125,15 @@ def test_treated_and_undelivered_shares_are_proportions_with_intervals_in_0_1() 
     point = report(SPEC, point_values(SPEC), jobs)["points"][0]["metrics"]
     treated, success = point["treated_fraction"], point["success_rate"]
     assert 0.0 <= treated["ci_low"] <= treated["mean"] <= treated["ci_high"] <= 1.0
-    assert (treated["method"], treated["ci_low"], treated["ci_high"]) == (
-        success["method"], success["ci_low"], success["ci_high"]
-    )  # fmt: skip
-    assert treated["method"] == "logit_t"  # shares in [0, 1], not 0/1 outcomes
+    # shares of trials: the seeds' cells x worlds and robots x worlds, pooled
+    scenario = points(SPEC)[0].scenario
+    cells = scenario.cells.count * scenario.evaluation.worlds
+    robots = scenario.robots.count * scenario.evaluation.worlds
+    assert treated == stats.describe_share(TREATED, [cells] * 3).to_dict()
+    assert success == stats.describe_share(TREATED, [robots] * 3).to_dict()
+    assert treated["method"] == success["method"] == "pooled_wilson"
     undelivered = point["never_delivered"]
-    assert undelivered["method"] == "logit_t"
+    assert undelivered["method"] == "pooled_wilson"
     assert 0.0 <= undelivered["ci_low"] < undelivered["ci_high"] <= 1.0
     assert point["time_to_treat_all"]["method"] == "log_t"  # steps: never negative
 

@@ -33,7 +33,7 @@ EVERY_STUDYS_PICTURES = (*PAPER_METRICS, "learning")
 """The pictures every study has, whatever its jobs report."""
 SECONDS_PANEL = "time per episode (s)"
 """The first learning panel of a study whose every point is active Brownian: steps x dt_s."""
-VERSION = 4
+VERSION = 5
 """The version of the drawing of every picture of a study: it goes up when a picture drawn
 before would now be drawn differently, so that a copy kept of the older drawing is drawn again.
 2: series and groups named in words (``robots policy: q_learning``, not
@@ -41,7 +41,9 @@ before would now be drawn differently, so that a copy kept of the older drawing 
 (bounded metrics have others: ``nanonav.stats``). 3: an active Brownian study's learning curves
 give each episode's length in seconds. 4: a study that sweeps only its compared number draws it
 as a line, a share's axis runs from 0 to 1, episodes are whole numbers, a study without
-training episodes says so, and the wall-clock duration is no metric."""
+training episodes says so, and the wall-clock duration is no metric. 5: a share of trials
+has the interval of its seeds' pooled trials (``nanonav.stats.describe_share``), so a perfect
+column no longer draws the longest bar."""
 NO_EPISODES = "no training episodes in this study"
 """What the learning picture of a study whose finished jobs trained for no episode says."""
 
