@@ -76,6 +76,14 @@ class Progress(BaseModel):
     fraction: float = Field(ge=0.0, le=1.0, description="Share of the run's work done.")
 
 
+def offers_qtable(job: JobRecord) -> bool:
+    """Whether the job has a Q-table to offer: the store keeps one (a fixed rule's run and a
+    network's have none), and it holds what was learned or evaluated: the run trained for some
+    episodes, or evaluated a table (policy_from). An untrained learner's table is all zeros."""
+    trained = int((job.scenario.get("learning") or {}).get("episodes", 0)) > 0
+    return job.has_qtable and (trained or job.scenario.get("policy_from") is not None)
+
+
 class JobLinks(BaseModel):
     """Where the job's results are, as far as it has them: null (and no picture) until it
     succeeds; a cancelled job that had started keeps its metrics, Q-table and their pictures."""
@@ -140,7 +148,7 @@ class Job(BaseModel):
         done = job.status is JobStatus.SUCCEEDED
         # a job cancelled while it ran keeps the episodes it finished
         kept = job.status is JobStatus.CANCELLED and job.started_at is not None
-        learns = (job.scenario.get("robots") or {}).get("policy", "q_learning") == "q_learning"
+        table = offers_qtable(job)
         swarm = job_pictures.treatment_drawn(job.scenario)
         return cls(
             id=job.id,
@@ -165,13 +173,13 @@ class Job(BaseModel):
                 cancel=f"{base}/cancel",
                 metrics=f"{base}/metrics" if done or kept else None,
                 trajectory=f"{base}/trajectory" if done else None,
-                qtable=f"{base}/qtable" if (done or kept) and learns else None,
+                qtable=f"{base}/qtable" if (done or kept) and table else None,
                 heatmap=f"{base}/heatmap.png" if done else None,
                 plots={
                     name: plot_link(base, name)
                     for name in PLOTS
                     if (done or (kept and name in ("learning", "qtable")))
-                    and (learns or name != "qtable")
+                    and (table or name != "qtable")
                     and (swarm or name != "treatment")
                 },
                 study=None if job.study_id is None else f"/studies/{job.study_id}",
@@ -279,8 +287,10 @@ class Metrics(BaseModel):
         default_factory=dict,
         description="Per summary number: n (worlds where it exists), sd and the 95% interval of "
         "its mean over the evaluation worlds, kept to the number's range, and the method that "
-        "made it: 'wilson' (0/1 outcomes), 'logit_t' (other values in [0, 1]), 'log_t' "
-        "(values that cannot be negative) or 'student_t'.",
+        "made it: 'pooled_wilson' (a share of trials, success_rate and never_delivered of "
+        "robots, treated_fraction of cells: Wilson on the worlds' trials pooled, as many as the "
+        "spread between worlds allows), 'wilson' (0/1 outcomes), 'logit_t' (other values in "
+        "[0, 1]), 'log_t' (values that cannot be negative) or 'student_t'.",
     )
     worlds: list[dict[str, Any]] = Field(
         default_factory=list, description="Every evaluation world's own summary."

@@ -84,6 +84,16 @@ SWARM = (
     "never_delivered",
 )
 
+SHARES_OF: dict[str, str] = {
+    "success_rate": "robots",
+    "never_delivered": "robots",
+    "treated_fraction": "cells",
+}
+"""The metrics that are a share of trials in each evaluation world, and what the trials are: the
+success rate is the share of a world's robots that reached a cell, the treated fraction the
+share of its cells treated. Their intervals pool the trials (``nanonav.stats.describe_share``):
+a world all of whose 20 robots reached a cell says more than one trial's 1."""
+
 # Each averaged metric's range, which its interval keeps to (``nanonav.stats.describe``).
 UNBOUNDED = None
 PROPORTION = (0.0, 1.0)
@@ -196,17 +206,22 @@ def world_summary(
 
 
 def over_worlds(
-    worlds: Sequence[dict[str, Any]],
+    worlds: Sequence[dict[str, Any]], cells: int
 ) -> tuple[dict[str, Any], dict[str, dict[str, Any]]]:
     """The summary (each number the mean over the worlds where it exists, counts summed) and,
-    per averaged metric, its n, sd and 95% interval over the worlds, kept to its range."""
+    per averaged metric, its n, sd and 95% interval over the worlds, kept to its range; a share
+    of trials (``SHARES_OF``; ``cells`` cells a world) pools the worlds' trials."""
     summary: dict[str, Any] = {}
     uncertainty: dict[str, dict[str, Any]] = {}
     given = tuple(key for key in SWARM if worlds and key in worlds[0])
     for key in AVERAGED + given:
         values = [float(w[key]) for w in worlds if w.get(key) is not None]
         values = [v for v in values if math.isfinite(v)]
-        described = stats.describe(values, bounds=RANGES[key])
+        if key in SHARES_OF:
+            each = int(worlds[0]["robots"]) if SHARES_OF[key] == "robots" else cells
+            described = stats.describe_share(values, [each] * len(values))
+        else:
+            described = stats.describe(values, bounds=RANGES[key])
         summary[key] = described.mean
         uncertainty[key] = {
             "n": described.n,

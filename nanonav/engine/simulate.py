@@ -648,7 +648,7 @@ def simulate(
     if run.episode < total:
         return SimulationResult(scenario, {}, [], curve, work, None, qtable, completed=False)
     worlds, rows = run.evaluated(eval_s)
-    summary, uncertainty = metrics.over_worlds(worlds)
+    summary, uncertainty = metrics.over_worlds(worlds, scenario.cells.count)
     return SimulationResult(
         scenario, summary, rows, curve, work, run.trajectory(), qtable,
         uncertainty=uncertainty, worlds=worlds, physics=derived_physics(scenario, summary),

@@ -149,7 +149,7 @@ def evaluate(
         run.done += size
     engine_s = run.seconds
     worlds, rows_of_first = evaluated_worlds(scenario, tallies, cells, steps, robot_steps, engine_s)
-    summary, uncertainty = metrics.over_worlds(worlds)
+    summary, uncertainty = metrics.over_worlds(worlds, scenario.cells.count)
     # decide_calls: what marks a result decided from outside (a network's, say)
     work = {"robot_steps": int(robot_steps.sum()), "engine_s": engine_s, "decide_calls": run.calls}
     return SimulationResult(

@@ -17,7 +17,7 @@ from typing import Any, Literal
 import numpy as np
 
 from nanonav import stats
-from nanonav.engine.metrics import RANGES, SWARM
+from nanonav.engine.metrics import RANGES, SHARES_OF, SWARM
 from nanonav.scenario import Scenario
 from nanonav.studies.spec import GridValue, StudySpec, points
 
@@ -41,15 +41,6 @@ WALL_CLOCK_COLUMN = "wall_clock_duration_s"
 # cells or signal have them, so a study reports each only once one of its jobs has it.
 SWARM_METRICS: tuple[str, ...] = SWARM
 METRICS = PAPER_METRICS + SWARM_METRICS
-SHARES_OF: dict[str, str] = {
-    "success_rate": "robots",
-    "never_delivered": "robots",
-    "treated_fraction": "cells",
-}
-"""The metrics that are a share of trials in each evaluation world, and what the trials are: a
-job's success rate is the share of its robots x worlds that reached a cell, its treated
-fraction the share of its cells x worlds treated. Their intervals pool the seeds' trials
-(``nanonav.stats.describe_share``)."""
 
 
 def trials(scenario: Scenario, metric: str) -> int:

@@ -8,7 +8,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from nanonav.engine import simulate
+from nanonav import stats
+from nanonav.engine import metrics, simulate
 from nanonav.scenario import Scenario
 
 
@@ -35,6 +36,22 @@ def test_the_summary_is_the_mean_over_the_evaluation_worlds_with_its_uncertainty
             assert spread["sd"] == pytest.approx(statistics.stdev(sample), rel=1e-9)
             assert spread["ci_low"] < result.summary[key] < spread["ci_high"]
     assert result.summary["reached"] == sum(w["reached"] for w in result.worlds)
+
+
+def test_a_share_of_robots_pools_the_worlds_robots_into_its_interval() -> None:
+    """Ten worlds of 20 robots that all reach a cell are 200 successes of 200, not ten: the
+    interval is Wilson's over the pooled trials, [0.981, 1], where ten trials gave [0.72, 1]."""
+    perfect = [
+        {"success_rate": 1.0, "robots": 20, "reached": 20, "swept_up": 0, "total_steps": 5.0}
+        for _ in range(10)
+    ]
+    _, uncertainty = metrics.over_worlds(perfect, cells=1)
+    share = uncertainty["success_rate"]
+    assert share["method"] == stats.POOLED_WILSON and share["n"] == 10
+    assert share["ci_high"] == 1.0 and share["ci_low"] == pytest.approx(0.9812, abs=1e-4)
+    one_miss = [*perfect[:9], {**perfect[0], "success_rate": 0.95, "reached": 19}]
+    _, missed = metrics.over_worlds(one_miss, cells=1)
+    assert missed["success_rate"]["ci_low"] < share["ci_low"], "a miss widens the interval"
 
 
 def test_every_policy_on_a_seed_is_judged_in_the_same_worlds() -> None:
