@@ -538,7 +538,8 @@ class Client:
 
     def qtable(self, job_id: int) -> dict[str, Any]:
         """The learned Q-table: ``states``, ``actions``, ``values``, ``visits``, and ``greedy``,
-        the greedy action of every state (all empty for a baseline policy)."""
+        the greedy action of every state. A job without one (a fixed rule, a network, 0
+        training episodes) raises ApiError 404 ``no-qtable``; its ``links["qtable"]`` is None."""
         return self._json("GET", f"/jobs/{job_id}/qtable")
 
     def picture(

@@ -299,12 +299,12 @@ def _job_files(api: Client, job_id: int) -> Iterator[tuple[str, bytes]]:
         raise UsageError([f"job {job_id} has no results: {ended}{why}"])
     yield "metrics.json", _document(api.metrics(job_id))
     yield "trajectory.npz", api.trajectory_npz(job_id)
-    qtable = api.qtable(job_id)
-    yield "qtable.json", _document(qtable)
+    if job.links.get("qtable"):
+        yield "qtable.json", _document(api.qtable(job_id))
     plots = job.links.get("plots") or {}
     for name in JOB_PICTURES:
-        if name in QTABLE_PICTURES and not qtable["states"]:
-            continue  # a baseline policy learns no table to draw
+        if name in QTABLE_PICTURES and name not in plots:
+            continue  # a fixed rule, a network or an untrained learner has no table to draw
         if name in SWARM_PICTURES and name not in plots:
             continue  # a run of lone robots has no treatment to draw
         yield f"{name}.png", api.picture(job_id, name)

@@ -14,7 +14,19 @@ from datetime import UTC, datetime, timedelta
 from typing import Any
 
 from numpy.typing import NDArray
-from sqlalchemy import Engine, Row, bindparam, case, delete, func, literal, select, text, update
+from sqlalchemy import (
+    Engine,
+    Row,
+    Select,
+    bindparam,
+    case,
+    delete,
+    func,
+    literal,
+    select,
+    text,
+    update,
+)
 from sqlalchemy.exc import IntegrityError, SQLAlchemyError
 from sqlalchemy.orm import Session
 
@@ -71,10 +83,13 @@ class JobRecord:
     attempts: int
     study_id: int | None = None
     owner: str = ""
+    # Whether the store keeps a Q-table for the job (its run ended with one): read with the
+    # record by :data:`_RECORDS`; a record of an ORM row says False.
+    has_qtable: bool = False
 
     @classmethod
     def of(cls, row: Job | Row[Any]) -> JobRecord:
-        """The record of an ORM row, or of a row of :data:`RECORD_COLUMNS`."""
+        """The record of an ORM row, or of a row of :data:`_RECORDS`."""
         return cls(
             id=row.id,
             status=JobStatus(row.status),
@@ -92,12 +107,21 @@ class JobRecord:
             attempts=row.attempts,
             study_id=row.study_id,
             owner=row.owner,
+            has_qtable=isinstance(row, Row) and bool(row.has_qtable),
         )
 
 
 # The columns a JobRecord is made of, and the read of one job by id, built once.
-RECORD_COLUMNS = tuple(Job.__table__.c[name] for name in JobRecord.__dataclass_fields__)
-_RECORDS = select(*RECORD_COLUMNS)
+RECORD_COLUMNS = tuple(
+    Job.__table__.c[name] for name in JobRecord.__dataclass_fields__ if name != "has_qtable"
+)
+_HAS_QTABLE = (
+    select(JobResult.job_id)
+    .where(JobResult.job_id == Job.id, JobResult.qtable.is_not(None))
+    .exists()
+    .label("has_qtable")
+)
+_RECORDS: Select[Any] = select(*RECORD_COLUMNS, _HAS_QTABLE)
 _RECORD_BY_ID = _RECORDS.where(Job.id == bindparam("job_id"))
 # Whether anything waits: read without a lock before a claim takes one.
 _ANY_QUEUED = select(Job.id).where(Job.status == JobStatus.QUEUED).limit(1)
@@ -246,7 +270,7 @@ class JobStore:
         """Up to ``limit`` jobs, newest first, older than ``before_id`` when given; only those
         in ``status``, of ``study_id``, whose robots follow ``policy``, or of ``owner``, when
         given; only those of no study if ``standalone``."""
-        query = select(Job).order_by(Job.id.desc()).limit(limit + 1)
+        query = _RECORDS.order_by(Job.id.desc()).limit(limit + 1)
         if owner is not None:
             query = query.where(Job.owner == owner)
         if status is not None:
@@ -260,7 +284,7 @@ class JobStore:
         if before_id is not None:
             query = query.where(Job.id < before_id)
         with unit_of_work(self._sessions) as session:
-            rows = [JobRecord.of(row) for row in session.scalars(query)]
+            rows = [JobRecord.of(row) for row in session.execute(query)]
         more = len(rows) > limit
         rows = rows[:limit]
         return Page(jobs=rows, next_before_id=rows[-1].id if more else None)
@@ -278,7 +302,8 @@ class JobStore:
             elif row.status != JobStatus.CANCELLED:
                 raise JobAlreadyFinished(job_id, JobStatus(row.status))
             session.flush()
-            return JobRecord.of(row)
+            # read back as get() reads it: a job cancelled before may keep its Q-table
+            return JobRecord.of(session.execute(_RECORD_BY_ID, {"job_id": job_id}).one())
 
     def delete(self, job_id: int, *, now: datetime | None = None) -> None:
         """Delete a finished job of no study with its results, pictures and settled webhook

@@ -39,7 +39,16 @@ from service.problems import (
     problems,
 )
 from service.responses import FiniteJSONResponse
-from service.schemas import Callback, GreedyState, Job, JobPage, Metrics, QTable, Trajectory
+from service.schemas import (
+    Callback,
+    GreedyState,
+    Job,
+    JobPage,
+    Metrics,
+    QTable,
+    Trajectory,
+    offers_qtable,
+)
 from service.security import SCRIPTED_ONLY, CallerDep, owned_tables, quota_of
 
 router = APIRouter(prefix="/jobs", tags=["jobs"])
@@ -297,16 +306,11 @@ def get_qtable(
     """The learned action values and visit counts, with state and action labels, and the
     greedy action of every state.
 
-    ``npz`` holds the arrays ``states``, ``actions``, ``values`` and ``visits`` (a job that
-    learned no table gives empty ones); ``csv`` has a row per state and action."""
-    arrays = store.qtable(job_id)
-    if not arrays:
-        arrays = {
-            "states": np.array([], dtype=np.str_),
-            "actions": np.array([], dtype=np.str_),
-            "values": np.zeros((0, 0)),
-            "visits": np.zeros((0, 0), dtype=np.int64),
-        }
+    ``npz`` holds the arrays ``states``, ``actions``, ``values`` and ``visits``; ``csv`` has a
+    row per state and action. A job that has no table (its robots followed a fixed rule, a
+    network decided, or it trained for 0 episodes without a policy_from) is a 404
+    ``no-qtable`` saying which, as its links offer none."""
+    arrays = _qtable(store, job_id)
     if format != "json":
         name = f"nanonav-job-{job_id}-qtable.{format}"
         download = {"Content-Disposition": f'attachment; filename="{name}"', **IMMUTABLE}
@@ -317,7 +321,7 @@ def get_qtable(
         )
     states = arrays["states"].tolist()
     actions = arrays["actions"].tolist()
-    greedy = greedy_table(states, actions, arrays["values"], arrays["visits"]) if states else []
+    greedy = greedy_table(states, actions, arrays["values"], arrays["visits"])
     table = QTable(
         states=states,
         actions=actions,
@@ -398,8 +402,9 @@ async def get_plot(
     drawer: DrawerDep,
 ) -> Response:
     """A picture of the run: 3-D trajectory, concentration over time, learning curve, the
-    learned Q-table (404 for a job whose policy learns none), or the swarm's treatment over
-    time (404 for a job whose robots neither take up space, treat cells nor signal).
+    learned Q-table (404 for a job that has none, as ``GET /jobs/{id}/qtable``), or the
+    swarm's treatment over time (404 for a job whose robots neither take up space, treat cells
+    nor signal).
 
     The job's links name a picture with ``?v=`` the version of its drawing once it has been
     drawn anew, so that no cache keeps an older one; any ``v`` gets the current drawing."""
@@ -444,20 +449,32 @@ def _check_treatment(store: JobStore, job_id: int) -> None:
         )
 
 
-def _qtable_png(store: JobStore, job_id: int) -> bytes:
+def _qtable(store: JobStore, job_id: int) -> dict[str, NDArray[Any]]:
+    """The job's Q-table, if it offers one (``schemas.offers_qtable``): 404 ``no-qtable``
+    saying why it has none; 409 while it has no results."""
     arrays = store.qtable(job_id)
-    if not arrays:
-        scenario = store.get(job_id).scenario
-        source = scenario.get("policy_from")
-        if isinstance(source, str):
-            raise NoQTable(
-                f"job {job_id} learned no Q-table: it evaluated {source}, a network, which has none"
-            )
-        policy = scenario.get("robots", {}).get("policy")
-        raise NoQTable(
-            f"job {job_id} learned no Q-table: its robots used the {policy!r} policy, and only "
-            "q_learning learns one"
+    job = store.get(job_id)
+    if arrays and offers_qtable(job):
+        return arrays
+    scenario = job.scenario
+    source = scenario.get("policy_from")
+    policy = (scenario.get("robots") or {}).get("policy", "q_learning")
+    if policy != "q_learning":
+        why = f"its robots used the {policy!r} policy, and only q_learning learns one"
+    elif isinstance(source, str) and not arrays:
+        why = f"it evaluated {source}, a network, which has none"
+    elif not arrays:
+        why = "it kept none"
+    else:
+        why = (
+            "it trained for 0 episodes (learning.episodes) and evaluated no policy_from, so its "
+            "table holds nothing learned"
         )
+    raise NoQTable(f"job {job_id} learned no Q-table: {why}")
+
+
+def _qtable_png(store: JobStore, job_id: int) -> bytes:
+    arrays = _qtable(store, job_id)
     return pictures.qtable_png(
         arrays["states"].tolist(), arrays["actions"].tolist(), arrays["values"], arrays["visits"]
     )

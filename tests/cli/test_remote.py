@@ -246,16 +246,15 @@ def test_fetch_of_a_swarm_job_writes_its_treatment_picture(
     assert imread(tmp_path / "treatment.png", format="png").ndim == 3
 
 
-def test_fetch_of_a_baseline_job_writes_no_qtable_picture(
+def test_fetch_of_a_baseline_job_writes_no_qtable(
     live_api: LiveApi, tmp_path: Path, capsys: pytest.CaptureFixture[str], api: Client
 ) -> None:
     job = api.wait(api.submit({**TINY, "robots": {"count": 1, "policy": "gradient"}}).id)
     assert job.status == "succeeded"
     assert main(["fetch", str(job.id), "--out", str(tmp_path), "--url", live_api.url]) == 0
     written = sorted(p.name for p in tmp_path.iterdir())
-    assert "qtable.json" in written and "trajectory.png" in written
-    assert "qtable.png" not in written
-    assert json.loads((tmp_path / "qtable.json").read_text())["greedy"] == []
+    assert "metrics.json" in written and "trajectory.png" in written
+    assert "qtable.json" not in written and "qtable.png" not in written
 
 
 def test_fetch_of_a_table_policy_writes_one_file_and_says_file(

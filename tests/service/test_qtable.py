@@ -7,6 +7,7 @@ import csv
 import io
 
 import numpy as np
+import pytest
 from matplotlib.image import imread
 
 from nanonav.engine import qlearning
@@ -50,12 +51,56 @@ def test_per_robot_tables_give_the_greedy_table_of_their_mean(
     assert [g["visits"] for g in answer["greedy"]] == visits.sum(axis=(0, 2)).tolist()
 
 
-def test_a_job_without_a_qtable_answers_an_empty_greedy_table(
-    api: Api, api_settings: Settings
+def job_without_a_table(api: Api, settings: Settings, kind: str) -> tuple[int, str]:
+    """A succeeded job that has no Q-table, of ``kind``; and why, as its 404 says."""
+    if kind == "network":
+        from tests.service.test_network_policies import EVALUATE, network
+
+        source = network(api)["policy_from"]
+        job = ran(api.store, settings, {**EVALUATE, "policy_from": source})
+        return job, f"it evaluated {source}, a network, which has none"
+    if kind == "untrained":
+        job = ran(api.store, settings, {**TINY, "learning": {"episodes": 0, "max_steps": 60}})
+        return job, (
+            "it trained for 0 episodes (learning.episodes) and evaluated no policy_from, so "
+            "its table holds nothing learned"
+        )
+    job = ran(api.store, settings, {**TINY, "robots": {"count": 1, "policy": kind}})
+    return job, f"its robots used the {kind!r} policy, and only q_learning learns one"
+
+
+@pytest.mark.parametrize("kind", ["gradient", "random", "untrained", "network"])
+def test_a_job_without_a_qtable_is_404_saying_why_and_offers_none(
+    api: Api, api_settings: Settings, kind: str
 ) -> None:
-    baseline = ran(api.store, api_settings, {**TINY, "robots": {"count": 1, "policy": "gradient"}})
-    answer = api.client.get(f"/jobs/{baseline}/qtable").json()
-    assert answer == {"states": [], "actions": [], "values": [], "visits": [], "greedy": []}
+    job, why = job_without_a_table(api, api_settings, kind)
+    assert api.store.get(job).status is JobStatus.SUCCEEDED
+    detail = f"job {job} learned no Q-table: {why}"
+    for path in ("qtable", "qtable?format=csv", "qtable?format=npz", "plots/qtable.png"):
+        body = assert_problem(api.client.get(f"/jobs/{job}/{path}"), 404)
+        assert body["type"].endswith("no-qtable") and body["detail"] == detail, path
+    links = api.client.get(f"/jobs/{job}").json()["links"]
+    assert links["qtable"] is None and "qtable" not in links["plots"]
+    assert links["metrics"] == f"/jobs/{job}/metrics"
+    listed = api.client.get("/jobs").json()["jobs"]
+    assert [j["links"]["qtable"] for j in listed if j["id"] == job] == [None]
+    page = api.client.get(f"/ui/jobs/{job}").text
+    assert f"/jobs/{job}/qtable" not in page and f"/jobs/{job}/plots/qtable.png" not in page
+    assert f"/jobs/{job}/metrics" in page
+
+
+def test_a_learning_job_offers_its_qtable_and_its_download(api: Api, trained: int) -> None:
+    links = api.client.get(f"/jobs/{trained}").json()["links"]
+    assert links["qtable"] == f"/jobs/{trained}/qtable"
+    assert api.client.get(links["qtable"]).status_code == 200
+    page = api.client.get(f"/ui/jobs/{trained}").text
+    assert f'href="/jobs/{trained}/qtable"' in page
+
+
+def test_a_queued_jobs_qtable_is_409_not_404(api: Api) -> None:
+    job = api.client.post("/jobs", json={**TINY, "robots": {"count": 1, "policy": "random"}})
+    body = assert_problem(api.client.get(f"/jobs/{job.json()['id']}/qtable"), 409)
+    assert body["type"].endswith("results-unavailable")
 
 
 def test_per_robot_tables_of_values_near_the_float_limit_answer_a_finite_greedy_table(
@@ -121,15 +166,6 @@ def test_per_robot_tables_download_as_csv_with_a_robot_column(
     assert {row[0] for row in rows[1:]} == {"0", "1"}
 
 
-def test_a_job_without_a_qtable_downloads_empty_tables(api: Api, api_settings: Settings) -> None:
-    baseline = ran(api.store, api_settings, {**TINY, "robots": {"count": 1, "policy": "gradient"}})
-    text = api.client.get(f"/jobs/{baseline}/qtable?format=csv").text
-    assert text == "state,action,value,visits\n"
-    npz = api.client.get(f"/jobs/{baseline}/qtable?format=npz").content
-    with np.load(io.BytesIO(npz), allow_pickle=False) as arrays:
-        assert arrays["states"].size == 0 and arrays["values"].size == 0
-
-
 def test_an_unknown_qtable_format_is_a_422_naming_it(api: Api, trained: int) -> None:
     body = assert_problem(api.client.get(f"/jobs/{trained}/qtable?format=xml"), 422)
     assert body["errors"][0]["loc"] == ["query", "format"]
@@ -148,16 +184,3 @@ def test_the_qtable_picture_is_drawn_from_the_stored_table_and_kept(api: Api, tr
     assert image.shape[:2] == (1500, 830)  # 72 states x 4 actions: a tall picture
     assert float(image[..., :3].std()) > 0.05
     assert api.store.plot(trained, "qtable.v2") == response.content
-
-
-def test_the_qtable_picture_of_a_baseline_job_is_404_saying_why(
-    api: Api, api_settings: Settings
-) -> None:
-    baseline = ran(api.store, api_settings, {**TINY, "robots": {"count": 1, "policy": "random"}})
-    body = assert_problem(api.client.get(f"/jobs/{baseline}/plots/qtable.png"), 404)
-    assert body["type"].endswith("no-qtable")
-    assert body["detail"] == (
-        f"job {baseline} learned no Q-table: its robots used the 'random' policy, and only "
-        "q_learning learns one"
-    )
-    assert api.store.plot(baseline, "qtable") is None
