@@ -32,6 +32,8 @@ RawPolicyName = Annotated[
         max_length=len(POLICY_PREFIX) + len(str(MAX_EXACT_INT)),
         description="The policy's id, or its name as policy_from names it, policy-<id>.",
         examples=["3", "policy-3"],
+        # documents the plain spellings; any other is answered by the dependency (404 or 422)
+        json_schema_extra={"pattern": r"^(policy-)?[1-9][0-9]{0,14}$"},
     ),
 ]
 # What a number in a path may be, read as leniently as FastAPI reads an ``int`` parameter.
