@@ -45,7 +45,8 @@ def test_a_swarms_study_shows_the_swarms_numbers(api: Api) -> None:
     assert set(SWARM) <= set(study["links"]["plots"])
     assert set(study["points"][0]["metrics"]) == set(METRICS)
     header = next(csv.reader(io.StringIO(api.client.get(f"/studies/{study_id}/results.csv").text)))
-    assert header[-len(METRICS) :] == list(METRICS)
+    assert header[-len(METRICS) - 1 : -1] == list(METRICS)
+    assert header[-1] == "wall_clock_duration_s", "the run's wall clock, after the results"
     page = api.client.get(f"/ui/studies/{study_id}").text
     for shown in ("treated fraction", "time to treat all", "never delivered", "bumps"):
         assert f"<th>{shown}</th>" in page, shown
