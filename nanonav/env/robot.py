@@ -51,7 +51,7 @@ class NanoNavEnv(gymnasium.Env[NDArray[np.float64], np.int64]):
     swarm's: ``NanoNavParallelEnv``; here ``robots.count`` is 1).
 
     Observation: a ``Box`` of float64s, what the robot senses this step, in the scenario's
-    units (lattice: its concentration and length units; active_brownian: nM, nM/um, um);
+    units (lattice: its concentration and length units; active_brownian: nM, nM/µm, µm);
     ``observation_labels`` names those the scenario fills, of: the reading (with the sensor's
     noise; 0 below the detection threshold); its change (from the last reading, or in
     active_brownian from the reading's memory); the sensed gradient (x, y, z; lattice only:

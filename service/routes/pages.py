@@ -301,6 +301,7 @@ def studies_page(
     caller: CallerDep,
     cursor: Cursor = None,
 ) -> HTMLResponse:
+    """Studies, newest first, 25 a page, each with its jobs per status."""
     page = list_studies(studies, caller, limit=25, cursor=cursor)
     next_url = None if page.next_cursor is None else f"/ui/studies?cursor={page.next_cursor}"
     return _page(
@@ -311,6 +312,7 @@ def studies_page(
 
 @router.get("/ui/studies/new", response_class=HTMLResponse)
 def new_study_page(request: Request, settings: SettingsDep) -> HTMLResponse:
+    """The new-study form: a base scenario, the keys to sweep and their values, the seeds."""
     return _page(
         request, "study_new.html", nav="new-study", grid_keys=list(GRID_KEYS),
         max_jobs=settings.study_max_jobs, **_form_choices(),

@@ -191,7 +191,8 @@ def test_an_active_brownian_jobs_page_says_its_physics_and_units(
     record = run_job(api.store, claim, api_settings, threading.Event())
     assert record is not None and record.status is JobStatus.SUCCEEDED
     html = api.client.get(f"/ui/jobs/{job.id}").text
-    assert "active Brownian robots of 1.0 um swimming at 10.0 um/s" in html
+    assert "active Brownian robots of 1.0 µm swimming at 10.0 µm/s" in html
+    assert " um" not in html, "lengths are in µm"
     assert "steps of 0.01 s (0.3 s in all)" in html and "gaussian field" not in html
     for name in ("trajectory", "concentration", "learning"):
         picture = api.client.get(f"/jobs/{job.id}/plots/{name}.png")
