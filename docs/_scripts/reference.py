@@ -235,6 +235,12 @@ def routes_page() -> str:
         "but `/healthz`, `/readyz` and the dashboard's login needs `Authorization: Bearer KEY` "
         "(see [Keys and sessions](../how-to/keys-and-sessions.md)).",
         "",
+        "An id in a path is written in plain decimal digits (`/jobs/12`): another spelling of a "
+        "number (`+12`, `012`, `12.0`) is a 404 whose message names the plain path, and text "
+        "that is not a number a 422 naming the parameter; a policy is also `/policies/policy-12`, "
+        "the name `policy_from` takes. A JSON body that gives a key twice in one object is a 400 "
+        "`duplicate-key` naming where; a `?study=` that names no study of the caller's is a 404.",
+        "",
     ]
     for tag, rows in routes_by_tag(document).items():
         lines += [f"## {tag}", "", "| Method | Path | What it does |", "| --- | --- | --- |"]
