@@ -43,8 +43,8 @@ def repeated_key(text: bytes) -> Path | None:
     then the key), in document order; None when none is, or when ``text`` is no JSON."""
     try:
         value = json.loads(text, object_pairs_hook=_object)
-    except ValueError:
-        return None  # not JSON: the route refuses it as such
+    except (ValueError, RecursionError):
+        return None  # not JSON, or nested past the parser's depth: the route refuses it as such
     pending: list[tuple[Path, Any]] = [((), value)]
     while pending:
         path, item = pending.pop()

@@ -10,6 +10,7 @@ import httpx
 import pytest
 
 from nanonav.engine import qlearning
+from service.json_keys import repeated_key
 from tests.conftest import Api
 from tests.service.test_api import assert_problem
 from tests.service.test_security import STUDY
@@ -177,3 +178,11 @@ def test_the_same_key_in_different_objects_is_no_duplicate(api: Api) -> None:
     response = api.client.post("/jobs", content=body, headers={"Content-Type": "application/json"})
     assert response.status_code == 202, response.text
     assert response.json()["scenario"]["seed"] == 4
+
+
+def test_a_body_nested_past_the_parsers_depth_is_no_duplicate_and_no_error() -> None:
+    """The check reads the body before the route does: a body nested deeper than Python's
+    parser goes is left for the route to refuse (400), not raised as a RecursionError."""
+    deep = b"[" * 100_000 + b"]" * 100_000
+    assert repeated_key(deep) is None
+    assert repeated_key(b'{"a": [{"b": 1, "b": 2}]}') == ("a", 0, "b")
