@@ -331,7 +331,7 @@ def test_the_login_page_says_how_long_a_session_lasts(
     assert "Closing the\nbrowser does not end it" in html and "until it closes" not in html
 
 
-def test_with_keys_an_empty_job_list_says_jobs_from_before_keys_are_not_shown(
+def test_with_keys_an_empty_list_says_what_was_made_before_keys_is_not_shown(
     sqlite_url: str,
 ) -> None:
     with served(Settings(database_url=sqlite_url)) as api:
@@ -348,6 +348,9 @@ def test_with_keys_an_empty_job_list_says_jobs_from_before_keys_are_not_shown(
         assert api.client.get(f"/jobs/{job}", headers=bearer(KEY_A)).status_code == 404
         assert api.client.get(f"/ui/jobs/{job}", headers=bearer(KEY_B)).status_code == 404
         assert api.store.get(job).owner == ""  # kept as it was
+        for page, what in (("/ui/studies", "studies"), ("/ui/policies", "policies")):
+            empty = api.client.get(page, headers=bearer(KEY_A)).text
+            assert 'id="ownerless-note"' in empty and f"Only the {what} of the key" in empty
         mine = api.client.post("/jobs", json=TINY, headers=bearer(KEY_A))
         assert mine.status_code == 202
         assert "ownerless-note" not in api.client.get("/ui/jobs", headers=bearer(KEY_A)).text
