@@ -173,6 +173,7 @@ def test_the_readme_stays_a_front_door() -> None:
     assert len(lines) <= 300
     first_screen = "\n".join(lines[:45])
     assert "make run" in first_screen and "docs/" in first_screen
+    assert "docs/reference/scenario.md" in first_screen, "where the reference lives"
     assert "curl -s -X POST localhost:8000/jobs" in first_screen
 
 
