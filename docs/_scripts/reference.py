@@ -88,7 +88,7 @@ def bounds_of(schema: dict[str, Any]) -> str:
     """Every bound of a schema and of its alternatives: ≥, >, ≤, <, a length or a pattern."""
     if "anyOf" in schema:
         return "; ".join(b for b in (bounds_of(option) for option in schema["anyOf"]) if b)
-    marks = {"minimum": "≥", "exclusiveMinimum": ">", "maximum": "≤", "exclusiveMaximum": "<"}
+    marks = {"minimum": "≥", "exclusiveMinimum": "&gt;", "maximum": "≤", "exclusiveMaximum": "&lt;"}
     said = [f"{mark} {number(schema[key])}" for key, mark in marks.items() if key in schema]
     if "minLength" in schema or "maxLength" in schema:
         said.append(f"{schema.get('minLength', 0)}-{schema.get('maxLength', '∞')} characters")
@@ -129,16 +129,21 @@ def scenario_page() -> str:
     return "\n".join(lines)
 
 
+def facts(*said: tuple[str, str]) -> str:
+    """A field's short facts stacked in one table cell: the description gets the width."""
+    return "<br>".join(f"{what}: {text}" for what, text in said if text)
+
+
 def field_table(prefix: str, fields: list[tuple[str, dict[str, Any]]]) -> list[str]:
-    rows = [
-        "| Field | Type | Default | Bounds | Unit | Description |",
-        "| --- | --- | --- | --- | --- | --- |",
-    ]
+    rows = ["| Field | Description |", "| --- | --- |"]
     for name, prop in fields:
-        rows.append(
-            f"| `{prefix}{name}` | {cell(type_of(prop))} | {code(prop.get('default'))} | "
-            f"{cell(bounds_of(prop))} | {unit_of(name)} | {cell(prop.get('description', ''))} |"
+        shown = facts(
+            ("type", cell(type_of(prop))),
+            ("default", code(prop.get("default"))),
+            ("bounds", cell(bounds_of(prop))),
+            ("unit", unit_of(name)),
         )
+        rows.append(f"| `{prefix}{name}`<br>{shown} | {cell(prop.get('description', ''))} |")
     return [*rows, ""]
 
 
@@ -192,8 +197,8 @@ def settings_page() -> str:
         "value, naming it. Each variable has the `NANONAV_` prefix; `DATABASE_URL`, `HOST` and "
         "`PORT` are also read without it.",
         "",
-        "| Variable | Type | Default | Bounds | Description |",
-        "| --- | --- | --- | --- | --- |",
+        "| Variable | Description |",
+        "| --- | --- |",
     ]
     for name, field in Settings.model_fields.items():
         prop = schema["properties"][name]
@@ -202,12 +207,12 @@ def settings_page() -> str:
         choices = getattr(alias, "choices", [])
         names += [f"`{c}`" for c in choices if isinstance(c, str) and c.isupper()]
         names = list(dict.fromkeys(names))
-        default = prop.get("default")
-        shown = "(secret: none)" if "secret" in str(prop.get("format", "")) else code(default)
-        lines.append(
-            f"| {', '.join(names)} | {cell(type_of(prop))} | {shown} | "
-            f"{cell(bounds_of(prop))} | {cell(field.description or '')} |"
+        shown = facts(
+            ("type", cell(type_of(prop))),
+            ("default", code(prop.get("default"))),
+            ("bounds", cell(bounds_of(prop))),
         )
+        lines.append(f"| {'<br>'.join(names)}<br>{shown} | {cell(field.description or '')} |")
     return "\n".join([*lines, ""])
 
 

@@ -60,10 +60,11 @@ def test_every_scenario_field_is_a_row_with_its_default(pages: dict[str, str]) -
     fields = leaf_fields(Scenario)
     assert len(fields) > 70
     for name in fields:
-        assert f"| `{name}` |" in page, name
-    assert "| `physics.robot_radius_um` |" in page
-    row = next(line for line in page.splitlines() if line.startswith("| `learning.gamma` |"))
-    assert f"`{Scenario().learning.gamma}`" in row and "≥ 0" in row
+        assert f"| `{name}`<br>type: " in page, name
+    row = next(line for line in page.splitlines() if line.startswith("| `learning.gamma`<br>"))
+    assert f"default: `{Scenario().learning.gamma}`" in row and "bounds: ≥ 0" in row
+    radius = next(line for line in page.splitlines() if line.startswith("| `physics.robot_radius"))
+    assert "<br>unit: µm |" in radius
 
 
 def test_every_preset_has_a_section_with_what_it_changes(pages: dict[str, str]) -> None:
