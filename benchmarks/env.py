@@ -73,8 +73,12 @@ def single_env(env: gymnasium.Env, steps: int) -> Callable[[], tuple[int, float]
     return run
 
 
-def vector_env(worlds: int, robot_steps: int) -> Callable[[], tuple[int, float]]:
-    env = NanoNavVectorEnv(worlds, SINGLE)
+def vector_env(
+    worlds: int, robot_steps: int, scenario: dict[str, object] = SINGLE
+) -> Callable[[], tuple[int, float]]:
+    """``robot_steps`` robot-steps (at most MAX_CALLS calls) of the vector env over ``worlds``
+    worlds of ``scenario``, random actions drawn each call."""
+    env = NanoNavVectorEnv(worlds, scenario)
     rng = np.random.default_rng(0)
     n = env.single_action_space.n
 

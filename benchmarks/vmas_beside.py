@@ -24,17 +24,16 @@ from __future__ import annotations
 
 import argparse
 import importlib.util
-import statistics
+import sys
 import time
 from collections.abc import Callable
-from typing import Any
+from pathlib import Path
 
-import numpy as np
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from nanonav.env import NanoNavVectorEnv
+from env import median_rate, vector_env
 
 WORLDS = 1000
-REPEATS = 3
 LATTICE = {"preset": "paper-single"}
 # every step a decision, as VMAS's agents act every step (the preset's robots hold a decision
 # for a second, 100 steps: an env step then is 100 robot-steps)
@@ -46,30 +45,11 @@ BROWNIAN = {
 }
 
 
-def median_rate(run: Callable[[], tuple[int, float]]) -> float:
-    """Median over repeats of agent-steps per second that ``run`` measured."""
-    rates = []
-    for _ in range(REPEATS):
-        steps, seconds = run()
-        rates.append(steps / seconds)
-    return statistics.median(rates)
-
-
-def nanonav_run(scenario: dict[str, Any], calls: int) -> Callable[[], tuple[int, float]]:
-    env = NanoNavVectorEnv(WORLDS, scenario)
-    rng = np.random.default_rng(0)
-    n = env.single_action_space.n  # type: ignore[attr-defined]
-    env.reset(seed=0)
-    env.step(rng.integers(0, n, WORLDS))  # compiled (or loaded from numba's cache) first
-
-    def run() -> tuple[int, float]:
-        env.reset(seed=0)
-        started = time.perf_counter()
-        for _ in range(calls):
-            env.step(rng.integers(0, n, WORLDS))
-        return calls * WORLDS, time.perf_counter() - started
-
-    return run
+def nanonav_run(scenario: dict[str, object], calls: int) -> Callable[[], tuple[int, float]]:
+    """The vector env over ``WORLDS`` worlds of ``scenario``, compiled (or loaded from numba's
+    cache) before it is timed."""
+    vector_env(2, 2, scenario)()
+    return vector_env(WORLDS, calls * WORLDS, scenario)
 
 
 def vmas_run(agents: int, calls: int) -> Callable[[], tuple[int, float]]:

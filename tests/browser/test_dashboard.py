@@ -260,6 +260,15 @@ def test_a_picture_says_drawing_until_it_loads_and_opens_full_size(page: Page, s
     screenshot(page, "job-drawn")
 
 
+def assert_study_tables_fit(page: Page) -> None:
+    """Both of a study page's tables are as wide as the room they are given, or narrower."""
+    widths = page.evaluate(
+        "Array.from(document.querySelectorAll('.study-table')).map((table) =>"
+        " [table.id, table.scrollWidth, table.parentElement.clientWidth])"
+    )
+    assert len(widths) == 2 and all(inside <= room for _, inside, room in widths), widths
+
+
 def test_a_studys_tables_fit_a_1400_pixel_window(page: Page, site: Site) -> None:
     base = {**QUICK, "learning": {"episodes": 1, "max_steps": 1200}}
     grid = {"robots.policy": ["q_learning", "gradient"],
@@ -272,11 +281,7 @@ def test_a_studys_tables_fit_a_1400_pixel_window(page: Page, site: Site) -> None
     expect(page.locator("#comparisons-table tbody tr")).to_have_count(2)
     # its q_learning points learn: the page shows what they learned
     expect(page.locator("img[src*='/plots/policies.png']")).to_have_count(1)
-    widths = page.evaluate(
-        "Array.from(document.querySelectorAll('.study-table')).map((table) =>"
-        " [table.id, table.scrollWidth, table.parentElement.clientWidth])"
-    )
-    assert len(widths) == 2 and all(inside <= room for _, inside, room in widths), widths
+    assert_study_tables_fit(page)
     screenshot(page, "study-1400")
 
 
@@ -326,10 +331,6 @@ def test_a_swarm_studys_comparisons_can_be_read_to_their_right_edge_at_1400_pixe
         last = page.locator(f"#{name} thead th").last
         edge = last.evaluate("(cell) => cell.getBoundingClientRect().right")
         assert 0 < edge <= 1400, (name, edge)
-    widths = page.evaluate(
-        "Array.from(document.querySelectorAll('.study-table')).map((table) =>"
-        " [table.id, table.scrollWidth, table.parentElement.clientWidth])"
-    )
-    assert len(widths) == 2 and all(inside <= room for _, inside, room in widths), widths
+    assert_study_tables_fit(page)
     assert page.evaluate("document.documentElement.scrollWidth") <= 1400
     screenshot(page, "swarm-study-1400")
