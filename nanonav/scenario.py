@@ -471,7 +471,23 @@ class Learning(_Part):
         "physics, 1 in the lattice (benchmarks/science.py) and 0.6 in active_brownian "
         "(benchmarks/decision_interval.py).",
     )
-    gamma: float = Field(0.9, ge=0.0, le=1.0, description="Discount factor gamma of eq. 2.7.")
+    gamma: float = Field(
+        0.9,
+        ge=0.0,
+        le=1.0,
+        description="Discount factor gamma of eq. 2.7, once per decision (in active_brownian "
+        "once per learning.decision_interval_s; see horizon_s for a discount in seconds).",
+    )
+    horizon_s: float | None = Field(
+        None,
+        gt=0.0,
+        le=1e9,
+        description="active_brownian: the discount as a time, s: a reward t seconds ahead "
+        "counts exp(-t / horizon_s), so gamma per decision is exp(-decision_interval_s / "
+        "horizon_s) and runs that decide at different intervals look equally far ahead. null: "
+        "learning.gamma per decision (0.9 a decision of 1 s: a horizon of about 9.5 s). Given, "
+        "learning.gamma is left at its default; the lattice refuses it.",
+    )
     epsilon_start: float = Field(
         1.0, ge=0.0, le=1.0, description="Exploration rate of the first episode."
     )
@@ -1068,6 +1084,7 @@ class Scenario(_Part):
                     f"physics.time_limit_s sets it: {steps} steps of dt_s; give one of the two",
                 )  # fmt: skip
         self._decision_interval_fits(brownian)
+        self._horizon_fits(brownian)
         if brownian:
             # a value other than the default: a resolved scenario, which lists every field,
             # validates again as it was
@@ -1120,6 +1137,33 @@ class Scenario(_Part):
                 f"is longer than the episode ({self.learning.max_steps} steps of dt_s {dt:g} s, "
                 f"{self.learning.max_steps * dt:g} s)",
             )  # fmt: skip
+
+    def _horizon_fits(self, brownian: bool) -> None:
+        """A horizon in seconds is active Brownian robots' discount, given instead of gamma."""
+        horizon = self.learning.horizon_s
+        if horizon is None:
+            return
+        where = ("learning", "horizon_s")
+        if not brownian:
+            raise _field_error(
+                "Scenario", where, horizon,
+                "has no use in physics.model 'lattice': give learning.gamma, the discount per step",
+            )  # fmt: skip
+        if self.learning.gamma != type(self.learning).model_fields["gamma"].default:
+            raise _field_error(
+                "Scenario", where, horizon,
+                f"and learning.gamma ({self.learning.gamma:g}) both set the discount: give one "
+                "of the two",
+            )  # fmt: skip
+
+    @property
+    def discount(self) -> float:
+        """The discount of one decision: learning.gamma, or from learning.horizon_s over the
+        decision interval."""
+        horizon = self.learning.horizon_s
+        if horizon is None:
+            return self.learning.gamma
+        return math.exp(-self.decision_steps * self.physics.step_s / horizon)
 
     @property
     def decision_steps(self) -> int:

@@ -87,7 +87,7 @@ def kernel_params(scenario: Scenario, record_bytes: int = DEFAULT_RECORD_BYTES) 
         shared=scenario.learning.shared_table,
         learn=scenario.robots.policy == "q_learning",
         alpha=scenario.learning.alpha,
-        gamma=scenario.learning.gamma,
+        gamma=scenario.discount,
         reward_reach=scenario.rewards.reach,
         reward_collision=scenario.step_rewards[1],
         reward_approach=scenario.rewards.approach,

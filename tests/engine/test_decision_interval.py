@@ -156,3 +156,39 @@ def test_a_second_costs_the_step_reward_whatever_dt(dt_s: float) -> None:
     assert (params.reward_step, params.reward_collision) == pytest.approx((-0.1 * dt_s, -dt_s))
     lattice = kernel_params(_scenario({"preset": "paper-swarm"}))
     assert (lattice.reward_step, lattice.reward_collision) == (-0.1, -1.0)
+
+
+@pytest.mark.parametrize("interval", [0.1, 1.0, 2.0])
+def test_a_horizon_in_seconds_discounts_each_decision_by_its_length(interval: float) -> None:
+    """learning.horizon_s: a reward t seconds ahead counts exp(-t / horizon_s), so decisions
+    held 0.1 s and 2 s look equally far ahead; the kernel is given the discount per decision."""
+    scenario = _scenario(STILL, {"learning": {"decision_interval_s": interval, "horizon_s": 10}})
+    assert scenario.discount == pytest.approx(np.exp(-interval / 10.0), rel=1e-12)
+    assert kernel_params(scenario).gamma == scenario.discount
+    # ten seconds ahead count the same whatever the interval: e^-1
+    assert scenario.discount ** round(10.0 / interval) == pytest.approx(np.exp(-1.0), rel=1e-9)
+    again = Scenario.model_validate(scenario.model_dump(mode="json"))
+    assert again.discount == scenario.discount
+    # without it, gamma is the discount per decision, as given
+    plain = _scenario(STILL, {"learning": {"decision_interval_s": interval, "gamma": 0.8}})
+    assert kernel_params(plain).gamma == plain.discount == 0.8
+
+
+@pytest.mark.parametrize(
+    ("parts", "says"),
+    [
+        ({"preset": "paper-swarm", "learning": {"horizon_s": 10}}, "has no use in physics.model"),
+        (
+            deep_merge(STILL, {"learning": {"horizon_s": 10, "gamma": 0.99}}),
+            "both set the discount: give one of the two",
+        ),
+        (deep_merge(STILL, {"learning": {"horizon_s": 0}}), "greater than 0"),
+    ],
+)
+def test_a_horizon_that_cannot_be_used_is_refused_naming_it(
+    parts: dict[str, Any], says: str
+) -> None:
+    with pytest.raises(ValidationError) as refused:
+        _scenario(parts)
+    assert "horizon_s" in str(refused.value)
+    assert says in str(refused.value)
