@@ -1103,18 +1103,26 @@ class Scenario(_Part):
                 )  # fmt: skip
         return self
 
+    def _brownian_learning(self, name: str, brownian: bool, instead: str) -> float | None:
+        """learning.<name>, a field of active Brownian learning (None if not given), refused in
+        the lattice saying what to do ``instead``."""
+        value: float | None = getattr(self.learning, name)
+        if value is not None and not brownian:
+            raise _field_error(
+                "Scenario", ("learning", name), value,
+                f"has no use in physics.model 'lattice': {instead}",
+            )  # fmt: skip
+        return value
+
     def _decision_interval_fits(self, brownian: bool) -> None:
         """A decision interval is a whole number of steps of dt_s, from one step to the
         episode's time limit, and only active Brownian robots take one."""
-        interval = self.learning.decision_interval_s
+        interval = self._brownian_learning(
+            "decision_interval_s", brownian, "a lattice robot decides every step"
+        )
         if interval is None:
             return
         where = ("learning", "decision_interval_s")
-        if not brownian:
-            raise _field_error(
-                "Scenario", where, interval,
-                "has no use in physics.model 'lattice': a lattice robot decides every step",
-            )  # fmt: skip
         dt = self.physics.step_s
         steps = interval / dt
         whole = round(steps)
@@ -1140,15 +1148,12 @@ class Scenario(_Part):
 
     def _horizon_fits(self, brownian: bool) -> None:
         """A horizon in seconds is active Brownian robots' discount, given instead of gamma."""
-        horizon = self.learning.horizon_s
+        horizon = self._brownian_learning(
+            "horizon_s", brownian, "give learning.gamma, the discount per step"
+        )
         if horizon is None:
             return
         where = ("learning", "horizon_s")
-        if not brownian:
-            raise _field_error(
-                "Scenario", where, horizon,
-                "has no use in physics.model 'lattice': give learning.gamma, the discount per step",
-            )  # fmt: skip
         if self.learning.gamma != type(self.learning).model_fields["gamma"].default:
             raise _field_error(
                 "Scenario", where, horizon,
