@@ -53,10 +53,9 @@ from nanonav.engine.state import (
 
 # worlds a call of _step_chunk steps: its arguments (the batch's every array, the parameters)
 # are copied in at each call, thousands of words (measured: about 0.6 us a call), so a call
-# takes many: step_worlds hands it GROUPS tuples of GROUP generators each
+# takes many: step_worlds hands it one flat tuple of CHUNK generators, four groups of GROUP
 GROUP = 8
-GROUPS = 4
-CHUNK = GROUP * GROUPS
+CHUNK = 4 * GROUP
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -303,8 +302,8 @@ def step_worlds(
         return 0
     last = worlds - 1
     for start in range(0, worlds, CHUNK):
-        # CHUNK worlds' generators (the last world's again where the batch runs out)
-        # one flat tuple: indexed by a number, a tuple of tuples copies a whole group each time
+        # CHUNK worlds' generators (the last world's again where the batch runs out), in one
+        # flat tuple: indexed by a number, a tuple of tuples copies a whole group each time
         generators = (
             _group(rngs, start, last) + _group(rngs, start + GROUP, last)
             + _group(rngs, start + 2 * GROUP, last) + _group(rngs, start + 3 * GROUP, last)
