@@ -217,13 +217,25 @@ class Worlds:
             phases.percept(n),
         )  # fmt: skip
         self.batch: phases.Sim = _stacked(one, count)
-        self._batches: List[phases.Sim] = List([self.batch])
-        self._params: List[KernelParams] = List([self.params])
-        self.world_rngs: List[np.random.Generator] = List()
-        self.rngs: List[np.random.Generator] = List()
+        self._world_rngs: List[np.random.Generator] = List()
+        self._rngs: list[np.random.Generator] = []
         for k in range(count):
-            self.world_rngs.append(stream(scenario.seed + k, EVALUATION_STREAM))
-            self.rngs.append(stream(scenario.seed + k, DYNAMICS_STREAM))
+            self._world_rngs.append(stream(scenario.seed + k, EVALUATION_STREAM))
+            self._rngs.append(stream(scenario.seed + k, DYNAMICS_STREAM))
+        # the dynamics' generators as the compiled step takes them, a tuple of stepping.CHUNK
+        # worlds' each (a chunk's tuple built in the step from a list cost 39 ns a world)
+        self._chunks: List[tuple[np.random.Generator, ...]] = List(self._grouped())
+        self._regroup = False
+        # what every call hands the compiled step, in one list (the lists in it are shared:
+        # a generator set here is the one the step draws from)
+        self._held: List[
+            tuple[
+                KernelParams,
+                phases.Sim,
+                List[np.random.Generator],
+                List[tuple[np.random.Generator, ...]],
+            ]
+        ] = List([(self.params, self.batch, self._world_rngs, self._chunks)])
         pc = self.batch.pc
         self.obs = pc.obs  # (worlds, robots, features)
         self.state = pc.state
@@ -239,8 +251,27 @@ class Worlds:
         if len(seeds) != self.count:
             raise ValueError(f"{len(seeds)} seeds for {self.count} worlds")
         for k, seed in enumerate(seeds):
-            self.world_rngs[k] = stream(int(seed), EVALUATION_STREAM)
-            self.rngs[k] = stream(int(seed), DYNAMICS_STREAM)
+            self.use_generators(
+                k, stream(int(seed), EVALUATION_STREAM), stream(int(seed), DYNAMICS_STREAM)
+            )
+
+    def use_generators(
+        self, k: int, world_rng: np.random.Generator, rng: np.random.Generator
+    ) -> None:
+        """World k draws its fresh worlds from ``world_rng`` and its dynamics from ``rng``
+        from its next step on (one generator may serve many worlds, drawn in turn)."""
+        self._world_rngs[k] = world_rng
+        self._rngs[k] = rng
+        self._regroup = True
+
+    def _grouped(self) -> list[tuple[np.random.Generator, ...]]:
+        """The dynamics' generators in tuples of ``stepping.CHUNK`` worlds, the last world's
+        again where the worlds run out."""
+        last = self.count - 1
+        return [
+            tuple(self._rngs[min(start + j, last)] for j in range(stepping.CHUNK))
+            for start in range(0, self.count, stepping.CHUNK)
+        ]
 
     def step(
         self, actions: NDArray[Any] | None, fresh: NDArray[np.bool_], *, checked: bool = False
@@ -269,9 +300,12 @@ class Worlds:
         self._call(self._no_actions, fresh, advance=False)
 
     def _call(self, actions: NDArray[np.int64], fresh: NDArray[np.bool_], advance: bool) -> None:
+        if self._regroup:
+            for i, chunk in enumerate(self._grouped()):
+                self._chunks[i] = chunk
+            self._regroup = False
         status = stepping.step_worlds(
-            self._params, self.world_rngs, self.rngs, self._batches, actions, self._turns,
-            fresh, self.directions, advance,
+            self._held, actions, self._turns, fresh, self.directions, advance,
         )  # fmt: skip
         raise_for_layout(status, self.scenario)
 

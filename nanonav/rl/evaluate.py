@@ -126,9 +126,10 @@ def evaluate(
         k = start
         for b in batches:
             for j in range(b.count):
-                b.world_rngs[j] = drawn
                 # the first world on simulate's own dynamics stream, each other on its own
-                b.rngs[j] = stream(scenario.seed, DYNAMICS_STREAM, *((k,) if k else ()))
+                b.use_generators(
+                    j, drawn, stream(scenario.seed, DYNAMICS_STREAM, *((k,) if k else ()))
+                )
                 k += 1
         if not run.through(batches):
             work = {"robot_steps": run.robot_steps, "engine_s": run.seconds,
