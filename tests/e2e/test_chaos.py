@@ -88,7 +88,7 @@ def test_killed_workers_and_a_held_write_lock_lose_and_fail_nothing(
             for worker in workers:
                 worker.wait_ready()
             # Jobs are fed as the chaos needs them, so that a fast machine cannot finish the
-            # queue before every kill is made: half at first, more whenever it runs dry.
+            # queue before every kill is made: half at first, more whenever it runs low.
             seeds = iter(range(JOBS))
             jobs: list[int] = []
 
@@ -101,14 +101,18 @@ def test_killed_workers_and_a_held_write_lock_lose_and_fail_nothing(
             kills = 0
             locked = False
             while kills < KILLS:
-                time.sleep(rng.uniform(0.3, 1.5))
+                time.sleep(rng.uniform(0.1, 0.6))
+                queued = store.census(seen_within_s=60).queued
+                if queued < WORKERS * 2 and len(jobs) < JOBS:
+                    # jobs of a tenth of a second each: fed only once the queue ran dry, a
+                    # quiet machine finished them all between looks before four kills
+                    feed(WORKERS * 3)
+                    continue
                 owners = running_owners(store)
                 busy = [w for w in workers if any(o.endswith(f":{w.process.pid}") for o in owners)]
                 if not busy:
-                    if store.census(seen_within_s=60).queued == 0:
-                        if len(jobs) == JOBS:
-                            break  # every job ran before every kill was made
-                        feed(WORKERS * 3)
+                    if queued == 0 and len(jobs) == JOBS:
+                        break  # every job ran before every kill was made
                     continue
                 victim = rng.choice(busy)
                 victim.process.send_signal(signal.SIGKILL)
