@@ -1,7 +1,7 @@
 """Where a world-step of the vector env goes, in ns, from the step alone to the env, on one
 core: one world stepped over and over in one compiled loop; every world of the batch in turn
-so; ``Worlds.step``, the compiled call from Python that steps every world ``CHUNK`` a call; the
-vector env's ``step``; beside ``simulate``'s own loop, which also learns (``env.py``'s figure
+so; ``Worlds.step``, the compiled call from Python that steps every world; the vector env's
+``step``; beside ``simulate``'s own loop, which also learns (``env.py``'s figure
 for one robot).
 
     python benchmarks/env_breakdown.py           # about 6 min the first time (it compiles
@@ -26,9 +26,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from env import SINGLE, engine_rate, median_rate, vector_env
 
-from nanonav.engine.phases import CLOCK_OVER, Sim, uncounted
+from nanonav.engine.compiled import uncounted
+from nanonav.engine.generators import generator_at, handle
+from nanonav.engine.phases import CLOCK_OVER, Sim
 from nanonav.engine.state import KernelParams
-from nanonav.engine.stepping import CHUNK, reset_world, sim_at, step_world
+from nanonav.engine.stepping import reset_world, sim_at, step_world
 from nanonav.engine.world import DYNAMICS_STREAM, EVALUATION_STREAM, stream
 from nanonav.engine.worlds import Worlds
 from nanonav.scenario import Scenario
@@ -38,20 +40,19 @@ WORLDS = 1000
 
 @uncounted
 def _in_turn(
-    p: KernelParams, world_rngs: tuple[np.random.Generator, ...],
-    rngs: tuple[np.random.Generator, ...], batch: Sim, steps: int, worlds: int,
-    actions: NDArray[np.int64], turns: NDArray[np.float64], directions: NDArray[np.float64],
+    p: KernelParams, world_handles: NDArray[np.uint64], handles: NDArray[np.uint64], batch: Sim,
+    steps: int, worlds: int, actions: NDArray[np.int64], turns: NDArray[np.float64],
+    directions: NDArray[np.float64],
 ) -> None:  # fmt: skip
     """``steps`` world-steps of the batch's first ``worlds`` worlds in turn in one compiled
-    loop, world k on generators ``k % CHUNK`` (as a chunk of the vector env takes them), a
-    fresh world drawn where one is over: the vector env's step without its compiled calls."""
+    loop, each world on its own generators, a fresh world drawn where one is over: the vector
+    env's step without its compiled call."""
     for j in range(steps):
         k = j % worlds
-        g = k % CHUNK
         sim = sim_at(batch, k)
         if sim.pc.clock[CLOCK_OVER]:
-            reset_world(p, world_rngs[g], rngs[g], sim)
-        step_world(p, rngs[g], sim, actions[j & 1023], turns[k], directions)
+            reset_world(p, generator_at(world_handles, k), generator_at(handles, k), sim)
+        step_world(p, generator_at(handles, k), sim, actions[j & 1023], turns[k], directions)
 
 
 def rows(worlds: int, robot_steps: int) -> list[tuple[str, float]]:
@@ -60,14 +61,17 @@ def rows(worlds: int, robot_steps: int) -> list[tuple[str, float]]:
     batch.step(None, np.ones(worlds, dtype=np.bool_))  # compiles, or loads the cache
     actions = np.random.default_rng(0).integers(0, batch.actions, (1024, 1))
     drawn = np.random.default_rng(1).integers(0, batch.actions, (64, worlds, 1))
-    world_rngs = tuple(stream(k, EVALUATION_STREAM) for k in range(CHUNK))
-    rngs = tuple(stream(k, DYNAMICS_STREAM) for k in range(CHUNK))
+    # the generators are kept here while the loop draws from their handles
+    world_rngs = [stream(k, EVALUATION_STREAM) for k in range(worlds)]
+    rngs = [stream(k, DYNAMICS_STREAM) for k in range(worlds)]
+    world_handles = np.stack([handle(g) for g in world_rngs])
+    handles = np.stack([handle(g) for g in rngs])
     turns = np.zeros((worlds, 1, 2))
 
     def in_turn(count: int) -> Callable[[], tuple[int, float]]:
         def run() -> tuple[int, float]:
             started = time.perf_counter()
-            _in_turn(batch.params, world_rngs, rngs, batch.batch, robot_steps, count,
+            _in_turn(batch.params, world_handles, handles, batch.batch, robot_steps, count,
                      actions, turns, batch.directions)  # fmt: skip
             return robot_steps, time.perf_counter() - started
 

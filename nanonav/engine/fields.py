@@ -117,7 +117,7 @@ def sample(
     )
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def place_sources(
     model: int,
     cells: NDArray[np.float64],
@@ -231,7 +231,7 @@ def source_count(biomarker: Biomarker, cells: int) -> int:
     return cells * biomarker.emitters_per_cell if biomarker.model in EMITTER_MODELS else cells
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
 def place_treated(
     model: int, cells: NDArray[np.float64], offsets: NDArray[np.float64],
     treated_at: NDArray[np.int64], tx: NDArray[np.float64], ty: NDArray[np.float64],

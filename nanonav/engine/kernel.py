@@ -17,10 +17,11 @@ from numba import njit
 from numpy.typing import NDArray
 
 from nanonav.engine import treatment
+from nanonav.engine.compiled import uncounted
 from nanonav.engine.contacts import rebuild
 from nanonav.engine.dynamics.lattice import _nearest, _redraw_emitters
 from nanonav.engine.fields import SAMPLED_GAUSSIAN, place_sources
-from nanonav.engine.phases import Sim, advance, learn_at_limit, respond, sense, uncounted
+from nanonav.engine.phases import Sim, advance, learn_at_limit, respond, sense
 from nanonav.engine.sensing import _sense_all
 from nanonav.engine.state import (
     BROADCAST,
@@ -105,7 +106,7 @@ def observe(p: KernelParams, sim: Sim, t: int, final: bool, record: bool) -> Non
         rec.step[row] = t
 
 
-@njit(cache=True, error_model="numpy")
+@uncounted
 def begin_episode(
     p: KernelParams, world_rng: np.random.Generator, rng: np.random.Generator, sim: Sim,
     evaluating: bool, record: bool,
@@ -146,7 +147,9 @@ def begin_episode(
             _redraw_emitters(p, rng, w)
         place_sources(p.model, w.cells, w.offsets, w.sx, w.sy, w.sz)
         if record:
-            sim.rec.offsets[:] = w.offsets
+            for k in range(w.offsets.shape[0]):
+                for axis in range(3):
+                    sim.rec.offsets[k, axis] = w.offsets[k, axis]
         if evaluating:
             observe(p, sim, 0, False, record)
     return status
@@ -269,7 +272,7 @@ def _steps(
     spent, the engine deciding for every robot under the scenario's schedule; return the new
     step. When the episode ends (every robot reached a cell, every cell is treated, or
     ``max_steps``) the last transitions are learned and, in the evaluation, the final step
-    measured (and recorded). Compiled without reference counting (``phases.uncounted``)."""
+    measured (and recorded). Compiled without reference counting (``compiled.uncounted``)."""
     s = sim.s
     n = s.pos.shape[0]
     stop_at = counters[ROBOT_STEPS] + budget

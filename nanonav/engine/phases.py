@@ -11,13 +11,13 @@ differ only inside the rooms that differ (``dynamics.lattice`` or ``dynamics.bro
 engine's own policies choose in ``decide``, an agent outside hands an action to ``command``.
 
 Everything here is inlined into the compiled schedules (``inline="always"``), which run without
-reference counting: nothing here allocates, and arrays are indexed element by element.
+reference counting (``compiled.uncounted``), or is uncounted itself: nothing here allocates, and
+arrays are indexed element by element.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import Any, NamedTuple, TypeVar, cast
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -25,6 +25,7 @@ from numpy.typing import NDArray
 
 from nanonav.engine import communication as radio_room
 from nanonav.engine import treatment
+from nanonav.engine.compiled import uncounted
 from nanonav.engine.contacts import CellList, bumped_back, relist
 from nanonav.engine.dynamics import brownian
 from nanonav.engine.dynamics.lattice import (
@@ -101,18 +102,6 @@ CLOCK_MEASURE = 3
 MEASURED = 1
 RECORDED = 2
 CLOCK_SLOTS = 4
-
-_F = TypeVar("_F", bound=Callable[..., Any])
-
-
-def uncounted(function: _F) -> _F:
-    """``njit`` without reference counting (numba's ``_nrt=False``, which its typed signature
-    does not name), for the schedules the phases are inlined into. Every view of a world and
-    every member taken from its NamedTuples would otherwise be counted in and out, an atomic
-    call each: measured, those calls were two thirds of a step's time. Nothing compiled so may
-    allocate (numba refuses it if anything does), and its caller holds every array it views."""
-    options: dict[str, Any] = {"cache": True, "error_model": "numpy", "_nrt": False}
-    return cast(_F, njit(**options)(function))
 
 
 class Percept(NamedTuple):
@@ -192,7 +181,7 @@ def advance(p: KernelParams, rng: np.random.Generator, sim: Sim, t: int) -> None
     _sense_all(p, w, sim.s, tr, sim.s.active)
 
 
-@njit(cache=True, error_model="numpy")
+@uncounted
 def delivered(p: KernelParams, sim: Sim, i: int, cell: int, t: int) -> None:
     """Robot ``i`` reached ``cell`` in step ``t``: it delivers, is done, and broadcasts."""
     s = sim.s
@@ -202,7 +191,7 @@ def delivered(p: KernelParams, sim: Sim, i: int, cell: int, t: int) -> None:
         radio_room.broadcast(p, s.pos, s.active, sim.so, sim.radio, sim.found, i)
 
 
-@njit(cache=True, error_model="numpy")
+@uncounted
 def body_gradient(p: KernelParams, rng: np.random.Generator, sim: Sim, i: int) -> None:
     """Robot ``i`` reads its spatial gradient (as ``steer_up_gradient`` does) along its
     heading, side and up axes, and its observation's gradient columns keep the mean of its
@@ -237,7 +226,7 @@ def body_gradient(p: KernelParams, rng: np.random.Generator, sim: Sim, i: int) -
         obs[i, OBS_GRADIENT + 2] += share * (up - obs[i, OBS_GRADIENT + 2])
 
 
-@njit(cache=True, error_model="numpy")
+@uncounted
 def body_turn(p: KernelParams, sim: Sim, i: int) -> None:
     """Robot ``i`` turns as the agent's turn of its decision says, held in the body frame (a
     steady turn). (Neither this nor ``body_gradient`` is inlined: only robots steered
@@ -603,7 +592,7 @@ def respond(
         learn(p, lrn, s, i, state, action, reward, reached)
 
 
-@njit(cache=True, error_model="numpy")
+@uncounted
 def _heard(p: KernelParams, rng: np.random.Generator, sim: Sim, i: int) -> int:
     """What robot ``i`` would receive where it ended (the state's 'signal'), without taking
     it in, for the episode's last bootstrap."""
@@ -614,7 +603,7 @@ def _heard(p: KernelParams, rng: np.random.Generator, sim: Sim, i: int) -> int:
     return radio_room.received(p, net, sim.so.prev_signal[i])
 
 
-@njit(cache=True, error_model="numpy")
+@uncounted
 def learn_at_limit(p: KernelParams, rng: np.random.Generator, sim: Sim, lrn: Learner) -> None:
     """The step limit ended the episode: every robot's waiting transition is bootstrapped from
     the state it ended in (not terminal)."""

@@ -22,7 +22,9 @@ from numba import njit
 from numba.typed import List
 from numpy.typing import NDArray
 
+from nanonav.engine.compiled import uncounted
 from nanonav.engine.contacts import CellList
+from nanonav.engine.generators import generator_at
 from nanonav.engine.kernel import begin_episode, observe, over
 from nanonav.engine.phases import (
     CLOCK_MEASURE,
@@ -38,7 +40,6 @@ from nanonav.engine.phases import (
     decides,
     keep,
     perceive,
-    uncounted,
 )
 from nanonav.engine.qlearning import TURN
 from nanonav.engine.state import (
@@ -50,12 +51,6 @@ from nanonav.engine.state import (
     Treatment,
     World,
 )
-
-# worlds a call of _step_chunk steps: its arguments (the batch's every array, the parameters)
-# are copied in at each call, thousands of words (measured: about 0.6 us a call), so a call
-# takes many, and their generators in one flat tuple (a tuple of tuples, indexed by a number,
-# copies a whole inner tuple each time)
-CHUNK = 32
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -270,14 +265,7 @@ def sim_at(b: Sim, k: int) -> Sim:
 
 @njit(cache=True, error_model="numpy")
 def step_worlds(
-    held: List[
-        tuple[
-            KernelParams,
-            Sim,
-            List[np.random.Generator],
-            List[tuple[np.random.Generator, ...]],
-        ]
-    ],
+    held: List[tuple[KernelParams, Sim, NDArray[np.uint64], NDArray[np.uint64]]],
     actions: NDArray[np.int64],
     turns: NDArray[np.float64],
     fresh: NDArray[np.bool_],
@@ -286,44 +274,43 @@ def step_worlds(
 ) -> int:
     """Every world k of the batch (its arrays shaped worlds x ...) one move
     (``step_world``) on ``actions[k]`` (one per robot; ``turns[k]``, robots x 2, where robots
-    turn), or, where ``fresh[k]``, into a fresh
-    world (its actions unused); a world whose episode is over and is not fresh stays as it
-    is, and so does every world not fresh unless ``advance`` (a reset of some worlds alone,
-    as Stable-Baselines3 resets a finished world within the step that ended it). What each
-    world's robots perceived and got is then in its ``pc``. Returns the first non-zero
-    ``draw_world`` status, or 0. ``held[0]`` is (the parameters, the batch, each world's
-    generator of fresh worlds, the dynamics' generators in tuples of CHUNK worlds, the last
-    tuple filled up with its last world's): one list crosses into compiled code at once, where
-    a tuple of many arrays is checked array by array each call and each list more costs about
-    0.7 us a call (measured: four lists 2.9 us, one 0.8)."""
-    p, batch, world_rngs, chunks = held[0]
+    turn), or, where ``fresh[k]``, into a fresh world (its actions unused); a world whose
+    episode is over and is not fresh stays as it is, and so does every world not fresh unless
+    ``advance`` (a reset of some worlds alone, as Stable-Baselines3 resets a finished world
+    within the step that ended it). What each world's robots perceived and got is then in its
+    ``pc``. The fresh worlds are drawn first, in world order (a generator of fresh worlds may
+    serve many). Returns the first non-zero ``draw_world`` status, or 0.
+
+    ``held[0]`` is (the parameters, the batch, the handles (``generators``) of each world's
+    generator of fresh worlds and of its dynamics' generator): one list crosses into compiled
+    code at once, where a tuple of many arrays is checked array by array each call (and each
+    list more costs about 0.7 us a call)."""
+    p, batch, world_handles, handles = held[0]
+    return _step_all(p, batch, world_handles, handles, actions, turns, fresh, directions,
+                     advance)  # fmt: skip
+
+
+@uncounted
+def _step_all(
+    p: KernelParams, batch: Sim, world_handles: NDArray[np.uint64], handles: NDArray[np.uint64],
+    actions: NDArray[np.int64], turns: NDArray[np.float64], fresh: NDArray[np.bool_],
+    directions: NDArray[np.float64], advance: bool,
+) -> int:  # fmt: skip
+    """``step_worlds``' work in one loop without reference counting (``compiled.uncounted``):
+    each world's views of the batch and its generators are made as it is reached (the caller
+    holds the batch and the generators for the whole call)."""
     worlds = batch.pc.clock.shape[0]
     for k in range(worlds):
         if fresh[k]:
-            rng = chunks[k // CHUNK][k % CHUNK]
-            status = reset_world(p, world_rngs[k], rng, sim_at(batch, k))
+            status = reset_world(p, generator_at(world_handles, k), generator_at(handles, k),
+                                 sim_at(batch, k))  # fmt: skip
             if status != 0:
                 return status
     if not advance:
         return 0
-    for start in range(0, worlds, CHUNK):
-        _step_chunk(p, chunks[start // CHUNK], batch, start, min(CHUNK, worlds - start),
-                    actions, turns, fresh, directions)  # fmt: skip
-    return 0
-
-
-@uncounted
-def _step_chunk(
-    p: KernelParams, generators: tuple[np.random.Generator, ...], batch: Sim, start: int,
-    count: int, actions: NDArray[np.int64], turns: NDArray[np.float64],
-    fresh: NDArray[np.bool_], directions: NDArray[np.float64],
-) -> None:  # fmt: skip
-    """``step_world`` of worlds ``start`` ... ``start + count - 1`` of the batch (world
-    ``start + j`` with ``generators[j]``; one fresh or over is left as it is), compiled without
-    reference counting (``phases.uncounted``); the batch it views is held by the caller for the
-    whole call."""
     clock = batch.pc.clock
-    for j in range(count):
-        k = start + j
+    for k in range(worlds):
         if not fresh[k] and clock[k, CLOCK_OVER] == 0:
-            step_world(p, generators[j], sim_at(batch, k), actions[k], turns[k], directions)
+            step_world(p, generator_at(handles, k), sim_at(batch, k), actions[k], turns[k],
+                       directions)  # fmt: skip
+    return 0

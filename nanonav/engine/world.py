@@ -13,6 +13,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from nanonav.engine.compiled import uncounted
 from nanonav.engine.contacts import CellList, first_within, relist
 from nanonav.engine.state import KernelParams, Swarm, World
 from nanonav.scenario import Scenario, ScenarioError
@@ -37,13 +38,13 @@ def stream(seed: int, which: int, *more: int) -> np.random.Generator:
     return np.random.Generator(np.random.PCG64(np.random.SeedSequence(seed, spawn_key=key)))
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _uniform(rng: np.random.Generator, out: NDArray[np.float64], low: float, high: float) -> None:
     for k in range(out.shape[0]):
         out[k] = low + (high - low) * rng.random()
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _clear(point: NDArray[np.float64], others: NDArray[np.float64], distance: float) -> bool:
     for j in range(others.shape[0]):
         d2 = 0.0
@@ -55,7 +56,7 @@ def _clear(point: NDArray[np.float64], others: NDArray[np.float64], distance: fl
     return True
 
 
-@njit(cache=True, error_model="numpy")
+@uncounted
 def draw_world(
     p: KernelParams, rng: np.random.Generator, w: World, s: Swarm, near: CellList,
     everyone: NDArray[np.bool_],

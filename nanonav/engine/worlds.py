@@ -16,6 +16,7 @@ from numba.typed import List
 from numpy.typing import NDArray
 
 from nanonav.engine import phases, qlearning, stepping
+from nanonav.engine.generators import handle
 from nanonav.engine.simulate import (
     DEFAULT_RECORD_BYTES,
     empty_recording,
@@ -217,25 +218,16 @@ class Worlds:
             phases.percept(n),
         )  # fmt: skip
         self.batch: phases.Sim = _stacked(one, count)
-        self._world_rngs: List[np.random.Generator] = List()
-        self._rngs: list[np.random.Generator] = []
-        for k in range(count):
-            self._world_rngs.append(stream(scenario.seed + k, EVALUATION_STREAM))
-            self._rngs.append(stream(scenario.seed + k, DYNAMICS_STREAM))
-        # the dynamics' generators as the compiled step takes them, a tuple of stepping.CHUNK
-        # worlds' each (a chunk's tuple built in the step from a list cost 39 ns a world)
-        self._chunks: List[tuple[np.random.Generator, ...]] = List(self._grouped())
-        self._regroup = False
-        # what every call hands the compiled step, in one list (the lists in it are shared:
-        # a generator set here is the one the step draws from)
+        # each world's generators as the compiled step takes them (``generators``), and the
+        # generators themselves, kept alive here while their handles are used
+        self._world_rngs = [stream(scenario.seed + k, EVALUATION_STREAM) for k in range(count)]
+        self._rngs = [stream(scenario.seed + k, DYNAMICS_STREAM) for k in range(count)]
+        self._world_handles = np.stack([handle(g) for g in self._world_rngs])
+        self._handles = np.stack([handle(g) for g in self._rngs])
+        # what every call hands the compiled step, in one list
         self._held: List[
-            tuple[
-                KernelParams,
-                phases.Sim,
-                List[np.random.Generator],
-                List[tuple[np.random.Generator, ...]],
-            ]
-        ] = List([(self.params, self.batch, self._world_rngs, self._chunks)])
+            tuple[KernelParams, phases.Sim, NDArray[np.uint64], NDArray[np.uint64]]
+        ] = List([(self.params, self.batch, self._world_handles, self._handles)])
         pc = self.batch.pc
         self.obs = pc.obs  # (worlds, robots, features)
         self.state = pc.state
@@ -262,16 +254,8 @@ class Worlds:
         from its next step on (one generator may serve many worlds, drawn in turn)."""
         self._world_rngs[k] = world_rng
         self._rngs[k] = rng
-        self._regroup = True
-
-    def _grouped(self) -> list[tuple[np.random.Generator, ...]]:
-        """The dynamics' generators in tuples of ``stepping.CHUNK`` worlds, the last world's
-        again where the worlds run out."""
-        last = self.count - 1
-        return [
-            tuple(self._rngs[min(start + j, last)] for j in range(stepping.CHUNK))
-            for start in range(0, self.count, stepping.CHUNK)
-        ]
+        self._world_handles[k] = handle(world_rng)
+        self._handles[k] = handle(rng)
 
     def step(
         self, actions: NDArray[Any] | None, fresh: NDArray[np.bool_], *, checked: bool = False
@@ -300,10 +284,6 @@ class Worlds:
         self._call(self._no_actions, fresh, advance=False)
 
     def _call(self, actions: NDArray[np.int64], fresh: NDArray[np.bool_], advance: bool) -> None:
-        if self._regroup:
-            for i, chunk in enumerate(self._grouped()):
-                self._chunks[i] = chunk
-            self._regroup = False
         status = stepping.step_worlds(
             self._held, actions, self._turns, fresh, self.directions, advance,
         )  # fmt: skip
