@@ -265,7 +265,7 @@ def sim_at(b: Sim, k: int) -> Sim:
 
 @njit(cache=True, error_model="numpy")
 def step_worlds(
-    held: List[tuple[KernelParams, Sim, NDArray[np.uint64], NDArray[np.uint64]]],
+    held: List[tuple[KernelParams, Sim, NDArray[np.uint64], NDArray[np.uint64], NDArray[np.int64]]],
     actions: NDArray[np.int64],
     turns: NDArray[np.float64],
     fresh: NDArray[np.bool_],
@@ -282,35 +282,51 @@ def step_worlds(
     serve many). Returns the first non-zero ``draw_world`` status, or 0.
 
     ``held[0]`` is (the parameters, the batch, the handles (``generators``) of each world's
-    generator of fresh worlds and of its dynamics' generator): one list crosses into compiled
-    code at once, where a tuple of many arrays is checked array by array each call (and each
-    list more costs about 0.7 us a call)."""
-    p, batch, world_handles, handles = held[0]
-    return _step_all(p, batch, world_handles, handles, actions, turns, fresh, directions,
+    generator of fresh worlds and of its dynamics' generator, room for a number per world):
+    one list crosses into compiled code at once, where a tuple of many arrays is checked array
+    by array each call (and each list more costs about 0.7 us a call)."""
+    p, batch, world_handles, handles, due = held[0]
+    return _step_all(p, batch, world_handles, handles, due, actions, turns, fresh, directions,
                      advance)  # fmt: skip
 
 
 @uncounted
 def _step_all(
     p: KernelParams, batch: Sim, world_handles: NDArray[np.uint64], handles: NDArray[np.uint64],
-    actions: NDArray[np.int64], turns: NDArray[np.float64], fresh: NDArray[np.bool_],
-    directions: NDArray[np.float64], advance: bool,
+    due: NDArray[np.int64], actions: NDArray[np.int64], turns: NDArray[np.float64],
+    fresh: NDArray[np.bool_], directions: NDArray[np.float64], advance: bool,
 ) -> int:  # fmt: skip
     """``step_worlds``' work in one loop without reference counting (``compiled.uncounted``):
     each world's views of the batch and its generators are made as it is reached (the caller
-    holds the batch and the generators for the whole call)."""
+    holds the batch and the generators for the whole call).
+
+    The worlds to draw, then those to step, are listed in ``due`` first and taken from the
+    list: a loop whose world is a plain counter let the compiler turn each of a world's views
+    of the batch (about 70) into a pointer carried from world to world, held on the stack and
+    moved for every world, drawn or stepped or not (measured: 34 ns a world in a call that
+    stepped none)."""
     worlds = batch.pc.clock.shape[0]
+    count = 0
     for k in range(worlds):
         if fresh[k]:
-            status = reset_world(p, generator_at(world_handles, k), generator_at(handles, k),
-                                 sim_at(batch, k))  # fmt: skip
-            if status != 0:
-                return status
+            due[count] = k
+            count += 1
+    for i in range(count):
+        k = due[i]
+        status = reset_world(p, generator_at(world_handles, k), generator_at(handles, k),
+                             sim_at(batch, k))  # fmt: skip
+        if status != 0:
+            return status
     if not advance:
         return 0
     clock = batch.pc.clock
+    count = 0
     for k in range(worlds):
         if not fresh[k] and clock[k, CLOCK_OVER] == 0:
-            step_world(p, generator_at(handles, k), sim_at(batch, k), actions[k], turns[k],
-                       directions)  # fmt: skip
+            due[count] = k
+            count += 1
+    for i in range(count):
+        k = due[i]
+        step_world(p, generator_at(handles, k), sim_at(batch, k), actions[k], turns[k],
+                   directions)  # fmt: skip
     return 0

@@ -224,10 +224,17 @@ class Worlds:
         self._rngs = [stream(scenario.seed + k, DYNAMICS_STREAM) for k in range(count)]
         self._world_handles = np.stack([handle(g) for g in self._world_rngs])
         self._handles = np.stack([handle(g) for g in self._rngs])
-        # what every call hands the compiled step, in one list
+        # what every call hands the compiled step, in one list (``due``: its scratch)
+        due = np.zeros(count, dtype=np.int64)
         self._held: List[
-            tuple[KernelParams, phases.Sim, NDArray[np.uint64], NDArray[np.uint64]]
-        ] = List([(self.params, self.batch, self._world_handles, self._handles)])
+            tuple[
+                KernelParams,
+                phases.Sim,
+                NDArray[np.uint64],
+                NDArray[np.uint64],
+                NDArray[np.int64],
+            ]
+        ] = List([(self.params, self.batch, self._world_handles, self._handles, due)])
         pc = self.batch.pc
         self.obs = pc.obs  # (worlds, robots, features)
         self.state = pc.state
