@@ -19,10 +19,10 @@ from numpy.typing import NDArray
 from nanonav.engine import treatment
 from nanonav.engine.compiled import uncounted
 from nanonav.engine.contacts import rebuild
-from nanonav.engine.dynamics.lattice import _nearest, _redraw_emitters
+from nanonav.engine.dynamics.lattice import nearest, redraw_emitters
 from nanonav.engine.fields import SAMPLED_GAUSSIAN, place_sources
 from nanonav.engine.phases import Sim, advance, learn_at_limit, respond, sense
-from nanonav.engine.sensing import _sense_all
+from nanonav.engine.sensing import sense_all
 from nanonav.engine.state import (
     BROADCAST,
     CELL_LOAD,
@@ -74,10 +74,10 @@ def observe(p: KernelParams, sim: Sim, t: int, final: bool, record: bool) -> Non
     if final and not on_row:
         row += 1
     keep = record and (on_row or final)
-    _sense_all(p, w, s, sim.tr, sim.everyone)
+    sense_all(p, w, s, sim.tr, sim.everyone)
     for i in range(s.pos.shape[0]):
         c = s.reading[i]
-        d = _nearest(w.cells, s.pos[i, 0], s.pos[i, 1], s.pos[i, 2])[1]
+        d = nearest(w.cells, s.pos[i, 0], s.pos[i, 1], s.pos[i, 2])[1]
         if not final and s.steps[i] == t:
             s.sum_conc[i] += c
             s.sum_dist[i] += d
@@ -144,7 +144,7 @@ def begin_episode(
         rebuild(sim.radio, s.pos, sim.everyone)
     if status == 0:
         if p.model == SAMPLED_GAUSSIAN:
-            _redraw_emitters(p, rng, w)
+            redraw_emitters(p, rng, w)
         place_sources(p.model, w.cells, w.offsets, w.sx, w.sy, w.sz)
         if record:
             for k in range(w.offsets.shape[0]):

@@ -17,7 +17,7 @@ from nanonav.engine.state import ALPHA_VISITS, KernelParams
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _learn(
+def q_update(
     p: KernelParams,
     q: NDArray[np.float64],
     visits: NDArray[np.int64],
@@ -26,6 +26,7 @@ def _learn(
     a: int,
     target: float,
 ) -> None:
+    """Move Q(s, a) of ``table`` toward ``target`` by the step size of the visits so far."""
     # eq. 2.7: Q(s,a) <- Q(s,a) + alpha [r + gamma max_a' Q(s',a') - Q(s,a)], alpha constant or
     # alpha / N(s,a)^omega over the visits N of (s, a)
     alpha = p.alpha
@@ -44,7 +45,7 @@ def _bootstrap(p: KernelParams, q: NDArray[np.float64], table: int, s: int, rewa
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _learn_bootstrapped(
+def q_update_bootstrapped(
     p: KernelParams,
     q: NDArray[np.float64],
     visits: NDArray[np.int64],
@@ -57,4 +58,4 @@ def _learn_bootstrapped(
     """Learn the transition (s, a, reward) now that its next state is known: the target
     r + gamma max_a' Q(s', a') of eq. 2.7."""
     target = _bootstrap(p, q, table, next_state, reward)
-    _learn(p, q, visits, table, s, a, target)
+    q_update(p, q, visits, table, s, a, target)

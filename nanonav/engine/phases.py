@@ -27,23 +27,16 @@ from nanonav.engine import communication as radio_room
 from nanonav.engine import treatment
 from nanonav.engine.compiled import uncounted
 from nanonav.engine.contacts import CellList, bumped_back, relist
-from nanonav.engine.dynamics import brownian
-from nanonav.engine.dynamics.lattice import (
-    _move_cells,
-    _move_obstacles,
-    _move_robot,
-    _nearest_obstacle,
-    _redraw_emitters,
-)
+from nanonav.engine.dynamics import brownian, lattice
 from nanonav.engine.fields import SAMPLED_GAUSSIAN, place_sources, place_treated
-from nanonav.engine.learning import _learn, _learn_bootstrapped
+from nanonav.engine.learning import q_update, q_update_bootstrapped
 from nanonav.engine.policies import (
     NO_BEHAVIOR,
-    _baseline,
-    _behavior_direction,
-    _choose,
-    _steer,
-    _steering_baseline,
+    baseline_action,
+    behavior_direction,
+    epsilon_greedy,
+    steer,
+    steering_baseline,
 )
 from nanonav.engine.qlearning import (
     AVOID_OBSTACLE,
@@ -56,12 +49,12 @@ from nanonav.engine.qlearning import (
     TURN,
 )
 from nanonav.engine.sensing import (
-    _read,
-    _sense,
-    _sense_all,
-    _sensed_gradient,
-    _state,
-    _steering_state,
+    berg_purcell_reading,
+    noisy_reading,
+    sense_all,
+    sensed_gradient,
+    steering_state,
+    tabular_state,
 )
 from nanonav.engine.state import (
     ACTIVE_BROWNIAN,
@@ -164,12 +157,12 @@ def advance(p: KernelParams, rng: np.random.Generator, sim: Sim, t: int) -> None
     w = sim.w
     tr = sim.tr
     if p.cell_std > 0.0:
-        _move_cells(p, rng, w)
+        lattice.move_cells(p, rng, w)
     if p.physics == LATTICE:
         if p.obstacle_std > 0.0 and w.obstacles.shape[0] > 0:
-            _move_obstacles(p, rng, w, sim.s)
+            lattice.move_obstacles(p, rng, w, sim.s)
         if p.model == SAMPLED_GAUSSIAN:
-            _redraw_emitters(p, rng, w)
+            lattice.redraw_emitters(p, rng, w)
     place_sources(p.model, w.cells, w.offsets, w.sx, w.sy, w.sz)
     if p.capacity > 0:
         tr.treated_sources[0] = place_treated(
@@ -178,7 +171,7 @@ def advance(p: KernelParams, rng: np.random.Generator, sim: Sim, t: int) -> None
     if p.signal != NO_SIGNAL and p.signal != BROADCAST and t % p.signal_every == 0:
         radio_room.update_field(p, sim.s.pos, sim.so.bound_to, tr.treated_at, sim.sig,
                                 sim.sig_scratch)  # fmt: skip
-    _sense_all(p, w, sim.s, tr, sim.s.active)
+    sense_all(p, w, sim.s, tr, sim.s.active)
 
 
 @uncounted
@@ -202,7 +195,7 @@ def body_gradient(p: KernelParams, rng: np.random.Generator, sim: Sim, i: int) -
     pc = sim.pc
     t = pc.clock[CLOCK_STEP]
     kept = 0 if t == 0 else (t - 1) % p.hold  # readings already in the mean
-    gx, gy, gz = _sensed_gradient(p, rng, s, i)
+    gx, gy, gz = sensed_gradient(p, rng, s, i)
     hx = s.heading[i, 0]
     hy = s.heading[i, 1]
     hz = s.heading[i, 2]
@@ -254,7 +247,7 @@ def read_state(
     s = sim.s
     obs = sim.pc.obs
     if p.physics == ACTIVE_BROWNIAN:
-        c = _read(p, rng, s.reading[i])
+        c = berg_purcell_reading(p, rng, s.reading[i])
         s.sensed[i] = c
         if s.prev_conc[i] < 0.0:
             s.prev_conc[i] = c  # the first reading starts the memory
@@ -270,8 +263,8 @@ def read_state(
             obs[i, OBS_GRADIENT + 2] = 0.0
         obs[i, OBS_OBSTACLE] = 1.0 if s.blocked[i] else 0.0
         obs[i, OBS_CELL] = min(gap, p.cell_sensing_radius)
-        return _steering_state(p, c, c > s.prev_conc[i], s.blocked[i], gap <= p.cell_sensing_radius)
-    c, gx, gy, gz = _sense(p, rng, s, i)
+        return steering_state(p, c, c > s.prev_conc[i], s.blocked[i], gap <= p.cell_sensing_radius)
+    c, gx, gy, gz = noisy_reading(p, rng, s, i)
     obs[i, OBS_READING] = c
     obs[i, OBS_CHANGE] = c - s.prev_conc[i] if s.prev_conc[i] >= 0.0 else 0.0
     obs[i, OBS_GRADIENT] = gx
@@ -280,10 +273,10 @@ def read_state(
     obs[i, OBS_CELL] = min(cell_d, p.cell_sensing_radius)
     if not full and p.policy != Q_LEARNING:
         return 0
-    gap = _nearest_obstacle(sim.w.obstacles, p.obstacle_radius, s.pos[i, 0], s.pos[i, 1],
+    gap = lattice.nearest_obstacle(sim.w.obstacles, p.obstacle_radius, s.pos[i, 0], s.pos[i, 1],
                             s.pos[i, 2])[1]  # fmt: skip
     obs[i, OBS_OBSTACLE] = min(max(gap, 0.0), p.sensing_radius)
-    return _state(p, c, s.prev_conc[i], gx, gy, gz, gap, cell_d)
+    return tabular_state(p, c, s.prev_conc[i], gx, gy, gz, gap, cell_d)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -374,18 +367,18 @@ def decide(
     pc = sim.pc
     if p.policy == Q_LEARNING:
         table = 0 if p.shared else i
-        action = _choose(epsilon, rng, lrn.q, table, pc.state[i])
+        action = epsilon_greedy(epsilon, rng, lrn.q, table, pc.state[i])
         lrn.visits[table, pc.state[i], action] += 1
         code, dx, dy, dz, gx, gy, gz = command(p, sim, i, action, lrn.directions)
         return action, code, dx, dy, dz, gx, gy, gz
     c = pc.obs[i, OBS_READING]
     if p.physics == ACTIVE_BROWNIAN:
-        code = _steering_baseline(p, rng, c > s.prev_conc[i])
+        code = steering_baseline(p, rng, c > s.prev_conc[i])
         if code == STEER_UP_GRADIENT and pc.heard[i] > 0 and c <= p.level_1:
             # the written rule: where the biomarker is at trace level, follow the signal
             code = STEER_TO_SIGNAL
         return 0, code, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    code, dx, dy, dz, gx, gy, gz = _baseline(
+    code, dx, dy, dz, gx, gy, gz = baseline_action(
         p, rng, s.heading, i, c, s.prev_conc[i], pc.obs[i, OBS_GRADIENT],
         pc.obs[i, OBS_GRADIENT + 1], pc.obs[i, OBS_GRADIENT + 2], pc.target_d[i], pc.heard[i],
     )  # fmt: skip
@@ -428,7 +421,7 @@ def act(
                 sy = s.reading_grad[i, 1]
                 sz = s.reading_grad[i, 2]
             else:
-                sx, sy, sz = _sensed_gradient(p, rng, s, i)
+                sx, sy, sz = sensed_gradient(p, rng, s, i)
         tx = 0.0
         ty = 0.0
         tz = 0.0
@@ -445,7 +438,7 @@ def act(
         if code == TURN:
             body_turn(p, sim, i)
         else:
-            _steer(p, rng, s, i, code, sx, sy, sz, tx, ty, tz)
+            steer(p, rng, s, i, code, sx, sy, sz, tx, ty, tz)
         s.prev_conc[i] += p.memory_weight * (c - s.prev_conc[i])
         nx, ny, nz, blocked = brownian.move_robot(p, rng, w, s, i, px, py, pz)
     else:
@@ -457,11 +450,11 @@ def act(
             gy = pc.way[i, 1]
             gz = pc.way[i, 2]
         if code >= 0:
-            dx, dy, dz, step = _behavior_direction(
+            dx, dy, dz, step = behavior_direction(
                 p, rng, w, s, i, code, px, py, pz, gx, gy, gz, cell, cell_d
             )
         s.prev_conc[i] = c
-        nx, ny, nz, blocked = _move_robot(p, w, s, i, px, py, pz, dx, dy, dz, step)
+        nx, ny, nz, blocked = lattice.move_robot(p, w, s, i, px, py, pz, dx, dy, dz, step)
     if p.exclusion and not blocked and bumped_back(sim.near, s.pos, sim.everyone, i, px, py, pz,
                                                    p.contact):  # fmt: skip
         # another robot is in the way: the move is refused, a bump (a swimmer's heading has
@@ -518,7 +511,7 @@ def learn_arrival(p: KernelParams, lrn: Learner, s: Swarm, i: int) -> None:
     """A cell drifted onto robot ``i``: its waiting transition ends its episode, with the
     reward of the step it spent receiving."""
     if s.pending[i]:
-        _learn(
+        q_update(
             p, lrn.q, lrn.visits, 0 if p.shared else i, s.last_state[i], s.last_action[i],
             s.last_reward[i] + p.reward_reach + p.reward_step,
         )  # fmt: skip
@@ -529,7 +522,7 @@ def learn_arrival(p: KernelParams, lrn: Learner, s: Swarm, i: int) -> None:
 def learn_last(p: KernelParams, lrn: Learner, s: Swarm, i: int, state: int) -> None:
     """Robot ``i``'s waiting transition, now that its next ``state`` is perceived (eq. 2.7)."""
     if s.pending[i]:
-        _learn_bootstrapped(
+        q_update_bootstrapped(
             p, lrn.q, lrn.visits, 0 if p.shared else i, s.last_state[i], s.last_action[i],
             s.last_reward[i], state,
         )  # fmt: skip
@@ -543,7 +536,7 @@ def learn(
     """The transition robot ``i`` just made: learned at once when it ended the robot's
     episode, else kept until its next state is perceived (``learn_last``)."""
     if reached:
-        _learn(p, lrn.q, lrn.visits, 0 if p.shared else i, state, action, reward)
+        q_update(p, lrn.q, lrn.visits, 0 if p.shared else i, state, action, reward)
         s.pending[i] = False
     else:
         s.pending[i] = True
@@ -610,7 +603,7 @@ def learn_at_limit(p: KernelParams, rng: np.random.Generator, sim: Sim, lrn: Lea
     w = sim.w
     s = sim.s
     place_sources(p.model, w.cells, w.offsets, w.sx, w.sy, w.sz)
-    _sense_all(p, w, s, sim.tr, s.pending)
+    sense_all(p, w, s, sim.tr, s.pending)
     for i in range(s.pos.shape[0]):
         if not s.pending[i]:
             continue

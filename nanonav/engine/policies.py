@@ -16,7 +16,7 @@ from numpy.typing import NDArray
 
 from nanonav.engine.communication import ATTRACTANT_RISING, REPELLENT
 from nanonav.engine.dynamics.brownian import turn_toward
-from nanonav.engine.dynamics.lattice import _random_unit, _slide, _unit_or_random
+from nanonav.engine.dynamics.lattice import random_unit, slide, unit_or_random
 from nanonav.engine.qlearning import (
     APPROACH_CELL,
     AVOID_OBSTACLE,
@@ -55,7 +55,7 @@ def below(rng: np.random.Generator, n: int) -> int:
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _choose(
+def epsilon_greedy(
     epsilon: float, rng: np.random.Generator, q: NDArray[np.float64], table: int, state: int
 ) -> int:
     """Epsilon-greedy over one row of the table; ties among the best are broken at random."""
@@ -81,14 +81,14 @@ def _choose(
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _baseline(
+def baseline_action(
     p: KernelParams, rng: np.random.Generator, heading: NDArray[np.float64], i: int,
     c: float, prev_c: float, gx: float, gy: float, gz: float, cell_d: float, heard: int,
 ) -> tuple[int, float, float, float, float, float, float]:  # fmt: skip
     """A fixed policy's choice for robot ``i`` from its reading ``c`` (and the last one,
     ``prev_c``), sensed gradient ``g``, distance to the nearest cell and ``heading``:
     ``(behavior, dx, dy, dz, gx, gy, gz)``. Either one of the paper's behaviours, for
-    ``_behavior_direction`` to turn into a move up the gradient ``g`` returned (``rule`` blanks
+    ``behavior_direction`` to turn into a move up the gradient ``g`` returned (``rule`` blanks
     it to go straight on), or ``NO_BEHAVIOR`` and the unit direction ``d`` to move along.
     ``heard``: what the robot receives (``communication``'s codes). ``rule`` follows it
     (``FOLLOW_SIGNAL``) where it senses no cell and no reading above the 'mid' level, while an
@@ -125,7 +125,7 @@ def _baseline(
         dy = heading[i, 1]
         dz = heading[i, 2]
     else:
-        dx, dy, dz = _random_unit(rng)
+        dx, dy, dz = random_unit(rng)
     return behavior, dx, dy, dz, gx, gy, gz
 
 
@@ -136,16 +136,16 @@ def _climb(
 ) -> tuple[float, float, float]:  # fmt: skip
     """Up the sensed gradient, sliding round obstacles; straight on where nothing is sensed."""
     if gx * gx + gy * gy + gz * gz > 0.0:
-        dx, dy, dz = _unit_or_random(rng, gx, gy, gz)
+        dx, dy, dz = unit_or_random(rng, gx, gy, gz)
     else:
         dx = s.heading[i, 0]
         dy = s.heading[i, 1]
         dz = s.heading[i, 2]
-    return _slide(p, rng, w, px, py, pz, dx, dy, dz, p.speed)
+    return slide(p, rng, w, px, py, pz, dx, dy, dz, p.speed)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _behavior_direction(
+def behavior_direction(
     p: KernelParams,
     rng: np.random.Generator,
     w: World,
@@ -164,7 +164,7 @@ def _behavior_direction(
     """Unit direction and step length of one of the paper's behaviours. (Arrays are indexed
     element by element here: taking row views in this hot path costs reference counting.)"""
     if action == EXPLORE:
-        dx, dy, dz = _random_unit(rng)
+        dx, dy, dz = random_unit(rng)
         return dx, dy, dz, p.speed
     if action == APPROACH_CELL:
         if cell_d <= p.cell_sensing_radius and cell_d > 0.0:
@@ -180,13 +180,13 @@ def _behavior_direction(
         dx, dy, dz = _climb(p, rng, w, s, robot, px, py, pz, gx, gy, gz)
         return dx, dy, dz, p.speed
     if gx * gx + gy * gy + gz * gz > 0.0:
-        dx, dy, dz = _unit_or_random(rng, gx, gy, gz)
+        dx, dy, dz = unit_or_random(rng, gx, gy, gz)
         return dx, dy, dz, p.speed
     return s.heading[robot, 0], s.heading[robot, 1], s.heading[robot, 2], p.speed
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _steering_baseline(p: KernelParams, rng: np.random.Generator, rising: bool) -> int:
+def steering_baseline(p: KernelParams, rng: np.random.Generator, rising: bool) -> int:
     """A fixed active Brownian policy's steering action this step: 'uncontrolled' keeps its
     heading; 'run_and_tumble' tumbles with probability 1 - exp(-rate dt), at a lower rate while
     the reading rises; 'steer_and_tumble' tumbles so too, and otherwise steers up the gradient
@@ -203,7 +203,7 @@ def _steering_baseline(p: KernelParams, rng: np.random.Generator, rising: bool) 
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _steer(
+def steer(
     p: KernelParams, rng: np.random.Generator, s: Swarm, i: int, action: int,
     gx: float, gy: float, gz: float, tx: float, ty: float, tz: float,
 ) -> None:  # fmt: skip
@@ -217,7 +217,7 @@ def _steer(
     elif action == STEER_TO_CELL:
         hx, hy, hz = turn_toward(hx, hy, hz, tx, ty, tz, p.turn)
     elif action == TUMBLE:
-        hx, hy, hz = _random_unit(rng)
+        hx, hy, hz = random_unit(rng)
     s.heading[i, 0] = hx
     s.heading[i, 1] = hy
     s.heading[i, 2] = hz

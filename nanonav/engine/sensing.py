@@ -26,7 +26,7 @@ CELL_NEAR_STEPS = 3.0
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _sense_all(
+def sense_all(
     p: KernelParams, w: World, s: Swarm, tr: Treatment, wanted: NDArray[np.bool_]
 ) -> None:
     """The true field and gradient at every ``wanted`` robot, in one pass over the swarm (the
@@ -39,7 +39,7 @@ def _sense_all(
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _sense(p: KernelParams, rng: np.random.Generator, s: Swarm, i: int) -> tuple[float, ...]:
+def noisy_reading(p: KernelParams, rng: np.random.Generator, s: Swarm, i: int) -> tuple[float, ...]:
     """Robot ``i``'s reading of the concentration and its gradient, with relative sensor noise."""
     c = s.reading[i]
     gx = s.reading_grad[i, 0]
@@ -61,7 +61,7 @@ def _sense(p: KernelParams, rng: np.random.Generator, s: Swarm, i: int) -> tuple
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _state(
+def tabular_state(
     p: KernelParams,
     c: float,
     prev_c: float,
@@ -98,7 +98,7 @@ def _state(
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _read(p: KernelParams, rng: np.random.Generator, c: float) -> float:
+def berg_purcell_reading(p: KernelParams, rng: np.random.Generator, c: float) -> float:
     """One reading over a step of the true concentration c (nM) by a robot at the Berg-Purcell
     limit of its size: relative error 1 / sqrt(pi D_m a c dt) (``dynamics.brownian``)."""
     return read_counted(rng, c, p.counting * c)
@@ -109,11 +109,13 @@ def _across_body(p: KernelParams, rng: np.random.Generator, c: float, g: float) 
     """One component of the sensed gradient: two readings at the two ends of the body along
     that axis, (read(c + a g) - read(c - a g)) / 2a, the field taken to first order across it."""
     a = p.robot_radius
-    return (_read(p, rng, c + a * g) - _read(p, rng, max(c - a * g, 0.0))) / (2.0 * a)
+    ahead = berg_purcell_reading(p, rng, c + a * g)
+    behind = berg_purcell_reading(p, rng, max(c - a * g, 0.0))
+    return (ahead - behind) / (2.0 * a)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _sensed_gradient(
+def sensed_gradient(
     p: KernelParams, rng: np.random.Generator, s: Swarm, i: int
 ) -> tuple[float, float, float]:
     """Robot ``i``'s spatial gradient, each component read across its body."""
@@ -126,7 +128,7 @@ def _sensed_gradient(
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _steering_state(p: KernelParams, c: float, rising: bool, touching: bool, sensed: bool) -> int:
+def steering_state(p: KernelParams, c: float, rising: bool, touching: bool, sensed: bool) -> int:
     """Mixed-radix state index, in the order of ``qlearning.steering_states``."""
     level = int(c > p.level_1) + int(c > p.level_2) + int(c > p.level_3)
     return ((level * 2 + int(rising)) * 2 + int(touching)) * 2 + int(sensed)

@@ -419,7 +419,7 @@ def empty_recording(scenario: Scenario, stride: int) -> Recording:
     )
 
 
-class _Run:
+class Run:
     """The arrays of one run, allocated once and reused by every episode, and the two
     generators: one draws the worlds (so every policy faces the same ones), one the dynamics."""
 
@@ -586,7 +586,7 @@ def _warm_up() -> None:
         {"learning": {"episodes": 1, "max_steps": 2}, "obstacles": {"count": 1},
          "evaluation": {"worlds": 1}}
     )  # fmt: skip
-    run = _Run(tiny, kernel_params(tiny))
+    run = Run(tiny, kernel_params(tiny))
     while run.episode < tiny.episodes:
         run.advance(CHUNK_ROBOT_STEPS)
     fields.field_and_gradient(
@@ -619,7 +619,7 @@ def simulate(
     _warm_up()
     learning = scenario.learning
     total = scenario.episodes
-    run = _Run(scenario, params, policy)
+    run = Run(scenario, params, policy)
     engine_s = 0.0
     eval_s = 0.0
     while run.episode < total:

@@ -10,7 +10,7 @@ from nanonav.engine import SimulationResult, Trajectory, simulate, without_timin
 from nanonav.engine.simulate import (
     CHUNK_ROBOT_STEPS,
     DEFAULT_RECORD_BYTES,
-    _Run,
+    Run,
     fixed_history_bytes,
     history_row_bytes,
     history_rows,
@@ -47,7 +47,7 @@ SWARM: dict[str, Any] = {
 
 def test_still_obstacles_are_recorded_once_as_the_worlds_obstacles() -> None:
     s = scenario(**SWARM, obstacles={"count": 25})
-    run = _Run(s, kernel_params(s))
+    run = Run(s, kernel_params(s))
     while run.episode < s.episodes:
         run.advance(CHUNK_ROBOT_STEPS)
     t = run.trajectory()
@@ -103,9 +103,9 @@ def test_the_history_fits_its_byte_cap_and_ends_at_the_episodes_end() -> None:
 def test_the_recording_is_allocated_within_the_cap() -> None:
     s = scenario(robots={"count": 300}, learning={"episodes": 0, "max_steps": 5000})
     cap = 1_000_000
-    recording = _Run(s, kernel_params(s, cap)).recording
+    recording = Run(s, kernel_params(s, cap)).recording
     assert sum(a.nbytes for a in recording) <= cap
-    everything = _Run(s, kernel_params(s, 10**12)).recording
+    everything = Run(s, kernel_params(s, 10**12)).recording
     assert sum(a.nbytes for a in everything) > 50 * cap
 
 

@@ -12,7 +12,7 @@ import pytest
 
 from nanonav.engine import qlearning, sensing, simulate
 from nanonav.engine.result import without_timings
-from nanonav.engine.simulate import _Run, kernel_params
+from nanonav.engine.simulate import Run, kernel_params
 from nanonav.scenario import Scenario, preset_scenario
 
 
@@ -35,10 +35,12 @@ def test_each_sensed_gradient_component_carries_the_noise_of_two_readings_a_base
     # (c(x + b) + e1 - c(x) - e2) / b, with e1 and e2 N(0, floor^2): sd sqrt(2) * floor / b
     floor, baseline = 0.02, 0.25
     s = scenario(biomarker={"noise_floor": floor}, robots={"sensor_baseline": baseline})
-    run = _Run(s, kernel_params(s))
+    run = Run(s, kernel_params(s))
     run.swarm.reading[0] = 1.0  # above any threshold; the true gradient is 0
     rng = np.random.default_rng(11)
-    samples = np.array([sensing._sense(run.params, rng, run.swarm, 0) for _ in range(20_000)])
+    samples = np.array(
+        [sensing.noisy_reading(run.params, rng, run.swarm, 0) for _ in range(20_000)]
+    )
     expected = math.sqrt(2.0) * floor / baseline
     # the sample sd of n normal draws has a relative standard error of 1 / sqrt(2 (n - 1))
     tolerance = 4.0 / math.sqrt(2.0 * (len(samples) - 1))

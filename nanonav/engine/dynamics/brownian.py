@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 from scipy.optimize import brentq
 from scipy.special import dawsn
 
-from nanonav.engine.dynamics.lattice import _reflect, _segment_hit
+from nanonav.engine.dynamics.lattice import reflect, segment_hit
 from nanonav.engine.state import KernelParams, Swarm, World
 
 # Stokes-Einstein(-Debye) lives with the schema, which fills D_T and D_R in from it.
@@ -298,10 +298,10 @@ def move_robot(
     ny = py + p.speed * hy + p.jiggle * rng.standard_normal()
     nz = pz + p.speed * hz + p.jiggle * rng.standard_normal()
     if p.walls:
-        nx = _reflect(nx, p.half)
-        ny = _reflect(ny, p.half)
-        nz = _reflect(nz, p.half)
-    blocked = _segment_hit(w.obstacles, p.obstacle_radius, px, py, pz, nx, ny, nz) >= 0
+        nx = reflect(nx, p.half)
+        ny = reflect(ny, p.half)
+        nz = reflect(nz, p.half)
+    blocked = segment_hit(w.obstacles, p.obstacle_radius, px, py, pz, nx, ny, nz) >= 0
     if blocked:
         s.collisions[i] += 1
         nx = px

@@ -19,7 +19,8 @@ from nanonav.engine.state import KernelParams, Swarm, World
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _random_unit(rng: np.random.Generator) -> tuple[float, float, float]:
+def random_unit(rng: np.random.Generator) -> tuple[float, float, float]:
+    """A direction drawn uniformly on the sphere (a normalised Gaussian vector)."""
     while True:
         x = rng.standard_normal()
         y = rng.standard_normal()
@@ -30,17 +31,20 @@ def _random_unit(rng: np.random.Generator) -> tuple[float, float, float]:
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _unit_or_random(
+def unit_or_random(
     rng: np.random.Generator, x: float, y: float, z: float
 ) -> tuple[float, float, float]:
+    """(x, y, z) made a unit vector, or a random direction where it has no length (a robot
+    told to move along a gradient of zero moves somewhere)."""
     n = math.sqrt(x * x + y * y + z * z)
     if n > 1e-300:
         return x / n, y / n, z / n
-    return _random_unit(rng)
+    return random_unit(rng)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _reflect(v: float, half: float) -> float:
+def reflect(v: float, half: float) -> float:
+    """A coordinate that left the cube of half-width ``half`` mirrored back in off its wall."""
     if v > half:
         return 2.0 * half - v
     if v < -half:
@@ -49,7 +53,7 @@ def _reflect(v: float, half: float) -> float:
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _nearest(points: NDArray[np.float64], x: float, y: float, z: float) -> tuple[int, float]:
+def nearest(points: NDArray[np.float64], x: float, y: float, z: float) -> tuple[int, float]:
     """Index of the point nearest to (x, y, z) and its distance (-1 and inf if none)."""
     best = -1
     best_d2 = np.inf
@@ -65,11 +69,11 @@ def _nearest(points: NDArray[np.float64], x: float, y: float, z: float) -> tuple
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _nearest_obstacle(
+def nearest_obstacle(
     obstacles: NDArray[np.float64], radius: float, x: float, y: float, z: float
 ) -> tuple[int, float]:
     """Index of the nearest obstacle and the distance to its surface (inf if none)."""
-    best, distance = _nearest(obstacles, x, y, z)
+    best, distance = nearest(obstacles, x, y, z)
     return best, distance - radius
 
 
@@ -88,7 +92,7 @@ def _inside_obstacle(
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _segment_hit(
+def segment_hit(
     obstacles: NDArray[np.float64], radius: float,
     px: float, py: float, pz: float, nx: float, ny: float, nz: float,
 ) -> int:  # fmt: skip
@@ -121,19 +125,19 @@ def _segment_hit(
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _slide(
+def slide(
     p: KernelParams, rng: np.random.Generator, w: World,
     px: float, py: float, pz: float, dx: float, dy: float, dz: float, step: float,
 ) -> tuple[float, float, float]:  # fmt: skip
     """The direction (dx, dy, dz), or, if a step along it would run into an obstacle, its part
     along that obstacle's surface: a robot that meets an obstacle goes round it rather than
     pushing against it."""
-    j = _segment_hit(
+    j = segment_hit(
         w.obstacles, p.obstacle_radius, px, py, pz, px + step * dx, py + step * dy, pz + step * dz
     )
     if j < 0:
         return dx, dy, dz
-    nx, ny, nz = _unit_or_random(
+    nx, ny, nz = unit_or_random(
         rng, px - w.obstacles[j, 0], py - w.obstacles[j, 1], pz - w.obstacles[j, 2]
     )
     inward = dx * nx + dy * ny + dz * nz
@@ -147,11 +151,11 @@ def _slide(
         tx, ty, tz = ny, -nx, 0.0
         if tx * tx + ty * ty < 1e-18:
             tx, ty, tz = 0.0, nz, -ny
-    return _unit_or_random(rng, tx, ty, tz)
+    return unit_or_random(rng, tx, ty, tz)
 
 
 @njit(cache=True, error_model="numpy")
-def _move_cells(p: KernelParams, rng: np.random.Generator, w: World) -> None:
+def move_cells(p: KernelParams, rng: np.random.Generator, w: World) -> None:
     """Random walk of the cells (paper 3.1; in the active Brownian physics, their diffusion); a
     move that brings a cell's centre within ``cell_margin`` of an obstacle's is refused. Without
     walls a cell may drift out of the cube."""
@@ -160,9 +164,9 @@ def _move_cells(p: KernelParams, rng: np.random.Generator, w: World) -> None:
         y = w.cells[j, 1] + p.cell_std * rng.standard_normal()
         z = w.cells[j, 2] + p.cell_std * rng.standard_normal()
         if p.walls:
-            x = _reflect(x, p.half)
-            y = _reflect(y, p.half)
-            z = _reflect(z, p.half)
+            x = reflect(x, p.half)
+            y = reflect(y, p.half)
+            z = reflect(z, p.half)
         if not _inside_obstacle(w.obstacles, p.cell_margin, x, y, z):
             w.cells[j, 0] = x
             w.cells[j, 1] = y
@@ -170,7 +174,7 @@ def _move_cells(p: KernelParams, rng: np.random.Generator, w: World) -> None:
 
 
 @njit(cache=True, error_model="numpy")
-def _redraw_emitters(p: KernelParams, rng: np.random.Generator, w: World) -> None:
+def redraw_emitters(p: KernelParams, rng: np.random.Generator, w: World) -> None:
     """The sampled Gaussian's emitters, drawn anew around their cells: uniform within
     ``emitter_scatter`` on each axis (the authors' script redraws them every step)."""
     for k in range(w.offsets.shape[0]):
@@ -179,7 +183,7 @@ def _redraw_emitters(p: KernelParams, rng: np.random.Generator, w: World) -> Non
 
 
 @njit(cache=True, error_model="numpy")
-def _move_obstacles(p: KernelParams, rng: np.random.Generator, w: World, s: Swarm) -> None:
+def move_obstacles(p: KernelParams, rng: np.random.Generator, w: World, s: Swarm) -> None:
     """Obstacle drift (paper 2.6); a move that would engulf a robot or a cell is refused."""
     r = p.obstacle_radius
     for j in range(w.obstacles.shape[0]):
@@ -187,9 +191,9 @@ def _move_obstacles(p: KernelParams, rng: np.random.Generator, w: World, s: Swar
         y = w.obstacles[j, 1] + p.obstacle_std * rng.standard_normal()
         z = w.obstacles[j, 2] + p.obstacle_std * rng.standard_normal()
         if p.walls:
-            x = _reflect(x, p.half)
-            y = _reflect(y, p.half)
-            z = _reflect(z, p.half)
+            x = reflect(x, p.half)
+            y = reflect(y, p.half)
+            z = reflect(z, p.half)
         clear = True
         for i in range(s.pos.shape[0]):
             dx = s.pos[i, 0] - x
@@ -214,7 +218,7 @@ def _move_obstacles(p: KernelParams, rng: np.random.Generator, w: World, s: Swar
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _move_robot(
+def move_robot(
     p: KernelParams, w: World, s: Swarm, i: int,
     px: float, py: float, pz: float, dx: float, dy: float, dz: float, step: float,
 ) -> tuple[float, float, float, bool]:  # fmt: skip
@@ -226,15 +230,15 @@ def _move_robot(
     ny = py + step * dy
     nz = pz + step * dz
     if p.walls and abs(nx) > p.half:
-        nx = _reflect(nx, p.half)
+        nx = reflect(nx, p.half)
         dx = -dx
     if p.walls and abs(ny) > p.half:
-        ny = _reflect(ny, p.half)
+        ny = reflect(ny, p.half)
         dy = -dy
     if p.walls and abs(nz) > p.half:
-        nz = _reflect(nz, p.half)
+        nz = reflect(nz, p.half)
         dz = -dz
-    blocked = _segment_hit(w.obstacles, p.obstacle_radius, px, py, pz, nx, ny, nz) >= 0
+    blocked = segment_hit(w.obstacles, p.obstacle_radius, px, py, pz, nx, ny, nz) >= 0
     if blocked:
         s.collisions[i] += 1
         nx = px

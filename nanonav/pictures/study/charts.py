@@ -349,7 +349,7 @@ def metric_png(
     return png(fig)
 
 
-def _bin_average(columns: NDArray[np.float64], limit: int) -> NDArray[np.float64]:
+def bin_average(columns: NDArray[np.float64], limit: int) -> NDArray[np.float64]:
     """Rows of ``columns`` (one per quantity, points along axis 1) averaged over consecutive bins
     so that at most ``limit`` points remain. NaN (no data) is left out of a bin's mean; a bin
     with no data at all stays NaN, a gap."""
@@ -375,7 +375,7 @@ def _draw_curve(ax: Axes, one: Series, style: _Style) -> None:
     x = np.array([float(v) for v in one.x])
     order = np.argsort(x, kind="stable")
     columns = np.vstack([x[order]] + [_floats(v)[order] for v in (one.mean, one.low, one.high)])
-    x, mean, low, high = _bin_average(columns, MAX_CURVE_POINTS)
+    x, mean, low, high = bin_average(columns, MAX_CURVE_POINTS)
     band = np.isfinite(low) & np.isfinite(high)
     if band.any():
         ax.fill_between(

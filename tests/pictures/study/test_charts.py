@@ -209,14 +209,14 @@ def test_bin_averages_keep_at_most_the_limit_and_skip_gaps() -> None:
     y = x.copy()
     y[10:20] = np.nan  # the whole second bin is missing
     y[25] = np.nan  # part of the third
-    binned = charts._bin_average(np.vstack([x, y]), 2_000)
+    binned = charts.bin_average(np.vstack([x, y]), 2_000)
     assert binned.shape == (2, 2_000)
     assert binned[0, 0] == pytest.approx(4.5)
     assert np.isnan(binned[1, 1])
     assert binned[1, 2] == pytest.approx(np.mean([20, 21, 22, 23, 24, 26, 27, 28, 29]))
     assert binned[0, -1] == pytest.approx(19_994.5)
     short = np.vstack([x[:50], y[:50]])
-    assert charts._bin_average(short, 2_000) is short
+    assert charts.bin_average(short, 2_000) is short
 
 
 def test_learning_with_nothing_to_draw_says_so_in_each_panel() -> None:
