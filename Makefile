@@ -10,7 +10,7 @@ PORT ?= 8000
 TEST_PROCESSES ?= 3
 export HOST PORT
 
-.PHONY: run test lint typecheck pytest docs docs-check bench clean
+.PHONY: run test lint typecheck pytest docs docs-check bench clean clean-compiled
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -73,5 +73,10 @@ bench: $(VENV)/.installed
 	$(BIN)/python benchmarks/cost.py
 	$(BIN)/python benchmarks/service.py
 
-clean:
+clean: clean-compiled
 	rm -rf $(VENV) var site .mypy_cache .ruff_cache .pytest_cache
+
+# numba's cache of the compiled engine: a cached function is compiled again when its own file
+# changes, not when a function it calls from another file does.
+clean-compiled:
+	find nanonav -name '*.nbi' -delete -o -name '*.nbc' -delete
