@@ -93,13 +93,9 @@ WORK_PAIR = 1.25  # one distance test between two points (say, a robot and an ob
 WORK_DRAW = 32  # one random point, direction or offset (three normal draws)
 WORK_PLACE = 2.5  # one source moved with its cell
 # one source's term of the field at one point: an exp for these two, a division for the
-# inverse-square emitters, whose sum is vectorised across the robots where at least
-# FIELD_ACROSS_ROBOTS robots read FIELD_ACROSS_TERMS terms in all (``engine.fields``): a term
-# costs WORK_SOURCE_ACROSS there, and robot by robot (each sum in its fixed order) four times that
+# inverse-square emitters (summed robot by robot, each sum in its fixed order of lanes, which the
+# compiler does not vectorise: 2.1 ns a term here)
 WORK_SOURCE = {"gaussian": 6.5, "diffusion": 6.5, "inverse_square": 2.2, "sampled_gaussian": 6.5}
-WORK_SOURCE_ACROSS = 0.7
-FIELD_ACROSS_ROBOTS = 16
-FIELD_ACROSS_TERMS = 4096
 # The swarm's: per active robot-step, the neighbour search of robots that take up space, a
 # reading of the signal grid, or keeping the radio's cell list current; per grid node and
 # solver step, the signal's diffusion; per robot and grid update, its release (if bound).
@@ -1420,12 +1416,6 @@ class Scenario(_Part):
         o = self.obstacles.count
         k = self.sources
         source = WORK_SOURCE[self.biomarker.model]
-        if (
-            self.biomarker.model == "inverse_square"
-            and n >= FIELD_ACROSS_ROBOTS
-            and n * k >= FIELD_ACROSS_TERMS
-        ):
-            source = WORK_SOURCE_ACROSS
         # units per active robot and step: sense (k terms), nearest obstacle and the collision
         # test (o tests each), nearest cell before and after the move (c tests each)
         robot_step = self.robot_step_overhead + source * k + 2 * WORK_PAIR * (o + c)

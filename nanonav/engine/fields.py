@@ -14,13 +14,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from nanonav.scenario import (
-    FIELD_ACROSS_ROBOTS,
-    FIELD_ACROSS_TERMS,
-    MOLECULES_PER_UM3_PER_NM,
-    Biomarker,
-    Scenario,
-)
+from nanonav.scenario import MOLECULES_PER_UM3_PER_NM, Biomarker, Scenario
 
 GAUSSIAN = 0
 INVERSE_SQUARE = 1
@@ -139,55 +133,6 @@ def sample(
     return _sum_lanes(GAUSSIAN, sx, sy, sz, weight, scale, eps2, x, y, z)
 
 
-# The inverse-square field is summed across points (``_inverse_square_across``) from this many
-# points, and this many source terms in all, on (below them, its scratch costs more than it
-# saves); ``Scenario.work`` prices a term by which way it is summed.
-ACROSS_POINTS = FIELD_ACROSS_ROBOTS
-ACROSS_TERMS = FIELD_ACROSS_TERMS
-
-
-@njit(cache=True, error_model="numpy")
-def _inverse_square_across(
-    sx: NDArray[np.float64], sy: NDArray[np.float64], sz: NDArray[np.float64], weight: float,
-    eps2: float, points: NDArray[np.float64], chosen: NDArray[np.int64],
-    conc: NDArray[np.float64], grad: NDArray[np.float64],
-) -> None:  # fmt: skip
-    """``sample`` of the inverse-square field at the ``chosen`` points, into their ``conc`` and
-    ``grad``: the same sums, each in the same order (lane by lane, then the lanes added), but a
-    source's term computed for every point side by side, where the vector unit adds them
-    without reordering any point's sum (a point's sources are not vectorised: only a
-    reassociated sum, whose order follows the vector width, would be). Four times faster than
-    point by point here among many emitters."""
-    m = chosen.shape[0]
-    px = np.empty(m)
-    py = np.empty(m)
-    pz = np.empty(m)
-    for j in range(m):
-        px[j] = points[chosen[j], 0]
-        py[j] = points[chosen[j], 1]
-        pz[j] = points[chosen[j], 2]
-    sums = np.zeros((LANES, 4, m))
-    n = sx.shape[0]
-    rounds = n // LANES * LANES
-    for k in range(n):
-        lane = k % LANES if k < rounds else 0
-        xk = sx[k]
-        yk = sy[k]
-        zk = sz[k]
-        for j in range(m):
-            e, fx, fy, fz = _term(INVERSE_SQUARE, px[j] - xk, py[j] - yk, pz[j] - zk, weight,
-                                  1.0, eps2)  # fmt: skip
-            sums[lane, 0, j] += e
-            sums[lane, 1, j] += fx
-            sums[lane, 2, j] += fy
-            sums[lane, 3, j] += fz
-    for j in range(m):
-        p = chosen[j]
-        conc[p] = sums[0, 0, j] + sums[1, 0, j] + sums[2, 0, j] + sums[3, 0, j]
-        for q in range(1, 4):
-            grad[p, q - 1] = sums[0, q, j] + sums[1, q, j] + sums[2, q, j] + sums[3, q, j]
-
-
 @njit(cache=True, error_model="numpy", inline="always")
 def place_sources(
     model: int,
@@ -235,26 +180,13 @@ def sample_many(
     sources of treated cells, at (tx, ty, tz), shed less: ``treated_weight`` (their lost share
     of ``weight``) of their field is taken off again. Taken off rather than weighted in the
     sum, so the sum over all sources stays the one loop it was (and its vectorised order)."""
-    count = 0
-    for p in range(points.shape[0]):
-        count += wanted[p]
-    across = (
-        model == INVERSE_SQUARE and count >= ACROSS_POINTS and count * sx.shape[0] >= ACROSS_TERMS
-    )
-    if across:
-        chosen = np.flatnonzero(wanted)
-        _inverse_square_across(sx, sy, sz, weight, softening * softening, points, chosen, conc,
-                               grad)  # fmt: skip
     for p in range(points.shape[0]):
         if not wanted[p]:
             continue
         x = points[p, 0]
         y = points[p, 1]
         z = points[p, 2]
-        if across:
-            c, gx, gy, gz = conc[p], grad[p, 0], grad[p, 1], grad[p, 2]
-        else:
-            c, gx, gy, gz = sample(model, sx, sy, sz, weight, length, softening, x, y, z)
+        c, gx, gy, gz = sample(model, sx, sy, sz, weight, length, softening, x, y, z)
         if tx.shape[0]:
             oc, ox, oy, oz = sample(model, tx, ty, tz, treated_weight, length, softening, x, y, z)
             c = max(c - oc, 0.0)
