@@ -93,9 +93,9 @@ WORK_PAIR = 1.25  # one distance test between two points (say, a robot and an ob
 WORK_DRAW = 32  # one random point, direction or offset (three normal draws)
 WORK_PLACE = 2.5  # one source moved with its cell
 # one source's term of the field at one point: an exp for these two, a division for the
-# inverse-square emitters (summed robot by robot, each sum in its fixed order of lanes, which the
-# compiler does not vectorise: 2.1 ns a term here)
-WORK_SOURCE = {"gaussian": 6.5, "diffusion": 6.5, "inverse_square": 2.2, "sampled_gaussian": 6.5}
+# inverse-square emitters (summed in a fixed order of lanes, which the compiler does not
+# vectorise: 2.6 ns a term here)
+WORK_SOURCE = {"gaussian": 6.5, "diffusion": 6.5, "inverse_square": 2.6, "sampled_gaussian": 6.5}
 # The swarm's: per active robot-step, the neighbour search of robots that take up space, a
 # reading of the signal grid, or keeping the radio's cell list current; per grid node and
 # solver step, the signal's diffusion; per robot and grid update, its release (if bound).

@@ -25,13 +25,12 @@ MODEL_CODES = {"gaussian": GAUSSIAN, "inverse_square": INVERSE_SQUARE, "diffusio
 # Models whose sources are emitters around each cell, not the cells themselves.
 EMITTER_MODELS = ("inverse_square", "sampled_gaussian")
 
-# The field's arithmetic is IEEE's, operation by operation (numba's default, no fast-math), so
-# that a field is the same bits on every processor and whatever shape the code that sums it
-# takes. Reassociated, the compiler took the sum's order from the processor's vector width (a
-# machine with AVX-512 computed other fields, and so other runs, than one with AVX2);
-# contracted into fused multiply-adds, the bits moved with where the compiler fused them, so
-# rewriting the sum changed them.
-# The lanes ``sample`` sums sources in: a fixed order, whatever the vector width.
+# No "reassoc": the sum over sources keeps the order ``sample`` writes (four lanes), so that a
+# field is the same bits on every processor. Reassociated, the compiler took the sum's order
+# from the processor's vector width, and a machine with AVX-512 computed other fields, and so
+# other runs, than one with AVX2.
+FASTMATH = {"contract", "nsz", "arcp"}
+# The lanes ``sample`` sums sources in: partial sums a vector unit adds side by side.
 LANES = 4
 
 
@@ -80,13 +79,25 @@ def _plus(
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _sum_lanes(
-    model: int, sx: NDArray[np.float64], sy: NDArray[np.float64], sz: NDArray[np.float64],
-    weight: float, scale: float, eps2: float, x: float, y: float, z: float,
-) -> tuple[float, float, float, float]:  # fmt: skip
-    """``sample``'s sum for one ``model``, a constant where it is called: its branches fold
-    away out of the loop over sources (where they were tested at every source, the sum took
-    two thirds longer)."""
+def sample(
+    model: int,
+    sx: NDArray[np.float64],
+    sy: NDArray[np.float64],
+    sz: NDArray[np.float64],
+    weight: float,
+    length: float,
+    softening: float,
+    x: float,
+    y: float,
+    z: float,
+) -> tuple[float, float, float, float]:
+    """Concentration and gradient at (x, y, z) of sources at (sx, sy, sz), each of strength
+    ``weight``; ``length`` is sigma (Gaussian) or lambda (diffusion). Source k is summed into
+    lane k % LANES while whole rounds of lanes last, the rest into the first, and the lanes
+    are added at the end: one order on every processor, whose vector unit adds the lanes side
+    by side (with fewer sources than lanes, the order of the sources)."""
+    eps2 = softening * softening
+    scale = 1.0 / (length * length) if model in (GAUSSIAN, SAMPLED_GAUSSIAN) else 1.0 / length
     field = (model, weight, scale, eps2)
     lane0 = lane1 = lane2 = lane3 = (0.0, 0.0, 0.0, 0.0)
     n = sx.shape[0]
@@ -104,33 +115,6 @@ def _sum_lanes(
         lane0[2] + lane1[2] + lane2[2] + lane3[2],
         lane0[3] + lane1[3] + lane2[3] + lane3[3],
     )
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def sample(
-    model: int,
-    sx: NDArray[np.float64],
-    sy: NDArray[np.float64],
-    sz: NDArray[np.float64],
-    weight: float,
-    length: float,
-    softening: float,
-    x: float,
-    y: float,
-    z: float,
-) -> tuple[float, float, float, float]:
-    """Concentration and gradient at (x, y, z) of sources at (sx, sy, sz), each of strength
-    ``weight``; ``length`` is sigma (Gaussian) or lambda (diffusion). Source k is summed into
-    lane k % LANES while whole rounds of lanes last, the rest into the first, and the lanes
-    are added at the end: one order on every processor (with fewer sources than lanes, the
-    order of the sources)."""
-    eps2 = softening * softening
-    if model == INVERSE_SQUARE:
-        return _sum_lanes(INVERSE_SQUARE, sx, sy, sz, weight, 1.0, eps2, x, y, z)
-    if model == DIFFUSION:
-        return _sum_lanes(DIFFUSION, sx, sy, sz, weight, 1.0 / length, eps2, x, y, z)
-    scale = 1.0 / (length * length)
-    return _sum_lanes(GAUSSIAN, sx, sy, sz, weight, scale, eps2, x, y, z)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -158,7 +142,7 @@ def place_sources(
             sz[j] = cells[j, 2]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, fastmath=FASTMATH, error_model="numpy")
 def sample_many(
     model: int,
     sx: NDArray[np.float64],

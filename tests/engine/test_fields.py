@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from nanonav.engine import field_and_gradient, fields
+from nanonav.engine import field_and_gradient
 from nanonav.scenario import Biomarker
 
 MODELS = ["gaussian", "inverse_square", "diffusion"]
@@ -81,42 +81,3 @@ def test_gradient_points_toward_a_lone_cell(model: str) -> None:
         np.linalg.norm(grad, axis=1) * np.linalg.norm(points, axis=1)
     )
     np.testing.assert_allclose(cosine, 1.0, rtol=1e-9)
-
-
-def _lane_order_reference(
-    sources: np.ndarray, weight: float, eps2: float, point: np.ndarray
-) -> list[float]:
-    """The inverse-square field and gradient at ``point`` in plain Python floats (IEEE doubles,
-    no fused multiply-add), summed in the order ``fields.sample`` documents: source k into
-    lane k % LANES while whole rounds last, the rest into the first, then the lanes added."""
-    lanes = [[0.0] * 4 for _ in range(fields.LANES)]
-    rounds = len(sources) // fields.LANES * fields.LANES
-    for k, (sx, sy, sz) in enumerate(sources.tolist()):
-        dx, dy, dz = point[0] - sx, point[1] - sy, point[2] - sz
-        inv = 1.0 / (dx * dx + dy * dy + dz * dz + eps2)
-        e = weight * inv
-        f = -2.0 * e * inv
-        lane = lanes[k % fields.LANES if k < rounds else 0]
-        for q, term in enumerate((e, f * dx, f * dy, f * dz)):
-            lane[q] += term
-    return [lanes[0][q] + lanes[1][q] + lanes[2][q] + lanes[3][q] for q in range(4)]
-
-
-@pytest.mark.parametrize("robots", [1, 40])
-def test_a_field_is_summed_in_its_documented_order_bit_for_bit(robots: int) -> None:
-    """The field's sum is IEEE arithmetic in the order ``fields.sample`` documents, with no
-    fused multiply-add and no reordering: the same bits on every processor, and a robot's
-    reading depends on where it is, not on how many robots read."""
-    rng = np.random.default_rng(11)
-    sources = rng.uniform(-20, 20, (303, 3))
-    points = rng.uniform(-20, 20, (robots, 3))
-    wanted = np.ones(robots, dtype=np.bool_)
-    conc = np.zeros(robots)
-    grad = np.zeros((robots, 3))
-    sx, sy, sz = (np.ascontiguousarray(sources[:, axis]) for axis in range(3))
-    none = np.zeros(0)
-    fields.sample_many(fields.INVERSE_SQUARE, sx, sy, sz, 1.7, 1.0, 0.5, points, wanted, conc,
-                       grad, none, none, none, 0.0)  # fmt: skip
-    for p in range(robots):
-        expected = _lane_order_reference(sources, 1.7, 0.25, points[p])
-        assert [conc[p], *grad[p]] == expected
