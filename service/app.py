@@ -17,6 +17,7 @@ import nanonav
 from nanonav.settings import Settings
 from nanonav.store import JobStore, PolicyNotFound, StudyStore
 from nanonav.store.deliveries import DeliveryStore
+from nanonav.store.revocations import RevocationStore
 from service import problems
 from service.caching import ETags
 from service.drawing import Drawer
@@ -34,6 +35,7 @@ from service.security import (
     Guard,
     refuse_cross_site,
 )
+from service.sessions import Sessions
 
 STATIC = Path(__file__).resolve().parent / "static"
 DESCRIPTION = """Submit nanorobot scenarios, watch them run, and fetch their results.
@@ -52,6 +54,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     settings = settings or Settings()
     store = JobStore.from_url(settings.database_url, busy_timeout_s=settings.store_busy_timeout_s)
     study_store = StudyStore(store.engine)
+    sessions = Sessions(settings, RevocationStore(store.engine))
     poller = Poller(settings.events_poll_s)
 
     @asynccontextmanager
@@ -92,6 +95,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.state.studies = study_store
     app.state.reports = Reports()
     app.state.deliveries = DeliveryStore(store.engine)
+    app.state.sessions = sessions
     app.state.poller = poller
     app.state.job_events = poller.channel(partial(events.job_snapshots, store))
     app.state.study_events = poller.channel(partial(events.study_snapshots, study_store))
@@ -102,7 +106,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.add_middleware(BodySizeLimit, max_bytes=settings.max_body_bytes)
     app.add_middleware(ETags)
     app.add_middleware(HeadAsGet)
-    app.add_middleware(Guard, settings=settings)
+    app.add_middleware(Guard, settings=settings, sessions=sessions)
     if settings.allowed_origins:
         # Pages of the allowed origins may call the API from a browser: their preflights are
         # answered outside Guard, since a browser never sends the key with a preflight.

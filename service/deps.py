@@ -18,6 +18,7 @@ from service.events import Channel
 from service.json_keys import refuse_duplicate_keys
 from service.problems import UnsupportedMediaType
 from service.reports import Reports
+from service.sessions import Sessions
 from service.text import refuse_nul
 
 
@@ -39,6 +40,11 @@ async def _studies(request: Request) -> StudyStore:
 async def _deliveries(request: Request) -> DeliveryStore:
     deliveries: DeliveryStore = request.app.state.deliveries
     return deliveries
+
+
+async def _sessions(request: Request) -> Sessions:
+    sessions: Sessions = request.app.state.sessions
+    return sessions
 
 
 async def _drawer(request: Request) -> Drawer:
@@ -82,6 +88,7 @@ DrawerDep = Annotated[Drawer, Depends(_drawer)]
 StudiesDep = Annotated[StudyStore, Depends(_studies)]
 ReportsDep = Annotated[Reports, Depends(_reports)]
 DeliveriesDep = Annotated[DeliveryStore, Depends(_deliveries)]
+SessionsDep = Annotated[Sessions, Depends(_sessions)]
 JobEventsDep = Annotated[Channel, Depends(_job_events)]
 StudyEventsDep = Annotated[Channel, Depends(_study_events)]
 JsonBody = Depends(require_json)

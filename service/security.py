@@ -1,10 +1,11 @@
 """Who is asking, and whether a request may go on: API keys, cross-site requests, owners.
 
 ``Guard`` is one pure ASGI middleware for the whole app. With ``NANONAV_API_KEYS`` set, every
-request but ``/healthz`` and the login page's assets carries ``Authorization: Bearer <key>`` (a
-browser may carry the dashboard's session cookie instead: ``service.sessions``); the key is
-compared in constant time with every configured key, and only its SHA-256 digest is kept: it
-names the request's owner.
+request but ``/healthz``, the login page, its assets and the logout carries ``Authorization:
+Bearer <key>``; the key is compared in constant time with every configured key, and only its
+SHA-256 digest is kept: it names the request's owner. A browser may carry the dashboard's
+session cookie instead (``service.sessions``); only such a request costs a look in the store,
+for a logout that ended its session.
 ``refuse_cross_site``, a dependency of the whole app, makes a request that changes state (POST,
 PUT, PATCH, DELETE) be JSON or carry a custom header, which an HTML form on another site cannot
 send, and an ``Origin`` it names be this API's own (the same scheme, host and port) or an
@@ -16,6 +17,7 @@ from __future__ import annotations
 
 import hashlib
 import hmac
+import logging
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -25,6 +27,7 @@ from urllib.parse import quote
 from fastapi import Depends, Request
 from fastapi.security import HTTPBearer
 from numpy.typing import NDArray
+from sqlalchemy.exc import OperationalError
 from starlette.datastructures import Headers
 from starlette.responses import RedirectResponse
 from starlette.types import ASGIApp, Receive, Scope, Send
@@ -40,13 +43,17 @@ from service.problems import (
     UnsupportedMediaType,
     problem_response,
 )
-from service.sessions import SESSION_COOKIE, owner_of_token, session_secret
+from service.sessions import SESSION_COOKIE, Sessions
 
-# Reachable without a key: the health check, and what the login page needs to show itself.
+logger = logging.getLogger(__name__)
+
+# Reachable without a key: the health check, what the login page needs to show itself, and the
+# logout, which ends the session its cookie names if any and always clears the cookie.
 OPEN_PATHS = frozenset(
     {
         "/healthz",
         "/ui/login",
+        "/ui/logout",
         "/static/app.css",
         "/static/app.js",
         "/static/favicon.svg",
@@ -169,11 +176,11 @@ class Guard:
     """Pure ASGI middleware: checks the ``Host`` (against DNS rebinding), authenticates the
     request and says who made it; what it refuses is a problem document like any other."""
 
-    def __init__(self, app: ASGIApp, settings: Settings) -> None:
+    def __init__(self, app: ASGIApp, settings: Settings, sessions: Sessions) -> None:
         self.app = app
         self.keys = tuple(key.get_secret_value() for key in settings.api_keys)
         self.owners = frozenset(owner_of(key) for key in self.keys)
-        self.session_secret = session_secret(settings)
+        self.sessions = sessions
         self.hosts = settings.allowed_hosts
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
@@ -190,7 +197,11 @@ class Guard:
         path: str = scope["path"]
         owner = ""
         if self.keys and path not in OPEN_PATHS:
-            found = self._owner(headers)
+            try:
+                found = await self._owner(headers)
+            except OperationalError as error:
+                await self._store_down(scope, error)(scope, receive, send)
+                return
             if not found:
                 presented = found is not None
                 await self._unauthorized(scope, headers, presented)(scope, receive, send)
@@ -203,7 +214,7 @@ class Guard:
         )
         await self.app(scope, receive, send)
 
-    def _owner(self, headers: Headers) -> str | None:
+    async def _owner(self, headers: Headers) -> str | None:
         """The owner a request's key or session token names; '' for one that names none,
         None when it carries neither."""
         key = presented_key(headers)
@@ -211,9 +222,16 @@ class Guard:
             return owner_of(key) if matching_key(key, self.keys) else ""
         token = presented_session(headers)
         if token is not None:
-            found = owner_of_token(token, self.session_secret, self.owners, now=time.time())
+            found = await self.sessions.owner_of(token, self.owners, now=time.time())
             return found or ""
         return None
+
+    def _store_down(self, scope: Scope, error: OperationalError) -> ASGIApp:
+        """503, as a route answers when the store does not: a session is not let in unchecked."""
+        logger.error("database error on %s %s: %s", scope["method"], scope["path"], error)
+        detail = "the job store did not answer; try again shortly"
+        problem = _problem(scope, 503, "database-unavailable", "Database unavailable", detail)
+        return problem_response(problem, {"Retry-After": "1"})
 
     def _unauthorized(self, scope: Scope, headers: Headers, presented: bool) -> ASGIApp:
         """401 with a challenge; a person's browser opening a page is sent to the login page."""

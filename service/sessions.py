@@ -1,25 +1,39 @@
 """The dashboard's login: a signed session token in a cookie, never the API key itself.
 
-A person who logs in with a key gets ``v1.<owner>.<expires>.<mac>``: the key's owner (its
-SHA-256 digest, which is what the store keeps), when the token stops being accepted (Unix
-seconds), and an HMAC-SHA256 of the two under the session secret. A stolen cookie therefore
-opens the dashboard until it expires, and never yields the key. Every token is revoked at once
-by rotating ``NANONAV_SESSION_SECRET``; the tokens of one key, by removing that key from
-``NANONAV_API_KEYS`` (a token is accepted only for an owner whose key is still configured).
+A person who logs in with a key gets ``v2.<owner>.<expires>.<session id>.<mac>``: the key's
+owner (its SHA-256 digest, which is what the store keeps), when the token stops being accepted
+(Unix seconds), a random id of this login, and an HMAC-SHA256 of the three under the session
+secret. A stolen cookie therefore opens the dashboard until it expires or its session ends, and
+never yields the key. A logout ends the session on the server: its id is kept in the store
+(``nanonav.store.revocations``) until the token would have expired, and every API process of
+the deployment refuses the token from then on, while the same key's other logins go on. Every
+token is revoked at once by rotating ``NANONAV_SESSION_SECRET``; the tokens of one key, by
+removing that key from ``NANONAV_API_KEYS`` (a token is accepted only for an owner whose key is
+still configured). Tokens of the first version (``v1.``, with no session id) are refused.
 """
 
 from __future__ import annotations
 
 import hashlib
 import hmac
+import secrets
+import string
 from collections.abc import Collection
+from dataclasses import dataclass
+from datetime import UTC, datetime
 from urllib.parse import urlsplit
 
+from fastapi.concurrency import run_in_threadpool
+
 from nanonav.settings import Settings
+from nanonav.store.revocations import RevocationStore
 from service.numerals import positive_int
 
 SESSION_COOKIE = "nanonav_session"
-VERSION = "v1"
+VERSION = "v2"
+# A session id: this many random bytes, in lower-case hex.
+SESSION_ID_BYTES = 16
+HEX_DIGITS = frozenset(string.digits + "abcdef")
 
 
 def session_secret(settings: Settings) -> bytes:
@@ -31,32 +45,87 @@ def session_secret(settings: Settings) -> bytes:
     return hashlib.sha256(b"nanonav-session\0" + "\0".join(keys).encode()).digest()
 
 
-def _mac(secret: bytes, owner: str, expires: int) -> str:
-    message = f"{VERSION}.{owner}.{expires}".encode()
+@dataclass(frozen=True)
+class SessionToken:
+    """What a genuine token says: whose session it is, until when (Unix seconds), and which
+    login it is (``session_id``, what a logout revokes)."""
+
+    owner: str
+    expires: int
+    session_id: str
+
+
+def _mac(secret: bytes, owner: str, expires: int, session_id: str) -> str:
+    message = f"{VERSION}.{owner}.{expires}.{session_id}".encode()
     return hmac.new(secret, message, hashlib.sha256).hexdigest()
 
 
 def issue(owner: str, secret: bytes, *, now: float, ttl_s: float) -> str:
-    """A token for ``owner`` that is accepted for ``ttl_s`` seconds from ``now``."""
+    """A token for a new session of ``owner``, accepted for ``ttl_s`` seconds from ``now``
+    unless it is revoked first."""
     expires = int(now + ttl_s)
-    return f"{VERSION}.{owner}.{expires}.{_mac(secret, owner, expires)}"
+    session_id = secrets.token_hex(SESSION_ID_BYTES)
+    mac = _mac(secret, owner, expires, session_id)
+    return f"{VERSION}.{owner}.{expires}.{session_id}.{mac}"
 
 
-def owner_of_token(token: str, secret: bytes, owners: Collection[str], *, now: float) -> str | None:
-    """The owner a token names if it is genuine, unexpired and its key still configured."""
+def read_token(token: str, secret: bytes, *, now: float) -> SessionToken | None:
+    """What ``token`` says if it is genuine (issued under ``secret``, as it was issued) and
+    unexpired; else None. Whether its key is still configured, and whether a logout revoked
+    it, are not looked at here."""
     parts = token.split(".")
-    if len(parts) != 4 or parts[0] != VERSION:
+    if len(parts) != 5 or parts[0] != VERSION:
         return None
-    _, owner, expires_text, given = parts
+    _, owner, expires_text, session_id, given = parts
     # Only the spelling the token was issued with: "0123" would verify under the MAC of 123.
     expires = positive_int(expires_text)
     if expires is None or not given.isascii():  # compare_digest refuses other text
         return None
-    if not hmac.compare_digest(_mac(secret, owner, expires), given):
+    if len(session_id) != 2 * SESSION_ID_BYTES or not set(session_id) <= HEX_DIGITS:
         return None
-    if expires <= now or owner not in owners:
+    if not hmac.compare_digest(_mac(secret, owner, expires, session_id), given):
         return None
-    return owner
+    if expires <= now:
+        return None
+    return SessionToken(owner=owner, expires=expires, session_id=session_id)
+
+
+class Sessions:
+    """The dashboard's sessions as one API process sees them: issued and read under the
+    deployment's secret, ended in the store that every process shares."""
+
+    def __init__(self, settings: Settings, revocations: RevocationStore) -> None:
+        self.secret = session_secret(settings)
+        self.ttl_s = settings.session_ttl_s
+        self.revocations = revocations
+
+    def issue(self, owner: str, *, now: float) -> str:
+        """A token for a new session of ``owner``."""
+        return issue(owner, self.secret, now=now, ttl_s=self.ttl_s)
+
+    async def owner_of(self, token: str, owners: Collection[str], *, now: float) -> str | None:
+        """The owner whose session ``token`` is, if it is genuine, unexpired, for one of
+        ``owners`` (whose keys are configured) and not ended by a logout. Only a token that
+        passes the rest costs a query, on the thread pool: the event loop never waits on it."""
+        found = read_token(token, self.secret, now=now)
+        if found is None or found.owner not in owners:
+            return None
+        if await run_in_threadpool(self.revocations.revoked, found.session_id):
+            return None
+        return found.owner
+
+    def end(self, token: str, *, now: float) -> bool:
+        """End the session of ``token`` in every process (and forget sessions long expired);
+        False, and nothing done, for a token that is not genuine or has expired already."""
+        found = read_token(token, self.secret, now=now)
+        if found is None:
+            return False
+        self.revocations.revoke(
+            found.session_id,
+            expires_at=datetime.fromtimestamp(found.expires, UTC),
+            now=datetime.fromtimestamp(now, UTC),
+        )
+        return True
 
 
 def session_cookie(token: str, *, secure: bool, max_age_s: float) -> str:

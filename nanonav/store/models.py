@@ -8,6 +8,7 @@ x seeds); ``study_plots`` keeps the pictures of finished studies. ``workers`` sa
 processes were seen lately. ``deliveries`` is the outbox of webhooks: a row per job or study
 that named a ``callback_url``, from its submit until the receiver took it or it was given up.
 ``policies`` holds the Q-tables clients made elsewhere and sent, for scenarios to evaluate.
+``revoked_sessions`` names the dashboard sessions a logout ended, until they would have expired.
 A claim gives a job a lease: ``lease_token`` names the claim, ``lease_expires_at`` says until when
 it holds (every progress write renews it) and every later write by the worker is fenced by the
 token, so a worker that lost its lease can neither report progress nor store a result.
@@ -274,3 +275,13 @@ class Policy(Base):
     # ``.npz``: a table's arrays ``states`` and ``actions`` (labels) and ``values``; a
     # network's ``observation`` and ``actions`` (labels) and ``model`` (the ONNX bytes).
     table: Mapped[bytes] = mapped_column(LargeBinary)
+
+
+class RevokedSession(Base):
+    """A dashboard session a logout ended: its token is refused though it has not expired."""
+
+    __tablename__ = "revoked_sessions"
+
+    id: Mapped[str] = mapped_column(String(32), primary_key=True)  # the token's session id
+    # when its token expires; the row may go some time after (``store.revocations``)
+    expires_at: Mapped[datetime] = mapped_column(UTCDateTime(), index=True)

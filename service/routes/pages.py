@@ -43,7 +43,7 @@ from nanonav.store import (
 from nanonav.store.policies import NETWORK, policy_number
 from nanonav.store.queue import PRESENCE_WINDOW_S
 from nanonav.studies.spec import GRID_KEYS
-from service.deps import ReportsDep, SettingsDep, StoreDep, StudiesDep
+from service.deps import ReportsDep, SessionsDep, SettingsDep, StoreDep, StudiesDep
 from service.json_keys import refuse_duplicate_keys
 from service.numerals import positive_int
 from service.paging import Cursor, decode_cursor, encode_cursor
@@ -52,8 +52,15 @@ from service.reports import Reports
 from service.routes.policies import get_policy
 from service.routes.studies import list_studies, study_answer
 from service.schemas import Job
-from service.security import Caller, CallerDep, caller_of, matching_key, owner_of
-from service.sessions import cleared_cookie, issue, same_site_path, session_cookie, session_secret
+from service.security import (
+    Caller,
+    CallerDep,
+    caller_of,
+    matching_key,
+    owner_of,
+    presented_session,
+)
+from service.sessions import cleared_cookie, same_site_path, session_cookie
 
 router = APIRouter(include_in_schema=False)
 templates = Jinja2Templates(directory=Path(__file__).resolve().parents[1] / "templates")
@@ -418,7 +425,7 @@ class Login(BaseModel):
     response_class=Response,
     dependencies=[Depends(refuse_duplicate_keys)],
 )
-def login(login: Login, request: Request, settings: SettingsDep) -> Response:
+def login(login: Login, request: Request, settings: SettingsDep, sessions: SessionsDep) -> Response:
     """Check the key and answer with a signed session token in an HttpOnly, SameSite=Strict
     cookie that lasts NANONAV_SESSION_TTL_S: script cannot read it, another site's requests
     do not carry it, and it is not the key."""
@@ -427,16 +434,20 @@ def login(login: Login, request: Request, settings: SettingsDep) -> Response:
         raise Unauthorized("the key is not one this API accepts")
     response = Response(status_code=204)
     if keys:
-        ttl_s = settings.session_ttl_s
-        token = issue(owner_of(login.key), session_secret(settings), now=time.time(), ttl_s=ttl_s)
+        token = sessions.issue(owner_of(login.key), now=time.time())
         secure = request.url.scheme == "https"
-        response.headers["Set-Cookie"] = session_cookie(token, secure=secure, max_age_s=ttl_s)
+        cookie = session_cookie(token, secure=secure, max_age_s=sessions.ttl_s)
+        response.headers["Set-Cookie"] = cookie
     return response
 
 
 @router.post("/ui/logout", status_code=204, response_class=Response)
-def logout() -> Response:
-    """Forget the dashboard's session."""
+def logout(request: Request, sessions: SessionsDep) -> Response:
+    """End the dashboard's session on the server, in every API process, and forget its cookie;
+    without a session, only the latter."""
+    token = presented_session(request.headers)
+    if token is not None:
+        sessions.end(token, now=time.time())
     response = Response(status_code=204)
     response.headers["Set-Cookie"] = cleared_cookie()
     return response

@@ -88,9 +88,15 @@ const nanonav = {
   },
 };
 
-// With API keys, the header has a button that makes the server forget the browser's key.
+// With API keys, the header has a button that ends the browser's session on the server; if the
+// server could not end it, the person is told so rather than shown the login page.
 document.getElementById("logout")?.addEventListener("click", async () => {
-  await nanonav.send("POST", "/ui/logout");
+  const answer = await nanonav.send("POST", "/ui/logout");
+  if (!answer.ok) {
+    const reason = (answer.document && answer.document.detail) || `the server answered ${answer.status}`;
+    window.alert(`Not logged out: ${reason}. Try again.`);
+    return;
+  }
   window.location.assign("/ui/login");
 });
 

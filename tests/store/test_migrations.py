@@ -26,6 +26,7 @@ def test_migrations_and_models_agree_both_ways(database_url: str) -> None:
         "workers",
         "deliveries",
         "policies",
+        "revoked_sessions",
     }
     downgrade(database_url, "base")
     assert tables(database_url) == set()
