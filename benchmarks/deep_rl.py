@@ -135,11 +135,11 @@ def run_one(job: tuple[str, float, int, int, str, Steering, float | None]) -> fl
     s = scenario(radius, seed, "q_learning", worlds)
     model = Path(where).read_bytes()
     width = observation_of(s, steering).columns.size
-    decide = NetworkPolicy(
+    with NetworkPolicy(
         model, width, len(action_labels(s, steering)), max_bytes=len(model),
         continuous=steering == "continuous",
-    )  # fmt: skip
-    return float(evaluate(s, decide, steering=steering).summary["success_rate"])
+    ) as decide:  # fmt: skip
+        return float(evaluate(s, decide, steering=steering).summary["success_rate"])
 
 
 def cartpole_rate(decisions: int, quick: bool = False) -> float:

@@ -4,6 +4,7 @@ run by onnxruntime, as a worker runs a ``policy_from`` network), beside a Q-tabl
 
     python benchmarks/network_policy.py            # about a minute
     python benchmarks/network_policy.py --quick    # a smoke run
+    python benchmarks/network_policy.py --against REV   # the network, REV's and this tree's
 
 The network is a multilayer perceptron of two hidden layers of 64 (tanh, as Stable-Baselines3's
 MlpPolicy), random weights, observation -> action logits, opset 17. Cases, 1,000 robots in one
@@ -18,6 +19,11 @@ whatever the state): what matters is the cost of deciding, not what is decided. 
 one robot moved one step; a robot that reaches a cell stops. Figures are medians of 3 repeats,
 timing the evaluation alone (onnxruntime's session and numba are warmed up first). Target: at
 least 1,000,000 robot-steps/s with a decision every step.
+
+Each case also prints what the work budget predicts the evaluation costs (``Scenario.work``
+and ``rl.evaluate.decision_work`` for the network, in seconds at a nanosecond a unit) beside
+what it took. ``--against REV`` measures the network, case by case, at a git revision and in
+this tree alternately (``against.py``): before and after a change to how a network is run.
 """
 
 from __future__ import annotations
@@ -25,6 +31,7 @@ from __future__ import annotations
 import argparse
 import itertools
 import sys
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -35,6 +42,7 @@ from onnx import TensorProto, helper, numpy_helper
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+from against import side_by_side
 from env import REPEATS, median_rate
 
 from nanonav.engine import qlearning, simulate
@@ -95,16 +103,31 @@ def scenario(base: dict[str, Any], steps: int, interval_s: float | None = None) 
     return Scenario.model_validate(data)
 
 
-def by_network(s: Scenario) -> Callable[[], tuple[int, float]]:
+def network(s: Scenario) -> NetworkPolicy:
+    """The MLP for ``s``'s robots, loaded (close it after)."""
     width = observation_of(s).columns.size
     model = mlp(width, len(action_labels(s)))
-    policy = NetworkPolicy(model, width, len(action_labels(s)), max_bytes=len(model))
+    return NetworkPolicy(model, width, len(action_labels(s)), max_bytes=len(model))
 
+
+def by_network(s: Scenario, policy: NetworkPolicy) -> Callable[[], tuple[int, float]]:
     def run() -> tuple[int, float]:
         result = evaluate(s, policy)
         return int(result.work["robot_steps"]), float(result.work["engine_s"])
 
     return run
+
+
+def predicted_s(s: Scenario, policy: NetworkPolicy) -> tuple[float, float]:
+    """What the work budget predicts the network's evaluation of ``s`` costs, seconds (a unit
+    a nanosecond), and what one evaluation took."""
+    from nanonav.rl.evaluate import decision_work
+
+    cost = getattr(getattr(policy, "info", None), "cost", None)
+    units = s.work + decision_work(s, cost.multiply_adds if cost is not None else 0)
+    started = time.perf_counter()
+    evaluate(s, policy)
+    return units * 1e-9, time.perf_counter() - started
 
 
 def by_table(s: Scenario) -> Callable[[], tuple[int, float]]:
@@ -118,29 +141,62 @@ def by_table(s: Scenario) -> Callable[[], tuple[int, float]]:
     return run
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--quick", action="store_true", help="short episodes: a smoke run")
-    args = parser.parse_args(argv)
-    steps = 200 if args.quick else 1000
-    cases = [
+def cases(steps: int) -> list[tuple[str, Scenario]]:
+    return [
         ("lattice, every step", scenario(LATTICE, steps)),
         ("active_brownian, every step", scenario(BROWNIAN, steps, 0.01)),
         ("active_brownian, every 0.1 s", scenario(BROWNIAN, steps, 0.1)),
         ("active_brownian, every 1 s", scenario(BROWNIAN, steps, 1.0)),
     ]
-    for _, s in cases[:1]:  # warm-up: numba's kernels and onnxruntime's first session
-        by_network(s)()
+
+
+def network_rate(label: str, steps: int = 1000) -> float:
+    """The network's robot-steps/s in one case (what ``--against`` compares)."""
+    s = dict(cases(steps))[label]
+    policy = network(s)
+    try:
+        by_network(s, policy)()  # warm-up
+        return median_rate(by_network(s, policy))
+    finally:
+        getattr(policy, "close", lambda: None)()
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--quick", action="store_true", help="short episodes: a smoke run")
+    parser.add_argument("--against", metavar="REV", help="the network at REV and here, only")
+    parser.add_argument("--measure", help=argparse.SUPPRESS)  # one case of --against, as JSON
+    args = parser.parse_args(argv)
+    steps = 200 if args.quick else 1000
+    if args.measure:
+        print(network_rate(args.measure, steps))
+        return 0
+    if args.against:
+        labels = [label for label, _ in cases(steps)]
+        print(f"The ONNX MLP's evaluation of {ROBOTS:,} robots, robot-steps/s (median of "
+              f"{REPEATS}), at {args.against} and in this tree:")  # fmt: skip
+        side_by_side(Path(__file__).resolve(), labels, args.against)
+        return 0
+    for _, s in cases(steps)[:1]:  # warm-up: numba's kernels and onnxruntime's first session
+        with network(s) as policy:
+            by_network(s, policy)()
         by_table(s)()
     print(f"Evaluation of {ROBOTS:,} robots in one world, robot-steps/s (median of {REPEATS}):")
     print(f"  {'case':32} {'ONNX MLP 64x64':>16} {'Q-table':>12}  network/table")
     verdicts = []
-    for label, s in cases:
-        network = median_rate(by_network(s))
+    predictions = []
+    for label, s in cases(steps):
+        with network(s) as policy:
+            rate = median_rate(by_network(s, policy))
+            predictions.append((label, *predicted_s(s, policy)))
         table = median_rate(by_table(s))
-        print(f"  {label:32} {network:16,.0f} {table:12,.0f}  {network / table:.2f}")
+        print(f"  {label:32} {rate:16,.0f} {table:12,.0f}  {rate / table:.2f}")
         if label.endswith("every step"):
-            verdicts.append((label, network))
+            verdicts.append((label, rate))
+    print("What the work budget predicts an evaluation costs, beside what it took (s):")
+    for label, predicted, took in predictions:
+        print(f"  {label:32} predicted {predicted:8.3f}  took {took:8.3f}  "
+              f"predicted/took {predicted / took:.2f}")  # fmt: skip
     for label, rate in verdicts:
         verdict = "meets" if rate >= TARGET_RATE else "BELOW"
         print(f"{verdict} target: ONNX MLP, {label}, {rate:,.0f} vs {TARGET_RATE:,} robot-steps/s")

@@ -21,6 +21,7 @@ from nanonav.engine.worlds import (
     BODY_GRADIENT_LABELS,
     OBSERVATION_LABELS,
     observation_of,
+    possible_observations,
 )
 from nanonav.rl.evaluate import REMEMBERS_AT_ONCE, decides_at_once
 from nanonav.scenario import (
@@ -314,11 +315,14 @@ def _network_problem(
 
 @dataclass(frozen=True)
 class Network:
-    """A network a ``policy_from`` names: its ONNX model and what it reads and chooses."""
+    """A network a ``policy_from`` names: its ONNX model, what it reads and chooses, and the
+    multiply-adds an observation its check counted (None for one kept before costs were
+    counted: its job's check counts them)."""
 
     model: bytes
     observation: tuple[str, ...]
     actions: tuple[str, ...]
+    multiply_adds: int | None = None
 
 
 def learned_policy(scenario: Scenario, read: TableReader) -> NDArray[np.float64] | Network:
@@ -346,10 +350,12 @@ def learned_policy(scenario: Scenario, read: TableReader) -> NDArray[np.float64]
     if problem is not None:
         raise UnusablePolicy(problem)
     if "model" in table:
+        counted = table.get("cost_multiply_adds")
         return Network(
             table["model"].tobytes(),
             tuple(table["observation"].tolist()),
             tuple(table["actions"].tolist()),
+            None if counted is None else int(counted),
         )
     values: NDArray[np.float64] = np.asarray(table["values"], dtype=np.float64)
     return values
@@ -579,6 +585,18 @@ def network_layout(observation: Sequence[str], actions: Sequence[str]) -> Networ
         detail = (
             f"robots that observe ({', '.join(observation)}) communicate by {_either(heard)}, "
             f"and the actions are those of {_actions_title(same_actions)}"
+        )
+        raise InvalidPolicy(("observation",), detail, LAYOUT_RULE)
+    possible = possible_observations("continuous" if continuous else "discrete")
+    if tuple(observation) not in possible:
+        given = set(observation)
+        nearest = sorted(possible, key=lambda labels: (len(given ^ set(labels)), len(labels)))
+        shown = " or ".join(f"({', '.join(labels)}) in {_either(possible[labels])}"
+                            for labels in nearest[:2])  # fmt: skip
+        detail = (
+            f"no scenario's robots observe ({', '.join(observation)}): a lattice robot reads "
+            "the gradient's three axes, an active_brownian one none unless it steers "
+            f"continuously (then in its body's frame); the nearest they observe are {shown}"
         )
         raise InvalidPolicy(("observation",), detail, LAYOUT_RULE)
     if continuous:

@@ -55,10 +55,11 @@ class Settings(BaseSettings):
         8000, ge=1, le=65535, validation_alias=_aliases("port", "PORT"), description="API port."
     )
     max_body_bytes: int = Field(
-        1_000_000,
+        2_000_000,
         ge=1024,
         validation_alias=_aliases("max_body_bytes"),
-        description="Largest request body the API reads, bytes; larger ones get 413.",
+        description="Largest request body the API reads, bytes; larger ones get 413. A "
+        "recurrent network sent as a policy takes about 1.6 MB in base64.",
     )
     robot_steps_budget: int = Field(
         1_000_000_000,
@@ -351,12 +352,46 @@ class Settings(BaseSettings):
         "that alone is larger gets 422. 0: no limit.",
     )
     policy_model_max_bytes: int = Field(
-        700_000,
+        1_400_000,
         ge=1024,
         validation_alias=_aliases("policy_model_max_bytes"),
         description="Largest ONNX model a policy may be, bytes (POST /policies sends it in "
         "base64, a third larger, within max_body_bytes). A network of two hidden layers of 64 "
-        "takes about 25 kB.",
+        "takes about 25 kB, sb3-contrib's recurrent PPO (an LSTM of 256) 1.2 MB.",
+    )
+    network_memory_bytes: int = Field(
+        1_073_741_824,
+        ge=268_435_456,
+        validation_alias=_aliases("network_memory_bytes"),
+        description="Address space of the process a network sent as a policy is checked and "
+        "run in, bytes (RLIMIT_AS); past it the network fails, not the API or the worker. The "
+        "process takes about 0.3 GB with ONNX Runtime loaded, and a call at most a quarter of "
+        "a gigabyte more (a policy's counted cost).",
+    )
+    network_check_cpu_s: float = Field(
+        20.0,
+        ge=2,
+        le=3600,
+        validation_alias=_aliases("network_check_cpu_s"),
+        description="CPU seconds the check of a network sent to POST /policies may take in its "
+        "process, its start included (about 1 s); past it the network is refused with 422.",
+    )
+    network_call_limit_s: float = Field(
+        30.0,
+        gt=0,
+        le=3600,
+        validation_alias=_aliases("network_call_limit_s"),
+        description="Wall-clock seconds one call of a network may take while a job evaluates "
+        "it (a call's counted cost keeps it under a second on one core); past it the job "
+        "fails, saying so.",
+    )
+    network_checks_at_once: int = Field(
+        2,
+        ge=1,
+        le=64,
+        validation_alias=_aliases("network_checks_at_once"),
+        description="Networks an API process checks at once, each in a process of its own; "
+        "more wait, and one that has waited 30 s is answered 503 with Retry-After.",
     )
     quota_policies: int = Field(
         1000,

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import gc
+import threading
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 from functools import partial
@@ -94,6 +95,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.state.store = store
     app.state.studies = study_store
     app.state.reports = Reports()
+    # networks sent as policies are checked each in a process of its own, this many at once
+    app.state.network_checks = threading.BoundedSemaphore(settings.network_checks_at_once)
     app.state.deliveries = DeliveryStore(store.engine)
     app.state.sessions = sessions
     app.state.poller = poller

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+from nanonav.rl.evaluate import decision_work
 from nanonav.scenario import Scenario
 from nanonav.settings import Settings
 from nanonav.store.quotas import Quota
@@ -18,21 +19,33 @@ STEPS_FIELDS = (
 )
 
 
-def over_budget(scenario: Scenario, settings: Settings) -> str | None:
-    """Why ``scenario`` costs more than the settings allow, or None if it fits."""
+def over_budget(
+    scenario: Scenario, settings: Settings, multiply_adds: int | None = None
+) -> str | None:
+    """Why ``scenario`` costs more than the settings allow, or None if it fits; with a network
+    deciding that takes ``multiply_adds`` an observation, its decisions count too."""
     if scenario.robot_steps_budget > settings.robot_steps_budget:
         return (
             f"robots.count x learning.max_steps x (learning.episodes + evaluation.worlds) = "
             f"{scenario.robot_steps_budget:,} robot-steps, over the budget of "
             f"{settings.robot_steps_budget:,}"
         )
-    if scenario.work > settings.work_budget:
+    work = scenario.work
+    deciding = 0 if multiply_adds is None else decision_work(scenario, multiply_adds)
+    if work + deciding > settings.work_budget:
+        network = (
+            f" and {deciding:.3g} for the network's decisions ({multiply_adds:,} multiply-adds "
+            "an observation)"
+            if deciding
+            else ""
+        )
         return (
-            f"the run would cost {scenario.work:.3g} work units (robot-steps weighed by the "
-            f"{scenario.sources} field sources, {scenario.obstacles.count} obstacles and "
-            f"{scenario.cells.count} cells each goes through), over the budget of "
-            f"{settings.work_budget:.3g}: fewer robots, steps, episodes, cells, emitters or "
-            "obstacles fit"
+            f"the run would cost {work + deciding:.3g} work units: {work:.3g} for robot-steps "
+            f"weighed by the {scenario.sources} field sources, {scenario.obstacles.count} "
+            f"obstacles and {scenario.cells.count} cells each goes through{network}, over the "
+            f"budget of {settings.work_budget:.3g}: fewer robots, steps, episodes, cells, "
+            "emitters or obstacles fit"
+            + (", or a smaller network, or decisions less often" if deciding else "")
         )
     return None
 
@@ -46,15 +59,22 @@ def cost_fields(scenario: Scenario) -> list[tuple[str, str]]:
 
 
 def check_budget(
-    scenario: Scenario, settings: Settings, blame: Sequence[Sequence[str | int]] | None = None
+    scenario: Scenario,
+    settings: Settings,
+    blame: Sequence[Sequence[str | int]] | None = None,
+    multiply_adds: int | None = None,
 ) -> None:
     """Refuse ``scenario`` with 422 if it is over budget, naming the fields in ``blame`` (by
-    default those of the scenario that set its cost)."""
-    detail = over_budget(scenario, settings)
+    default those of the scenario that set its cost); ``multiply_adds`` as ``over_budget``."""
+    detail = over_budget(scenario, settings, multiply_adds)
     if detail is None:
         return
     if blame is None:
-        loc = STEPS_FIELDS if "robot-steps," in detail else cost_fields(scenario)
+        loc: list[tuple[str, ...]] = list(
+            STEPS_FIELDS if "robot-steps," in detail else cost_fields(scenario)
+        )
+        if multiply_adds is not None:
+            loc.append(("policy_from",))
         blame = [("body", *field) for field in loc]
     where = blame
     errors: list[FieldError] = [field_error(loc, detail, "budget_exceeded") for loc in where]

@@ -156,6 +156,15 @@ class EventsUnavailable(ProblemError):
     headers = {"Retry-After": "1"}  # noqa: RUF012  (read-only, per subclass)
 
 
+class ChecksBusy(ProblemError):
+    """Every process this API checks networks in is busy (``network_checks_at_once``)."""
+
+    status = 503
+    slug = "checks-busy"
+    title = "Network checks busy"
+    headers = {"Retry-After": "5"}  # noqa: RUF012  (read-only, per subclass)
+
+
 class InvalidInput(ProblemError):
     status = 422
     slug = "invalid-input"

@@ -935,6 +935,16 @@ class Policy(PolicySummary):
         description="A network's: the memory inputs it carries from decision to decision (a "
         "recurrent one's; 0 for none).",
     )
+    multiply_adds: int | None = Field(
+        None,
+        description="A network's: the multiply-adds one observation costs, counted from its "
+        "graph when it was sent (what a job's work budget charges for each decision).",
+    )
+    live_bytes: int | None = Field(
+        None,
+        description="A network's: the most memory its values hold at once for one "
+        "observation, counted from its graph when it was sent.",
+    )
 
 
 class PolicyPage(BaseModel):

@@ -100,3 +100,25 @@ class ApiServer(_Process):
             except httpx.TransportError:
                 pass
             time.sleep(0.05)
+
+
+def sandbox_of(parent: int, timeout: float = 60.0) -> int:
+    """The process id of the network's sandboxed process (``nanonav.rl.sandbox``) that the
+    process ``parent`` runs now, waiting for one."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        for entry in Path("/proc").iterdir():
+            if not entry.name.isdigit():
+                continue
+            try:
+                stat = (entry / "stat").read_text()
+                command = (entry / "cmdline").read_bytes()
+            except OSError:
+                continue
+            if (
+                int(stat.rsplit(")", 1)[1].split()[1]) == parent
+                and b"nanonav.rl.sandbox" in command
+            ):
+                return int(entry.name)
+        time.sleep(0.05)
+    raise AssertionError(f"process {parent} runs no network's process")

@@ -22,8 +22,9 @@ from sqlalchemy.exc import SQLAlchemyError
 from nanonav.engine import Progress, SimulationResult, simulate
 from nanonav.finite import finite
 from nanonav.policy import Network, UnusablePolicy, learned_policy, steering_of
-from nanonav.rl.evaluate import PolicyFailed, evaluate
-from nanonav.rl.onnx_policy import InvalidModel, NetworkPolicy
+from nanonav.rl.evaluate import PolicyFailed, Stopped, evaluate
+from nanonav.rl.graph import InvalidModel
+from nanonav.rl.onnx_policy import Limits, NetworkPolicy
 from nanonav.scenario import Scenario
 from nanonav.settings import Settings
 from nanonav.store import Claim, JobRecord, JobStore, LeaseLost, Outcome
@@ -80,8 +81,15 @@ class Watch:
         self.started = clock()
         self.last_write = -math.inf
         self.stop: Stop | None = None
+        self.progress = Progress(0, 1, 0, 1)
+
+    def poll(self) -> bool:
+        """Whether the run goes on, asked while a network decides (between progress reports):
+        the same checks, with the last progress reported."""
+        return self(self.progress)
 
     def __call__(self, progress: Progress) -> bool:
+        self.progress = progress
         now = self.clock()
         if self.shutdown.is_set():
             self.stop = Stop.SHUTDOWN
@@ -122,23 +130,13 @@ def run_job(
         scenario = Scenario.model_validate(claim.job.scenario)
     except ValidationError as error:
         return store.fail(claim, f"the stored scenario is no longer valid: {error}")
-    policy: NDArray[np.float64] | NetworkPolicy | None = None
-    if scenario.policy_from is not None:
-        # checked at submit too; the run uses the table or network as the store holds it now,
-        # a job's or a policy's (either may have been deleted since: the job fails, saying
-        # which is gone)
-        try:
-            policy = _loaded(learned_policy(scenario, store.qtable), settings)
-        except (UnusablePolicy, InvalidModel) as error:
-            return _fail(store, claim, f"policy_from: {error}")
     watch = Watch(store, claim, settings, shutdown)
     started = time.perf_counter()
     try:
         with heartbeat(store, claim, settings):
-            if isinstance(policy, NetworkPolicy):
-                result = evaluate(scenario, policy, watch, steering=policy.steering)
-            else:
-                result = simulate(scenario, watch, policy=policy)
+            result = _run(scenario, store, settings, watch)
+    except (UnusablePolicy, InvalidModel) as error:
+        return _fail(store, claim, f"policy_from: {error}")
     except PolicyFailed as error:
         return _fail(store, claim, f"policy_from: {error}")
     except SQLAlchemyError as error:
@@ -180,20 +178,30 @@ def run_job(
     return record
 
 
-def _loaded(
-    policy: NDArray[np.float64] | Network, settings: Settings
-) -> NDArray[np.float64] | NetworkPolicy:
-    """A table as it is; a network's model checked again and loaded (``InvalidModel`` if this
-    worker's ONNX Runtime cannot run it)."""
+def _run(scenario: Scenario, store: JobStore, settings: Settings, watch: Watch) -> SimulationResult:
+    """Simulate the scenario, or evaluate the table or network its ``policy_from`` names (as
+    the store holds it now, a job's or a policy's: either may have been deleted since it was
+    checked at submit, and the job fails, saying which is gone). A network is checked again
+    and loaded in its own process, asking ``watch`` while it decides, and ended with the run."""
+    if scenario.policy_from is None:
+        return simulate(scenario, watch)
+    policy = learned_policy(scenario, store.qtable)
     if not isinstance(policy, Network):
-        return policy
-    return NetworkPolicy(
-        policy.model,
-        len(policy.observation),
-        len(policy.actions),
-        max_bytes=settings.policy_model_max_bytes,
-        continuous=steering_of(policy.actions) == "continuous",
-    )
+        return simulate(scenario, watch, policy=policy)
+    try:
+        network = NetworkPolicy(
+            policy.model,
+            len(policy.observation),
+            len(policy.actions),
+            max_bytes=settings.policy_model_max_bytes,
+            continuous=steering_of(policy.actions) == "continuous",
+            limits=Limits.of(settings),
+            keep_going=watch.poll,
+        )
+    except Stopped:  # told to stop while it was checked
+        return SimulationResult(scenario, {}, [], [], {}, None, None, completed=False)
+    with network:
+        return evaluate(scenario, network, watch, steering=network.steering)
 
 
 def outcome(result: SimulationResult) -> Outcome:

@@ -316,12 +316,78 @@ def cli_page() -> str:
     return "\n".join(lines)
 
 
+def networks_page() -> str:
+    """What a network sent as a policy may be: its operators, each with why, and the caps on
+    its cost, from ``nanonav.rl``."""
+    from nanonav.rl import graph, operators
+
+    kinds = {
+        "gemm": "its output's numbers x (its inner dimension + 1)",
+        "matmul": "its output's numbers x its inner dimension",
+        "lstm": "the sequence's steps x directions x (4 H (inputs + H) + gates' activations)",
+        "gru": "the sequence's steps x directions x (3 H (inputs + H) + gates' activations)",
+        "rnn": "the sequence's steps x directions x (H (inputs + H) + its activation)",
+        "elements": "its output's numbers",
+        "transcendental": f"{operators.TRANSCENDENTAL} x its output's numbers",
+        "reduce": "its input's numbers",
+        "none": "nothing (no number is computed)",
+    }
+    lines = [
+        GENERATED,
+        "# Networks as policies",
+        "",
+        cell(paragraph(operators.__doc__)),
+        "",
+        cell(operators.__doc__.strip().split("\n\n")[1] if operators.__doc__ else ""),
+        "",
+        "## The caps on what a network costs",
+        "",
+        "Counted from the graph's shapes before it runs (an observation is one row of the "
+        "batch); a model past one is refused with a `422 policy_model` that names the node, "
+        "the count and the cap. Every number a graph computes must have a size its shapes "
+        "fix, growing in proportion to the batch.",
+        "",
+        "| What | Cap |",
+        "| --- | ---: |",
+        f"| multiply-adds an observation | {graph.MAX_MULTIPLY_ADDS:,} |",
+        f"| memory live at once, an observation | {graph.MAX_LIVE_BYTES:,} bytes |",
+        f"| multiply-adds a call, whatever its observations | {graph.MAX_FIXED_MULTIPLY_ADDS:,} |",
+        f"| memory live at once, whatever its observations | {graph.MAX_FIXED_BYTES:,} bytes |",
+        f"| nodes | {graph.MAX_NODES:,} |",
+        f"| opset | {graph.MIN_OPSET} to {graph.MAX_OPSET} |",
+        "",
+        f"A call of the network takes at most {graph.CALL_ROWS:,} observations, and fewer where "
+        f"more would pass {graph.CALL_MULTIPLY_ADDS:,} multiply-adds or "
+        f"{graph.CALL_BYTES:,} bytes live. The sandbox's own limits are settings: "
+        "`NANONAV_NETWORK_MEMORY_BYTES`, `NANONAV_NETWORK_CHECK_CPU_S`, "
+        "`NANONAV_NETWORK_CALL_LIMIT_S` and `NANONAV_NETWORK_CHECKS_AT_ONCE` "
+        "([Settings](settings.md)).",
+        "",
+        "## The allowed operators",
+        "",
+        "Of ONNX's own domain. Those that only move numbers (reshaping) may carry int64 and "
+        "int32 as well as float32; the others take float32, but for the inputs named "
+        "(shapes, axes, indices, sequence lengths).",
+        "",
+        "| Operator | Why a policy needs it | Counted as | Integers |",
+        "| --- | --- | --- | --- |",
+    ]
+    for name, operator in operators.ALLOWED.items():
+        integers = (
+            "any input" if operator.moves
+            else ", ".join(f"input {k}" for k in sorted(operator.parameters)) or "none"
+        )  # fmt: skip
+        lines.append(f"| `{name}` | {cell(operator.why)} | {kinds[operator.cost]} | {integers} |")
+    return "\n".join([*lines, ""])
+
+
 PAGES: dict[str, Callable[[], str]] = {
     "scenario.md": scenario_page,
     "presets.md": presets_page,
     "settings.md": settings_page,
     "routes.md": routes_page,
     "cli.md": cli_page,
+    "networks.md": networks_page,
 }
 
 

@@ -8,8 +8,9 @@ environments' spaces, the policies sent as ONNX models and the README alike.
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Mapping, Sequence
-from typing import Any, NamedTuple
+from typing import Any, NamedTuple, get_args
 
 import numpy as np
 from numba.typed import List
@@ -25,7 +26,14 @@ from nanonav.engine.simulate import (
 )
 from nanonav.engine.state import SCHEDULE_CODES, KernelParams, Recording
 from nanonav.engine.world import DYNAMICS_STREAM, EVALUATION_STREAM, raise_for_layout, stream
-from nanonav.scenario import STEERINGS, Scenario, Schedule, Steering
+from nanonav.scenario import (
+    STEERINGS,
+    CommunicationModel,
+    PhysicsModel,
+    Scenario,
+    Schedule,
+    Steering,
+)
 
 # No history is recorded: the cap only keeps kernel_params from refusing a large swarm.
 _NO_HISTORY_CAP = 2**62
@@ -68,30 +76,79 @@ def with_robots(scenario: Scenario, count: int) -> Scenario:
 def _bounds(
     scenario: Scenario, steering: Steering
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """(low, high) of each engine column (``phases.OBS_*``) in this scenario's units:
-    readings, gradients and signals are unbounded (``UNBOUNDED``; a noise floor can read below
-    0), the distances are capped at the sensors' ranges, the obstacle contact of
-    active_brownian is 0 or 1; a column the scenario never fills is 0 to 0 (active_brownian's
-    gradient, unless robots steer continuously)."""
+    """(low, high) of each engine column (``phases.OBS_*``) in this scenario's units
+    (``column_bounds`` of what sets them)."""
+    return column_bounds(
+        scenario.physics.model,
+        steering,
+        scenario.communication.model,
+        scenario.robots.sensing_radius,
+        scenario.robots.cell_sensing_radius,
+    )
+
+
+def column_bounds(
+    physics: PhysicsModel,
+    steering: Steering,
+    communication: CommunicationModel,
+    sensing_radius: float,
+    cell_sensing_radius: float,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(low, high) of each engine column (``phases.OBS_*``) of robots of ``physics`` steered
+    so, that communicate by ``communication`` and sense obstacles and cells within those
+    radii: readings, gradients and signals are unbounded (``UNBOUNDED``; a noise floor can
+    read below 0), the distances are capped at the sensors' ranges, the obstacle contact of
+    active_brownian is 0 or 1; a column never filled is 0 to 0 (active_brownian's gradient,
+    unless robots steer continuously)."""
     low = np.full(phases.FEATURES, -UNBOUNDED)
     high = np.full(phases.FEATURES, UNBOUNDED)
-    brownian = scenario.physics.model == "active_brownian"
+    brownian = physics == "active_brownian"
     low[phases.OBS_OBSTACLE] = 0.0
-    high[phases.OBS_OBSTACLE] = 1.0 if brownian else scenario.robots.sensing_radius
+    high[phases.OBS_OBSTACLE] = 1.0 if brownian else sensing_radius
     low[phases.OBS_CELL] = 0.0
-    high[phases.OBS_CELL] = scenario.robots.cell_sensing_radius
+    high[phases.OBS_CELL] = cell_sensing_radius
     if brownian and steering == "discrete":
         low[phases.OBS_GRADIENT : phases.OBS_GRADIENT + 3] = 0.0
         high[phases.OBS_GRADIENT : phases.OBS_GRADIENT + 3] = 0.0
-    if scenario.communication.model == "none":
+    if communication == "none":
         low[phases.OBS_SIGNAL :] = 0.0
         high[phases.OBS_SIGNAL :] = 0.0
-    elif scenario.communication.model == "broadcast":
+    elif communication == "broadcast":
         low[phases.OBS_SIGNAL] = 0.0
         high[phases.OBS_SIGNAL] = 1.0
         low[phases.OBS_SIGNAL_CHANGE] = 0.0
         high[phases.OBS_SIGNAL_CHANGE] = 0.0
     return low, high
+
+
+def _labels(low: NDArray[np.float64], high: NDArray[np.float64], steering: Steering) -> tuple[
+    NDArray[np.int64], tuple[str, ...]
+]:  # fmt: skip
+    """The columns a robot fills (those whose bounds differ) and their names."""
+    columns = np.flatnonzero(low != high)
+    names = list(OBSERVATION_LABELS)
+    if steering == "continuous":
+        names[phases.OBS_GRADIENT : phases.OBS_GRADIENT + 3] = BODY_GRADIENT_LABELS
+    return columns, tuple(names[c] for c in columns)
+
+
+def possible_observations(steering: Steering) -> dict[tuple[str, ...], tuple[PhysicsModel, ...]]:
+    """Every observation some scenario's robots make, steered so, and the physics whose
+    robots make it: with each communication model, with obstacles and cells sensed or not (a
+    radius of 0), in each physics that steers so (only active_brownian's robots turn
+    continuously)."""
+    found: dict[tuple[str, ...], list[PhysicsModel]] = {}
+    physics: tuple[PhysicsModel, ...] = (
+        ("active_brownian",) if steering == "continuous" else get_args(PhysicsModel)
+    )
+    for model, communication, obstacle, cell in itertools.product(
+        physics, get_args(CommunicationModel), (0.0, 1.0), (0.0, 1.0)
+    ):
+        low, high = column_bounds(model, steering, communication, obstacle, cell)
+        labels = _labels(low, high, steering)[1]
+        if model not in found.setdefault(labels, []):
+            found[labels].append(model)
+    return {labels: tuple(models) for labels, models in found.items()}
 
 
 class Observation(NamedTuple):
@@ -111,11 +168,8 @@ def observation_of(scenario: Scenario, steering: Steering = "discrete") -> Obser
     each step along its heading, side and up axes, and observes the mean of its readings since
     its last decision (``BODY_GRADIENT_LABELS``)."""
     low, high = _bounds(scenario, steering)
-    columns = np.flatnonzero(low != high)
-    names = list(OBSERVATION_LABELS)
-    if steering == "continuous":
-        names[phases.OBS_GRADIENT : phases.OBS_GRADIENT + 3] = BODY_GRADIENT_LABELS
-    return Observation(columns, tuple(names[c] for c in columns), low[columns], high[columns])
+    columns, labels = _labels(low, high, steering)
+    return Observation(columns, labels, low[columns], high[columns])
 
 
 def action_labels(scenario: Scenario, steering: Steering = "discrete") -> list[str]:

@@ -33,7 +33,7 @@ from nanonav.engine.worlds import (
     with_robots,
 )
 from nanonav.env.robot import ScenarioLike, action_space_of
-from nanonav.rl.onnx_policy import METADATA_ACTIONS, METADATA_OBSERVATION
+from nanonav.rl.graph import METADATA_ACTIONS, METADATA_OBSERVATION
 from nanonav.scenario import Steering
 
 

@@ -17,6 +17,7 @@ is called as each round begins.
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 from typing import Any
@@ -50,6 +51,32 @@ PROGRESS_EVERY_S = 0.1
 ROUND_ROBOTS = 100_000
 
 
+# What deciding by a network costs, in the work units of ``Scenario.work`` (about a nanosecond
+# of one core), fitted on benchmarks/network_policy.py's networks (MLPs of 16 to 700 units, an
+# LSTM of 256) run in their sandboxed process: a call (the observations out and the answers
+# back, two processes woken), a row of it (its observation gathered and its answer checked),
+# and a multiply-add the network's check counted (an LSTM's run slowest, 0.025-0.04 ns)
+WORK_NETWORK_CALL = 250_000
+WORK_NETWORK_ROW = 60
+WORK_MULTIPLY_ADD = 0.04
+
+
+def decision_work(scenario: Scenario, multiply_adds: int) -> int:
+    """The work of a network of ``multiply_adds`` an observation deciding in ``scenario``'s
+    evaluation: every robot of every world at every decision, in one call a decision for
+    every world of a round (a call for each robot's turn under the sequential schedule)."""
+    robots = scenario.robots.count
+    worlds = scenario.evaluation.worlds
+    decisions = math.ceil(scenario.learning.max_steps / scenario.decision_steps)
+    rounds = math.ceil(worlds / max(1, ROUND_ROBOTS // robots))
+    calls = rounds * decisions * (1 if decides_at_once(scenario) else robots)
+    rows = worlds * robots * decisions
+    total = calls * WORK_NETWORK_CALL + rows * (
+        WORK_NETWORK_ROW + WORK_MULTIPLY_ADD * multiply_adds
+    )
+    return math.ceil(total)
+
+
 REMEMBERS_AT_ONCE = (
     "a network with a memory decides for every robot at once, each row one robot: "
     "robots.schedule must be 'simultaneous'"
@@ -64,6 +91,12 @@ def decides_at_once(scenario: Scenario) -> bool:
 
 class PolicyFailed(RuntimeError):
     """The outside policy answered what no robot can do (or raised); the message says what."""
+
+
+class Stopped(Exception):
+    """Raised by a ``decide`` that was told, while it decided, that the run should stop (a
+    network asks the worker whether its job goes on): the run ends as when ``progress``
+    answers False."""
 
 
 def _views(batch: phases.Sim, k: int) -> tuple[Swarm, Social, Treatment]:
@@ -164,6 +197,8 @@ def _decided(decide: Decide, rows: NDArray[np.float64], worlds: Worlds) -> NDArr
     steering continuously a turn of two finite numbers."""
     try:
         chosen = np.asarray(decide(rows))
+    except Stopped:
+        raise
     except Exception as error:
         raise PolicyFailed(f"the policy raised {type(error).__name__}: {error}") from error
     if worlds.continuous:
@@ -216,6 +251,8 @@ class _Round:
         started = time.perf_counter()
         try:
             return self._through(batches)
+        except Stopped:
+            return False
         finally:
             self.seconds += time.perf_counter() - started
             self.robot_steps += sum(int(b.batch.s.steps.sum()) for b in batches)

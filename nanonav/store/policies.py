@@ -154,22 +154,24 @@ class PolicyStore:
         actions: list[str],
         model: bytes,
         memory: int = 0,
+        cost: dict[str, int] | None = None,
         name: str | None = None,
         owner: str = "",
         idempotency: Idempotency | None = None,
         limit: int = 0,
     ) -> PolicyRecord:
         """Keep a network, an ONNX ``model`` checked already, that decides among ``actions``
-        from the ``observation`` columns it names (a recurrent one with ``memory`` inputs);
-        keys and limits as ``add``."""
-        blob = pack(
-            {
-                "observation": np.array(observation, dtype=np.str_),
-                "actions": np.array(actions, dtype=np.str_),
-                "model": np.frombuffer(model, dtype=np.uint8),
-                "memory": np.array(memory),
-            }
-        )
+        from the ``observation`` columns it names (a recurrent one with ``memory`` inputs), and
+        what its check counted of its ``cost`` (``nanonav.rl.graph.Cost``, as a dict); keys and
+        limits as ``add``."""
+        arrays = {
+            "observation": np.array(observation, dtype=np.str_),
+            "actions": np.array(actions, dtype=np.str_),
+            "model": np.frombuffer(model, dtype=np.uint8),
+            "memory": np.array(memory),
+        }
+        arrays.update({f"cost_{key}": np.array(value) for key, value in (cost or {}).items()})
+        blob = pack(arrays)
         row = partial(
             Policy,
             name=name,
@@ -224,8 +226,9 @@ class PolicyStore:
     def table(self, policy_id: int) -> dict[str, NDArray[Any]]:
         """A table's ``states`` and ``actions`` labels and its ``values``, as a job's Q-table
         is read (without visits: it was not learned here); a network's ``observation`` and
-        ``actions`` labels, its ``model`` (the ONNX bytes, as uint8) and the count of its
-        ``memory`` inputs."""
+        ``actions`` labels, its ``model`` (the ONNX bytes, as uint8), the count of its
+        ``memory`` inputs and its counted cost (``cost_multiply_adds``, ``cost_live_bytes``,
+        ..., where its check counted one)."""
         with unit_of_work(self._sessions) as session:
             blob = session.scalar(select(Policy.table).where(Policy.id == policy_id))
         if blob is None:

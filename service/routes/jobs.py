@@ -103,8 +103,10 @@ def submit_job(
     if "seed" not in scenario.model_fields_set:
         # each submit without a seed is a new sample; the seed drawn is stored, to repeat it
         scenario = scenario.model_copy(update={"seed": secrets.randbelow(DRAWN_SEEDS)})
-    check_budget(scenario, settings)
-    check_policy_from(scenario, owned_tables(store, caller), ("body", "policy_from"))
+    multiply_adds = check_policy_from(
+        scenario, owned_tables(store, caller), ("body", "policy_from"), settings=settings
+    )
+    check_budget(scenario, settings, multiply_adds=multiply_adds)
     quota = quota_of(caller, settings)
     check_quota_fits(quota, jobs=1, robot_steps=scenario.robot_steps_budget, blame=[["body"]])
     with policies_kept(lambda _: (("body", "policy_from"), "")):

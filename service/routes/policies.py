@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from typing import Annotated
+import threading
+from typing import Annotated, Any
 
 import numpy as np
 from fastapi import APIRouter, Body, Query, Request, Response
@@ -20,8 +21,9 @@ from nanonav.policy import (
     policy_values,
     steering_of,
 )
-from nanonav.rl.onnx_policy import RULE as MODEL_RULE
-from nanonav.rl.onnx_policy import InvalidModel, check_model, model_labels
+from nanonav.rl.graph import RULE as MODEL_RULE
+from nanonav.rl.graph import InvalidModel, model_labels
+from nanonav.rl.onnx_policy import Limits, check_model
 from nanonav.store import PolicyRecord
 from service.deps import JsonBody, SettingsDep, StoreDep
 from service.idempotency import IdempotencyDep
@@ -29,6 +31,7 @@ from service.ids import PolicyId
 from service.paging import Cursor, decode_cursor, encode_cursor
 from service.problems import (
     PROBLEM_BASE,
+    ChecksBusy,
     InvalidInput,
     Problem,
     field_error,
@@ -46,6 +49,8 @@ from service.schemas import (
 from service.security import SCRIPTED_ONLY, CallerDep
 
 router = APIRouter(prefix="/policies", tags=["policies"])
+# Seconds a network waits for a check while others run, before 503
+CHECK_WAIT_S = 30.0
 # The rule a body breaks that mixes a table's fields and a network's
 KIND = "policy_kind"
 
@@ -55,10 +60,11 @@ KIND = "policy_kind"
     status_code=201,
     response_model=PolicySummary,
     dependencies=[JsonBody],
-    responses=problems(400, 403, 409, 413, 415, 422),
+    responses=problems(400, 403, 409, 413, 415, 422, 503),
 )
 def send_policy(
     policy: Annotated[NewPolicy, Body(openapi_examples=NEW_POLICY_EXAMPLES)],
+    request: Request,
     store: StoreDep,
     settings: SettingsDep,
     caller: CallerDep,
@@ -83,7 +89,8 @@ def send_policy(
     store cannot keep it). A key that keeps ``NANONAV_QUOTA_POLICIES`` policies already gets
     409 ``policy-limit``."""
     if policy.onnx is not None:
-        record = _keep_network(policy, policy.onnx, store, settings, caller, idempotency)
+        checks: threading.BoundedSemaphore = request.app.state.network_checks
+        record = _keep_network(policy, policy.onnx, store, settings, caller, idempotency, checks)
         response.headers["Location"] = f"/policies/{record.id}"
         return PolicySummary.of(record)
     try:
@@ -130,8 +137,10 @@ def _keep_network(
     settings: SettingsDep,
     caller: CallerDep,
     idempotency: IdempotencyDep,
+    checks: threading.BoundedSemaphore,
 ) -> PolicyRecord:
-    """Check and keep a network: its labels (given, or its metadata's), then the model."""
+    """Check and keep a network: its labels (given, or its metadata's), then the model, in a
+    sandboxed process (at most ``checks`` at once in this API process)."""
     limit = settings.policy_model_max_bytes
     try:
         for field in ("states", "values", "greedy"):
@@ -147,10 +156,18 @@ def _keep_network(
                 raise InvalidPolicy((field,), detail, LAYOUT_RULE)
         assert observation is not None and actions is not None
         layout = network_layout(observation, actions)
-        info = check_model(
-            model, len(observation), len(actions), max_bytes=limit,
-            continuous=steering_of(actions) == "continuous",
-        )  # fmt: skip
+        if not checks.acquire(timeout=CHECK_WAIT_S):
+            raise ChecksBusy(
+                f"{settings.network_checks_at_once} networks are being checked already: "
+                "send it again in a moment"
+            )
+        try:
+            info = check_model(
+                model, len(observation), len(actions), max_bytes=limit,
+                continuous=steering_of(actions) == "continuous", limits=Limits.of(settings),
+            )  # fmt: skip
+        finally:
+            checks.release()
     except InvalidPolicy as error:
         raise _refused(error) from None
     except InvalidModel as error:
@@ -162,6 +179,7 @@ def _keep_network(
         actions=list(layout.action_labels),
         model=model,
         memory=len(info.memory),
+        cost=info.cost.to_dict(),
         name=policy.name,
         owner=caller.owner,
         idempotency=idempotency,
@@ -212,6 +230,8 @@ def get_policy(policy_id: PolicyId, store: StoreDep) -> Policy:
             observation=table["observation"].tolist(),
             model_bytes=int(table["model"].size),
             memory=int(table["memory"]) if "memory" in table else 0,
+            multiply_adds=_counted(table, "multiply_adds"),
+            live_bytes=_counted(table, "live_bytes"),
         )
     states, actions = table["states"].tolist(), table["actions"].tolist()
     values = table["values"]
@@ -224,6 +244,12 @@ def get_policy(policy_id: PolicyId, store: StoreDep) -> Policy:
         values=values.tolist(),
         greedy=[GreedyState.model_validate(g.to_dict()) for g in greedy],
     )
+
+
+def _counted(table: dict[str, NDArray[Any]], what: str) -> int | None:
+    """What a network's check counted of its cost (None for one kept before costs were)."""
+    found = table.get(f"cost_{what}")
+    return None if found is None else int(found)
 
 
 @router.get(

@@ -133,10 +133,14 @@ def submit_study(
     except ValidationError as error:
         raise invalid_body(error) from None
     read = cache(owned_tables(store, caller))  # points that name the same job read its table once
+    counted: dict[bytes, int] = {}  # points that name the same network count it once
     for point in grid:
         blame = [("body", "grid", k, grid_index(spec, k, v)) for k, v in point.values.items()]
-        check_budget(point.scenario, settings, blame or None)
-        check_policy_from(point.scenario, read, *_policy_blame(spec, point.values))
+        multiply_adds = check_policy_from(
+            point.scenario, read, *_policy_blame(spec, point.values), settings=settings,
+            counted=counted,
+        )  # fmt: skip
+        check_budget(point.scenario, settings, blame or None, multiply_adds)
     seeds = spec.seed_list
     quota = quota_of(caller, settings)
     size = [("body", "grid"), ("body", "seeds" if spec.seeds is not None else "replicates")]

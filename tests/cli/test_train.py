@@ -15,6 +15,9 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 
 from nanonav.cli import main
 from nanonav.env.baselines import NanoNavVecEnv
+from nanonav.rl.graph import MAX_LIVE_BYTES, MAX_MULTIPLY_ADDS
+from nanonav.rl.onnx_policy import Limits, check_model
+from nanonav.settings import Settings
 
 LOADERS: dict[str, type[BaseAlgorithm]] = {"ppo": PPO, "recurrent-ppo": RecurrentPPO, "dqn": DQN}
 
@@ -57,6 +60,20 @@ def test_a_learner_trains_and_leaves_what_it_learned(
     logits = session.run(["logits"], feeds)[0]
     assert logits.shape == (2, len(env.action_labels))
     np.testing.assert_array_equal(logits.argmax(axis=1), actions)
+    # and the service's check passes it, its operators allowed and its cost under the caps
+    passes_the_services_check(out / "policy.onnx", obs.shape[1], len(env.action_labels))
+
+
+def passes_the_services_check(path: Path, width: int, actions: int, **options: bool) -> None:
+    """What ``POST /policies`` checks, with the service's default limits."""
+    data = path.read_bytes()
+    settings = Settings()
+    assert len(data) <= settings.policy_model_max_bytes
+    assert 4 * len(data) / 3 < settings.max_body_bytes  # sent in base64
+    info = check_model(data, width, actions, max_bytes=settings.policy_model_max_bytes,
+                       limits=Limits.of(settings), **options)  # fmt: skip
+    assert 0 < info.cost.multiply_adds < MAX_MULTIPLY_ADDS
+    assert 0 < info.cost.live_bytes < MAX_LIVE_BYTES
 
 
 def test_a_scenario_that_is_not_one_is_refused_naming_the_field(
@@ -88,6 +105,7 @@ def test_a_continuous_turn_is_trained_and_exported_as_a_turn(
     width = session.get_inputs()[0].shape[1]
     turn = session.run(["turn"], {"observation": np.ones((3, width), np.float32)})[0]
     assert turn.shape == (3, 2) and np.all(np.abs(turn) <= 1.0)
+    passes_the_services_check(out / "policy.onnx", width, 2, continuous=True)
     capsys.readouterr()
     for refused, says in (
         (["--algo", "dqn", "--preset", "tumour-microswimmers"], "dqn chooses among actions"),

@@ -55,7 +55,8 @@ def test_a_trained_network_is_sent_and_evaluated_by_a_worker(
 
     resolved = Scenario.model_validate(job["scenario"])
     model = (out / "policy.onnx").read_bytes()
-    here = evaluate(resolved, NetworkPolicy(model, 3, 4, max_bytes=len(model)))
+    with NetworkPolicy(model, 3, 4, max_bytes=len(model)) as network:
+        here = evaluate(resolved, network)
     assert [{k: v for k, v in w.items() if k not in TIMINGS} for w in metrics["worlds"]] == [
         {k: v for k, v in w.items() if k not in TIMINGS} for w in here.to_dict()["worlds"]
     ]

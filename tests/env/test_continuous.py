@@ -103,11 +103,11 @@ def test_ppo_learns_a_turn_and_its_export_turns_as_it_does(algo: str, tmp_path: 
     export_onnx(model, path, observation=env.observation_labels, actions=env.action_labels)
     scenario = Scenario.model_validate(SWIMMERS)
     width = len(observation_of(scenario, "continuous").columns)
-    network = NetworkPolicy(path.read_bytes(), width, 2, max_bytes=10**7, continuous=True)
-    assert network.steering == "continuous"
     rows = np.random.default_rng(1).normal(size=(6, width)) * 3.0
     rows[:, 0] = np.abs(rows[:, 0])
-    turns = network(rows)
+    with NetworkPolicy(path.read_bytes(), width, 2, max_bytes=10**7, continuous=True) as network:
+        assert network.steering == "continuous"
+        turns = network(rows)
     predicted, _ = model.predict(rows.astype(np.float32), deterministic=True)
     assert turns.shape == (6, 2) and np.all(np.abs(turns) <= 1.0)
     np.testing.assert_allclose(turns, predicted, atol=1e-5)

@@ -1,5 +1,7 @@
 """ONNX models built node by node (``onnx.helper``), as a network exported elsewhere would be:
-a small multilayer perceptron, one that always prefers one action, and broken ones."""
+a small multilayer perceptron, one that always prefers one action, broken ones, and the hostile
+ones an attacker with a key sent: integer division that raises SIGFPE in ONNX Runtime, a chain
+of large convolutions, values kept alive by the megabyte, actions far outside the action set."""
 
 from __future__ import annotations
 
@@ -138,9 +140,9 @@ def outer_product(width: int, actions: int) -> bytes:
 
 
 def beyond_once_sensing(width: int, actions: int) -> bytes:
-    """Action 0 for a zero observation (it passes the trial run), but action ``actions``, one
-    past the last, as soon as the reading (column 0) is positive: a model that fails at run
-    time."""
+    """Action 0 for a zero observation, but action ``actions``, one past the last, as soon as
+    the reading (column 0) is positive; it compares and multiplies integers, which a policy
+    may not."""
     weights = [
         numpy_helper.from_array(np.array([0], dtype=np.int64), "zero"),
         numpy_helper.from_array(np.array([1], dtype=np.int64), "one"),
@@ -156,6 +158,192 @@ def beyond_once_sensing(width: int, actions: int) -> bytes:
     ]
     out = helper.make_tensor_value_info("action", TensorProto.INT64, ["batch"])
     return _model(nodes, weights, [observation(width)], out)
+
+
+def _int64(name: str, *values: int) -> onnx.TensorProto:
+    return numpy_helper.from_array(np.array(values, dtype=np.int64), name)
+
+
+def integer_division(width: int, *, only_when_positive: bool = False) -> bytes:
+    """The audit's 300-byte model: the observation cast to int64, INT64_MIN divided by -1 (the
+    one quotient that does not fit: the processor's integer division raises SIGFPE), and the
+    result's largest, absolute value, modulo 4, as the action. ``only_when_positive``: the
+    divisor is -1 only where an observation is 1 or more, else 1, so that zero observations
+    answer."""
+    weights = [_int64("one", 1), _int64("two", 2), _int64("zero", 0), _int64("four", 4),
+               _int64("smallest", np.iinfo(np.int64).min)]  # fmt: skip
+    nodes = [helper.make_node("Cast", ["observation"], ["whole"], to=TensorProto.INT64)]
+    if only_when_positive:
+        nodes += [
+            helper.make_node("Min", ["whole", "one"], ["capped"]),
+            helper.make_node("Max", ["capped", "zero"], ["sensed"]),
+            helper.make_node("Mul", ["sensed", "two"], ["twice"]),
+            helper.make_node("Sub", ["one", "twice"], ["divisor"]),
+            helper.make_node("Div", ["smallest", "divisor"], ["quotient"]),
+        ]
+    else:
+        nodes += [
+            helper.make_node("Sub", ["whole", "one"], ["minus_one"]),
+            helper.make_node("Mul", ["minus_one", "smallest"], ["product"]),
+            helper.make_node("Div", ["product", "minus_one"], ["quotient"]),
+        ]
+    nodes += [
+        helper.make_node("ReduceMax", ["quotient"], ["largest"], axes=[1], keepdims=0),
+        helper.make_node("Abs", ["largest"], ["size"]),
+        helper.make_node("Mod", ["size", "four"], ["action"]),
+    ]
+    out = helper.make_tensor_value_info("action", TensorProto.INT64, ["batch"])
+    return _model(nodes, weights, [observation(width)], out)
+
+
+def convolutions(width: int, actions: int, *, layers: int = 20) -> bytes:
+    """A chain of convolutions with a 99 x 99 kernel over a 1 x 100 x 100 image of each row,
+    both made with Expand: a few hundred bytes, 98 million multiply-adds an observation a
+    layer."""
+    weights = [
+        _int64("first", 0), _int64("second", 1), _int64("image", 1, 1, 100, 100),
+        _int64("column", -1, 1, 1, 1), _int64("kernel_shape", 1, 1, 99, 99),
+        numpy_helper.from_array(np.full((1, 1, 1, 1), 1e-3, np.float32), "seed"),
+        numpy_helper.from_array(np.ones((1, actions), np.float32), "out"),
+    ]  # fmt: skip
+    nodes = [
+        helper.make_node("Slice", ["observation", "first", "second", "second"], ["reading"]),
+        helper.make_node("Reshape", ["reading", "column"], ["pixel"]),
+        helper.make_node("Expand", ["pixel", "image"], ["layer0"]),
+        helper.make_node("Expand", ["seed", "kernel_shape"], ["kernel"]),
+    ]
+    for k in range(layers):
+        nodes.append(helper.make_node("Conv", [f"layer{k}", "kernel"], [f"layer{k + 1}"],
+                                      pads=[49, 49, 49, 49]))  # fmt: skip
+    nodes += [
+        helper.make_node("ReduceMean", [f"layer{layers}"], ["mean"], axes=[2, 3], keepdims=0),
+        helper.make_node("MatMul", ["mean", "out"], ["logits"]),
+    ]
+    return _model(nodes, weights, [observation(width)], logits(actions))
+
+
+def kept_alive(width: int, actions: int, *, values: int = 40, summed_by: str = "Sum") -> bytes:
+    """``values`` values of (batch, 10,000) computed from the observation and all kept alive
+    until they are summed, by one ``Sum`` or by a chain of ``Add``: 1.6 MB an observation."""
+    rng = np.random.default_rng(0)
+    weights = [
+        numpy_helper.from_array(rng.normal(size=(width, 10_000)).astype(np.float32), "wide"),
+        numpy_helper.from_array(rng.normal(size=(10_000, actions)).astype(np.float32), "narrow"),
+    ]
+    nodes = [helper.make_node("MatMul", ["observation", "wide"], ["spread"])]
+    for k in range(values):
+        weights.append(numpy_helper.from_array(np.array([k], np.float32), f"shift{k}"))
+        nodes.append(helper.make_node("Add", ["spread", f"shift{k}"], [f"value{k}"]))
+    if summed_by == "Sum":
+        nodes.append(helper.make_node("Sum", [f"value{k}" for k in range(values)], ["total"]))
+    else:
+        last = "value0"
+        for k in range(1, values):
+            name = "total" if k == values - 1 else f"partial{k}"
+            nodes.append(helper.make_node("Add", [last, f"value{k}"], [name]))
+            last = name
+    nodes.append(helper.make_node("MatMul", ["total", "narrow"], ["logits"]))
+    return _model(nodes, weights, [observation(width)], logits(actions))
+
+
+def dense_stack(width: int, actions: int, *, units: int, layers: int) -> bytes:
+    """``layers`` dense layers of ``units`` x ``units`` (tanh), their weights made in the graph
+    as outer products (a few kilobytes sent, ``units`` squared multiply-adds an observation a
+    layer): heavy within the allowed operators."""
+    weights = [
+        numpy_helper.from_array(np.full((units, 1), 1.0 / units, np.float32), "left"),
+        numpy_helper.from_array(np.ones((1, units), np.float32), "right"),
+        numpy_helper.from_array(np.ones((width, 1), np.float32), "inputs"),
+        numpy_helper.from_array(np.ones((1, actions), np.float32), "outputs"),
+    ]
+    nodes = [
+        helper.make_node("MatMul", ["left", "right"], ["square"]),
+        helper.make_node("MatMul", ["inputs", "right"], ["into"]),
+        helper.make_node("MatMul", ["left", "outputs"], ["out"]),
+        helper.make_node("MatMul", ["observation", "into"], ["h0"]),
+    ]
+    for k in range(layers):
+        nodes += [
+            helper.make_node("MatMul", [f"h{k}", "square"], [f"z{k}"], name=f"layer{k}"),
+            helper.make_node("Tanh", [f"z{k}"], [f"h{k + 1}"]),
+        ]
+    nodes.append(helper.make_node("MatMul", [f"h{layers}", "out"], ["logits"]))
+    return _model(nodes, weights, [observation(width)], logits(actions))
+
+
+def concatenated(width: int, actions: int, *, copies: int = 700) -> bytes:
+    """A hundred features of each observation joined ``copies`` times over: 280 kB an
+    observation in one value from a model of a few kilobytes."""
+    weights = [
+        numpy_helper.from_array(np.ones((width, 100), np.float32), "spread"),
+        numpy_helper.from_array(np.ones((1, actions), np.float32), "out"),
+        numpy_helper.from_array(np.array([1], np.int64), "axis"),
+    ]
+    nodes = [
+        helper.make_node("MatMul", ["observation", "spread"], ["features"]),
+        helper.make_node("Concat", ["features"] * copies, ["joined"], axis=1, name="join"),
+        helper.make_node("ReduceMean", ["joined"], ["mean"], axes=[1], keepdims=1),
+        helper.make_node("MatMul", ["mean", "out"], ["logits"]),
+    ]
+    return _model(nodes, weights, [observation(width)], logits(actions))
+
+
+def far_actions(width: int, *, action: float = 3297.0) -> bytes:
+    """Actions computed as numbers and cast to integers: ``action`` for a zero observation,
+    ``-action`` + 1 for one of ones (all the columns' sum times -2 action)."""
+    weights = [
+        numpy_helper.from_array(np.full((width, 1), (1 - 2 * action) / width, np.float32), "w"),
+        numpy_helper.from_array(np.array([action], np.float32), "b"),
+    ]
+    nodes = [
+        helper.make_node("Gemm", ["observation", "w", "b"], ["score"]),
+        helper.make_node("Cast", ["score"], ["action"], to=TensorProto.INT64),
+    ]
+    out = helper.make_tensor_value_info("action", TensorProto.INT64, ["batch", 1])
+    return _model(nodes, weights, [observation(width)], out)
+
+
+def counting_past(width: int) -> bytes:
+    """A recurrent model whose action is the count of its decisions (its memory): 1 at the
+    first, the trial run's; one past the last action once it has decided as many times as
+    there are actions."""
+    weights = [
+        numpy_helper.from_array(np.array([[1.0]], dtype=np.float32), "one"),
+        numpy_helper.from_array(np.zeros((width, 1), dtype=np.float32), "ignore"),
+    ]
+    nodes = [
+        helper.make_node("MatMul", ["observation", "ignore"], ["nothing"]),
+        helper.make_node("Add", ["memory_in", "one"], ["counted"]),
+        helper.make_node("Add", ["counted", "nothing"], ["memory_out"]),
+        helper.make_node("Cast", ["memory_out"], ["action"], to=TensorProto.INT64),
+    ]
+    memory_in = helper.make_tensor_value_info("memory_in", TensorProto.FLOAT, ["batch", 1])
+    memory_out = helper.make_tensor_value_info("memory_out", TensorProto.FLOAT, ["batch", 1])
+    out = helper.make_tensor_value_info("action", TensorProto.INT64, ["batch", 1])
+    graph = helper.make_graph(
+        nodes, "counting", [observation(width), memory_in], [out, memory_out], initializer=weights
+    )
+    model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", OPSET)])
+    model.ir_version = 8
+    return bytes(model.SerializeToString())
+
+
+def looping(width: int, actions: int) -> bytes:
+    """A Loop whose count comes from the observation: a graph whose running time the graph
+    does not bound."""
+    body = helper.make_graph(
+        [helper.make_node("Identity", ["cond_in"], ["cond_out"])], "body",
+        [helper.make_tensor_value_info("i", TensorProto.INT64, []),
+         helper.make_tensor_value_info("cond_in", TensorProto.BOOL, [])],
+        [helper.make_tensor_value_info("cond_out", TensorProto.BOOL, [])],
+    )  # fmt: skip
+    weights = [_int64("many", 10**12), numpy_helper.from_array(np.array(True), "go"),
+               numpy_helper.from_array(np.zeros((width, actions), np.float32), "w")]  # fmt: skip
+    nodes = [
+        helper.make_node("Loop", ["many", "go"], [], body=body),
+        helper.make_node("MatMul", ["observation", "w"], ["logits"]),
+    ]
+    return _model(nodes, weights, [observation(width)], logits(actions))
 
 
 def counter(width: int, actions: int) -> bytes:

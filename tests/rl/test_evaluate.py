@@ -154,11 +154,11 @@ def test_a_network_with_a_memory_decides_for_every_robot_at_once_only() -> None:
 
     s = scenario(robots={"count": 3, "schedule": "simultaneous"}, evaluation={"worlds": 2})
     width = observation_of(s).columns.size
-    policy = NetworkPolicy(models.counter(width, 4), width, 4, max_bytes=100_000)
-    assert evaluate(s, policy).completed
-    swarm_in_turns = scenario(robots={"count": 3, "schedule": "sequential"})
-    with pytest.raises(PolicyFailed, match=r"robots\.schedule must be 'simultaneous'"):
-        evaluate(swarm_in_turns, policy)
+    with NetworkPolicy(models.counter(width, 4), width, 4, max_bytes=100_000) as policy:
+        assert evaluate(s, policy).completed
+        swarm_in_turns = scenario(robots={"count": 3, "schedule": "sequential"})
+        with pytest.raises(PolicyFailed, match=r"robots\.schedule must be 'simultaneous'"):
+            evaluate(swarm_in_turns, policy)
 
 
 def test_a_continuous_turn_up_the_gradient_meets_the_gradient_rule() -> None:

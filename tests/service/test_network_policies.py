@@ -6,6 +6,7 @@ which fails a job whose network answers nonsense with the reason."""
 from __future__ import annotations
 
 import base64
+import re
 import threading
 from typing import Any
 
@@ -13,7 +14,7 @@ import numpy as np
 
 from nanonav.client import Client
 from nanonav.engine.worlds import action_labels, observation_of
-from nanonav.rl.onnx_policy import METADATA_ACTIONS, METADATA_OBSERVATION
+from nanonav.rl.graph import METADATA_ACTIONS, METADATA_OBSERVATION
 from nanonav.scenario import Scenario
 from nanonav.settings import Settings
 from nanonav.store import JobStatus
@@ -98,8 +99,21 @@ def test_a_network_that_cannot_decide_is_422_at_the_field_at_fault(api: Api) -> 
          "policy_model", "imports the operator set 'com.example'"),
         ({"onnx": encoded(models.external_weights(width, count)), **good}, "#/onnx",
          "policy_model", "keeps its data outside the model"),
-        ({"onnx": encoded(models.outer_product(width, count)), **good}, "#/onnx",
-         "policy_model", "over the 10000 a policy may compute"),
+        ({"onnx": encoded(models.concatenated(width, count)), **good}, "#/onnx",
+         "policy_model", "node 'join' (Concat): the model holds 280,400, over the cap of "
+         "262,144, bytes an observation at once here"),
+        ({"onnx": encoded(models.dense_stack(width, count, units=1100, layers=4)), **good},
+         "#/onnx", "policy_model", "node 'layer3' (MatMul): the model takes 4,874,100, over "
+         "the cap of 4,000,000, multiply-adds an observation"),
+        ({"onnx": encoded(models.integer_division(width)), **good}, "#/onnx", "policy_model",
+         "(Mod): Mod is not an operator a policy needs"),
+        ({"onnx": encoded(models.convolutions(width, count)), **good}, "#/onnx",
+         "policy_model", "(Expand): Expand is not an operator a policy needs"),
+        ({"onnx": encoded(models.far_actions(width)), **good}, "#/onnx", "policy_model",
+         "the model answers action 3297 for a zero observation: actions are 0..3"),
+        ({"onnx": encoded(models.mlp(3, count)), "observation": ["reading", "reading_change",
+          "gradient_x"], "actions": ACTIONS}, "#/observation", "policy_layout",
+         "no scenario's robots observe (reading, reading_change, gradient_x)"),
         ({"onnx": encoded(models.mlp(width, count)), "observation": ["cell", "reading"],
           "actions": ACTIONS}, "#/observation", "policy_layout", "is no robot's observation"),
         ({"onnx": encoded(models.mlp(width, count)), "observation": OBSERVATION,
@@ -158,8 +172,10 @@ def test_a_job_names_a_network_whose_robots_observe_and_act_as_it_was_trained(
 def test_a_worker_evaluates_a_network_and_fails_one_that_answers_nonsense(
     api: Api, api_settings: Settings
 ) -> None:
+    """The nonsense comes after the trial run: a recurrent model whose action counts its
+    decisions answers one past the last action at the fourth."""
     good = network(api)["policy_from"]
-    bad = network(api, models.beyond_once_sensing(len(OBSERVATION), len(ACTIONS)))
+    bad = network(api, models.counting_past(len(OBSERVATION)))
     jobs = [
         api.client.post("/jobs", json={**EVALUATE, "policy_from": source}).json()["id"]
         for source in (good, bad["policy_from"])
@@ -185,7 +201,11 @@ def test_a_worker_evaluates_a_network_and_fails_one_that_answers_nonsense(
     page = api.client.get(f"/ui/jobs/{jobs[0]}").text
     assert "Decided by the network" in page and "plots/qtable.png" not in page
     assert failed is not None and failed.status is JobStatus.FAILED
-    assert failed.error == "policy_from: the policy answered action 4, not one of 0..3"
+    assert re.fullmatch(
+        r"policy_from: the policy raised ValueError: the model answers action 4 for (a zero "
+        r"observation|the observation \([-\d., e+]+\)): actions are 0\.\.3",
+        failed.error or "",
+    ), failed.error
 
 
 def test_a_recurrent_network_is_kept_with_its_memory_and_evaluated_at_once(
@@ -238,3 +258,56 @@ def test_a_network_that_turns_steers_active_brownian_robots(
     succeeds(api, api_settings, job)
     metrics = api.client.get(f"/jobs/{job}/metrics").json()
     assert metrics["work"]["decide_calls"] > 0 and len(metrics["worlds"]) == 3
+
+
+def test_a_networks_cost_is_counted_when_sent_and_charged_to_each_job(api: Api) -> None:
+    """What one observation costs is counted from the graph when the network is sent, shown,
+    and charged to the work budget of every job that names it, decision by decision: a swarm
+    that a small network decides for fits, the same swarm under a network of three layers of
+    1,000 does not."""
+    width, count = len(OBSERVATION), len(ACTIONS)
+    small = network(api, models.mlp(width, count, hidden=16))
+    shown = api.client.get(small["links"]["self"]).json()
+    assert shown["multiply_adds"] == 16 * (width + 1) + 16 + count * (16 + 1)
+    assert shown["live_bytes"] == 2 * 16 * 4
+    heavy = network(api, models.dense_stack(width, count, units=1000, layers=3))
+    counted = api.client.get(heavy["links"]["self"]).json()["multiply_adds"]
+    assert 3_000_000 < counted < 4_000_000
+    swarm = {
+        "robots": {"count": 1000, "schedule": "simultaneous"},
+        "learning": {"episodes": 0, "max_steps": 1000},
+        "evaluation": {"worlds": 20},
+    }
+    fits = api.client.post("/jobs", json={**swarm, "policy_from": small["policy_from"]})
+    assert fits.status_code == 202, fits.text
+    problem = assert_problem(
+        api.client.post("/jobs", json={**swarm, "policy_from": heavy["policy_from"]}), 422
+    )
+    pointers = [error["pointer"] for error in problem["errors"]]
+    assert "#/policy_from" in pointers and "#/robots/count" in pointers
+    assert {error["type"] for error in problem["errors"]} == {"budget_exceeded"}
+    assert (
+        f"for the network's decisions ({counted:,} multiply-adds an observation)"
+        in (problem["detail"])
+    )
+
+
+def test_a_network_kept_before_costs_were_counted_is_checked_when_a_job_names_it(
+    api: Api,
+) -> None:
+    """A network the store kept without a counted cost (sent to an earlier version) is checked
+    in its sandbox when a job names it: counted and charged, or refused as it would be sent."""
+    layout = {"action_set": "behaviors", "communication": ("none",),
+              "observation": OBSERVATION, "actions": ACTIONS}  # fmt: skip
+    kept = api.store.policies.add_network(
+        model=models.mlp(len(OBSERVATION), len(ACTIONS)), **layout
+    )
+    assert api.client.get(f"/policies/{kept.id}").json()["multiply_adds"] is None
+    accepted = api.client.post("/jobs", json={**EVALUATE, "policy_from": kept.policy_from})
+    assert accepted.status_code == 202, accepted.text
+    hostile = api.store.policies.add_network(
+        model=models.integer_division(len(OBSERVATION)), **layout
+    )
+    pointer, rule, detail = refused(api, {**EVALUATE, "policy_from": hostile.policy_from}, "/jobs")
+    assert (pointer, rule) == ("#/policy_from", "policy_unusable")
+    assert "(Mod): Mod is not an operator a policy needs" in detail

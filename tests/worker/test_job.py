@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 import math
+import os
+import signal
 import threading
+import time
 from datetime import UTC, datetime
 from typing import Any
 
@@ -11,8 +14,13 @@ import numpy as np
 import pytest
 
 from nanonav.engine import Progress
+from nanonav.engine.worlds import action_labels, observation_of
+from nanonav.rl.evaluate import evaluate
+from nanonav.scenario import Scenario
 from nanonav.settings import Settings
 from nanonav.store import Claim, JobRecord, JobStatus, JobStore
+from tests.processes import sandbox_of
+from tests.rl import models
 from worker.health import healthy
 from worker.job import Stop, Watch, finite, run_job
 from worker.loop import work
@@ -172,3 +180,39 @@ def test_the_health_check_sees_a_worker_of_this_host_only(store: JobStore) -> No
     assert healthy(settings, host="box")
     assert not healthy(settings, host="bo")
     assert not healthy(Settings(database_url="postgresql://nobody@127.0.0.1:1/none"), host="box")
+
+
+def test_the_time_limit_stops_a_network_within_a_call_that_does_not_end(
+    sqlite_store: JobStore,
+) -> None:
+    """The network's process hangs (stopped, as a runaway computation would hold it): the
+    worker asks whether the run goes on while it waits, and fails the job at its time limit,
+    long before the call's own limit."""
+    scenario = Scenario()
+    observation = list(observation_of(scenario).labels)
+    actions = action_labels(scenario)
+    network = sqlite_store.policies.add_network(
+        action_set="behaviors", communication=("none",), observation=observation,
+        actions=actions, model=models.mlp(len(observation), len(actions)),
+    )  # fmt: skip
+    long = {"robots": {"count": 50, "schedule": "simultaneous"},
+            "learning": {"episodes": 0, "max_steps": 100_000}, "evaluation": {"worlds": 1},
+            "policy_from": network.policy_from}  # fmt: skip
+    tiny = {**long, "learning": {"episodes": 0, "max_steps": 5}, "policy_from": None}
+    evaluate(Scenario.model_validate(tiny), lambda rows: np.zeros(len(rows), np.int64))
+    claim = claimed(sqlite_store, long)  # the engine's step loaded above, before the clock
+    settings = settings_for(sqlite_store, job_time_limit_s=3.0, network_call_limit_s=60.0)
+    ran: dict[str, JobRecord | None] = {}
+    thread = threading.Thread(
+        target=lambda: ran.update(record=run_job(sqlite_store, claim, settings, threading.Event()))
+    )
+    started = time.monotonic()
+    thread.start()
+    while sqlite_store.get(claim.job.id).fraction == 0 and thread.is_alive():
+        time.sleep(0.05)
+    os.kill(sandbox_of(os.getpid()), signal.SIGSTOP)
+    thread.join(timeout=60)
+    record = ran["record"]
+    assert record is not None and record.status is JobStatus.FAILED
+    assert record.error == "stopped: the job ran past its time limit of 3 s"
+    assert time.monotonic() - started < 15
