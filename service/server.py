@@ -16,6 +16,10 @@ from nanonav.settings import Settings
 from service.connections import BoundedConfig, ConnectionLimits, fit_open_files
 
 APP = "service.app:create_app"
+# Seconds a process of several may take to answer its supervisor's health check before it is
+# killed and started again: uvicorn's 5 s killed processes still starting (importing the
+# engine) on a loaded machine, one after another, for minutes
+PROCESS_HEALTHCHECK_S = 60.0
 
 
 def server_config(app: Any, settings: Settings, **options: Any) -> BoundedConfig:
@@ -26,6 +30,7 @@ def server_config(app: Any, settings: Settings, **options: Any) -> BoundedConfig
     limits = ConnectionLimits.of(settings)
     fit_open_files(limits)
     options.setdefault("timeout_graceful_shutdown", settings.shutdown_grace_s)
+    options.setdefault("timeout_worker_healthcheck", PROCESS_HEALTHCHECK_S)
     return BoundedConfig(app, limits=limits, **options)
 
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from datetime import UTC, datetime, timedelta
 
+from nanonav.settings import Settings
 from nanonav.store.deliveries import DeliveryStore
 from tests.conftest import Api
 from tests.service.test_callbacks import HOOK
@@ -43,3 +44,13 @@ def test_healthz_counts_due_webhooks_and_says_when_no_sender_sends_them(api: Api
     deliveries.sender_passed("host:7", now=now - timedelta(seconds=300))
     health = api.client.get("/healthz").json()
     assert health["status"] == "ok" and "(the last one 300 s ago)" in health["note"]
+
+
+def test_a_process_of_several_has_a_minute_to_answer_its_supervisor() -> None:
+    """uvicorn's supervisor kills a process that does not answer its health check in time;
+    its own 5 s killed processes still importing the engine on a loaded machine, over and
+    over (43 restarts, the API unreachable for minutes)."""
+    from service.server import APP, server_config
+
+    config = server_config(APP, Settings(), factory=True, workers=2)
+    assert config.timeout_worker_healthcheck >= 60
