@@ -9,6 +9,7 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 
 import numpy as np
@@ -17,7 +18,8 @@ import pytest
 from nanonav.rl.evaluate import Stopped
 from nanonav.rl.graph import InvalidModel
 from nanonav.rl.onnx_policy import Limits, NetworkPolicy, check_model
-from nanonav.rl.sandbox import Sandbox, SandboxFailed
+from nanonav.rl.sandbox import SandboxFailed
+from tests.processes import sandbox_of
 from tests.rl import models
 
 pytestmark = pytest.mark.timeout(120)
@@ -112,8 +114,14 @@ def test_a_network_past_its_memory_fails_its_call_saying_so() -> None:
 
 
 def test_a_check_that_fails_in_its_process_is_a_refused_model() -> None:
-    limits = Limits(check_cpu_s=2.0)
-    with Sandbox(memory_bytes=limits.memory_bytes, cpu_s=limits.check_cpu_s) as box:
-        os.kill(box.pid, signal.SIGSEGV)
-        with pytest.raises(SandboxFailed, match="killed by SIGSEGV"):
-            box.load(models.mlp(7, 4), 7, 4, continuous=False, max_bytes=LIMIT, limit_s=10)
+    """At upload a crash of the check's process is the model's refusal (a 422): the process is
+    killed by SIGSEGV as soon as it starts."""
+
+    def crash() -> None:
+        os.kill(sandbox_of(os.getpid()), signal.SIGSEGV)
+
+    killer = threading.Thread(target=crash)
+    killer.start()
+    with pytest.raises(InvalidModel, match=r"killed by SIGSEGV while its model was checked"):
+        check_model(models.mlp(7, 4), 7, 4, max_bytes=LIMIT)
+    killer.join()
