@@ -21,6 +21,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from nanonav.engine import signals
+from nanonav.engine.compiled import inlined
 from nanonav.engine.contacts import CellList, each_within
 from nanonav.engine.dynamics.brownian import read_counted
 from nanonav.engine.state import (
@@ -74,7 +75,7 @@ def update_field(
                 )  # fmt: skip
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def _read_lattice(p: KernelParams, rng: np.random.Generator, c: float) -> float:
     """A reading of the signal with the biomarker's noise rules (relative noise, then the
     floor); the detection threshold is applied to the net signal."""
@@ -134,7 +135,7 @@ def receive(
     return net, gx, gy, gz
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def received(p: KernelParams, net: float, prev: float) -> int:
     """The state's 'signal' of a chemical reading: nothing, an attractant rising or not, or a
     repellent."""
@@ -176,7 +177,7 @@ def broadcast(
         so.message[j, 2] = z
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def toward_message(
     p: KernelParams, pos: NDArray[np.float64], so: Social, i: int, arrived: float
 ) -> tuple[float, float, float]:

@@ -26,6 +26,8 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from nanonav.engine.compiled import inlined
+
 BUCKETS_PER_ROBOT = 2  # at least: rounded up to a power of two
 # A cell is this many cutoffs wide: a search then spans at most 2 cells an axis (8 buckets), and
 # a cell of a dense cluster holds a few robots (narrower cells cost more buckets a search).
@@ -74,13 +76,13 @@ def grid_for(half: float, cutoff: float, step: float, robots: int) -> CellList:
     )
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def _axis_index(v: float, origin: float, width: float, dims: int) -> int:
     k = math.floor((v - origin) / width)
     return min(max(k, 0), dims - 1)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def _bucket(grid: CellList, cx: int, cy: int, cz: int) -> int:
     buckets: int = grid.heads.shape[0]
     if buckets == grid.dims * grid.dims * grid.dims:
@@ -88,7 +90,7 @@ def _bucket(grid: CellList, cx: int, cy: int, cz: int) -> int:
     return ((cx * _PX) ^ (cy * _PY) ^ (cz * _PZ)) & (buckets - 1)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def _span(v: float, reach: float, grid: CellList) -> tuple[int, int]:
     """The first and last cell along an axis that a ball of radius ``reach`` around v touches."""
     low = _axis_index(v - reach, grid.origin, grid.width, grid.dims)
@@ -96,7 +98,7 @@ def _span(v: float, reach: float, grid: CellList) -> tuple[int, int]:
     return low, high
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def cell_of(grid: CellList, x: float, y: float, z: float) -> int:
     """The bucket that holds (x, y, z) (border cells hold what lies beyond)."""
     d = grid.dims
@@ -174,7 +176,7 @@ def first_within(
     return best
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def _met_before(
     grid: CellList, b: int, x0: int, y0: int, z0: int, ax: int, ay: int, az: int,
     y1: int, z1: int,
@@ -192,7 +194,7 @@ def _met_before(
     return False
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def _sift_down(a: NDArray[np.int64], start: int, end: int) -> None:
     root = start
     while 2 * root + 1 < end:

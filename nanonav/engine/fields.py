@@ -14,6 +14,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from nanonav.engine.compiled import inlined, inlined_callable
 from nanonav.scenario import MOLECULES_PER_UM3_PER_NM, Biomarker, Scenario
 
 GAUSSIAN = 0
@@ -117,7 +118,7 @@ def sample(
     )
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined_callable
 def place_sources(
     model: int,
     cells: NDArray[np.float64],
@@ -231,7 +232,7 @@ def source_count(biomarker: Biomarker, cells: int) -> int:
     return cells * biomarker.emitters_per_cell if biomarker.model in EMITTER_MODELS else cells
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def place_treated(
     model: int, cells: NDArray[np.float64], offsets: NDArray[np.float64],
     treated_at: NDArray[np.int64], tx: NDArray[np.float64], ty: NDArray[np.float64],

@@ -17,7 +17,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from nanonav.engine import treatment
-from nanonav.engine.compiled import uncounted
+from nanonav.engine.compiled import inlined, uncounted
 from nanonav.engine.contacts import rebuild
 from nanonav.engine.dynamics.lattice import nearest, redraw_emitters
 from nanonav.engine.fields import SAMPLED_GAUSSIAN, place_sources
@@ -151,11 +151,12 @@ def begin_episode(
                 for axis in range(3):
                     sim.rec.offsets[k, axis] = w.offsets[k, axis]
         if evaluating:
-            observe(p, sim, 0, False, record)
+            # step 0 as a number, not a constant: a constant would compile observe once more
+            observe(p, sim, int(0), False, record)  # noqa: UP018, RUF046
     return status
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def over(p: KernelParams, tr: Treatment, s: Swarm, t: int) -> bool:
     """The episode is over at the step limit, when every robot has delivered, or when every
     cell is treated."""

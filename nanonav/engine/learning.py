@@ -10,13 +10,13 @@ Everything here runs under numba, inlined into the compiled step.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 from numpy.typing import NDArray
 
+from nanonav.engine.compiled import inlined
 from nanonav.engine.state import ALPHA_VISITS, KernelParams
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def q_update(
     p: KernelParams,
     q: NDArray[np.float64],
@@ -36,7 +36,7 @@ def q_update(
     q[table, s, a] += alpha * (target - q[table, s, a])
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def _bootstrap(p: KernelParams, q: NDArray[np.float64], table: int, s: int, reward: float) -> float:
     best: float = q[table, s, 0]
     for a in range(1, q.shape[2]):
@@ -44,7 +44,7 @@ def _bootstrap(p: KernelParams, q: NDArray[np.float64], table: int, s: int, rewa
     return reward + p.gamma * best
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def q_update_bootstrapped(
     p: KernelParams,
     q: NDArray[np.float64],

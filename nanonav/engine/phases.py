@@ -10,9 +10,9 @@ differ only inside the rooms that differ (``dynamics.lattice`` or ``dynamics.bro
 ``sensing``, ``policies``); what a phase does with a robot is the same whoever decides: the
 engine's own policies choose in ``decide``, an agent outside hands an action to ``command``.
 
-Everything here is inlined into the compiled schedules (``inline="always"``), which run without
-reference counting (``compiled.uncounted``), or is uncounted itself: nothing here allocates, and
-arrays are indexed element by element.
+Everything here is compiled once and inlined by LLVM into the compiled schedules
+(``compiled.inlined``), which run without reference counting (``compiled.uncounted``), or is
+uncounted itself: nothing here allocates, and arrays are indexed element by element.
 """
 
 from __future__ import annotations
@@ -20,12 +20,11 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 from numpy.typing import NDArray
 
 from nanonav.engine import communication as radio_room
 from nanonav.engine import treatment
-from nanonav.engine.compiled import uncounted
+from nanonav.engine.compiled import inlined, uncounted
 from nanonav.engine.contacts import CellList, bumped_back, relist
 from nanonav.engine.dynamics import brownian, lattice
 from nanonav.engine.fields import SAMPLED_GAUSSIAN, place_sources, place_treated
@@ -149,7 +148,7 @@ def percept(robots: int) -> Percept:
     )
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def advance(p: KernelParams, rng: np.random.Generator, sim: Sim, t: int) -> None:
     """Advance the world into step ``t``: cells (and in the lattice, obstacles and emitters)
     move, the sources and the signal are placed, and the true field is read at every active
@@ -236,7 +235,7 @@ def body_turn(p: KernelParams, sim: Sim, i: int) -> None:
     s.heading[i, 2] = nz
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def read_state(
     p: KernelParams, rng: np.random.Generator, sim: Sim, i: int, cell_d: float, full: bool
 ) -> int:
@@ -279,7 +278,7 @@ def read_state(
     return tabular_state(p, c, s.prev_conc[i], gx, gy, gz, gap, cell_d)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def perceive(
     p: KernelParams, rng: np.random.Generator, sim: Sim, i: int, t: int, full: bool
 ) -> bool:  # fmt: skip
@@ -336,7 +335,7 @@ def perceive(
     return True
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def command(
     p: KernelParams, sim: Sim, i: int, action: int, directions: NDArray[np.float64]
 ) -> tuple[int, float, float, float, float, float, float]:  # fmt: skip
@@ -356,7 +355,7 @@ def command(
     return NO_BEHAVIOR, d[0], d[1], d[2], gx, gy, gz
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def decide(
     p: KernelParams, rng: np.random.Generator, sim: Sim, lrn: Learner, i: int, epsilon: float,
 ) -> tuple[int, int, float, float, float, float, float, float]:  # fmt: skip
@@ -385,7 +384,7 @@ def decide(
     return 0, code, dx, dy, dz, gx, gy, gz
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def act(
     p: KernelParams, rng: np.random.Generator, sim: Sim, i: int, t: int, code: int,
     dx: float, dy: float, dz: float, gx: float, gy: float, gz: float,
@@ -491,7 +490,7 @@ def act(
     return reward, reached
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def decides(p: KernelParams, t: int) -> bool:
     """Whether step ``t`` takes a decision by action number (the Q-learner's, or an agent's
     outside): every step, or in active_brownian every ``hold`` steps (the decision interval);
@@ -499,14 +498,14 @@ def decides(p: KernelParams, t: int) -> bool:
     return t % p.hold == 0
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def keep(p: KernelParams, rng: np.random.Generator, sim: Sim, i: int, t: int) -> tuple[float, bool]:
     """Robot ``i`` carries out in step ``t`` the decision it holds (``act``'s reward and
     arrival): a step between two decisions."""
     return act(p, rng, sim, i, t, sim.pc.held[i], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def learn_arrival(p: KernelParams, lrn: Learner, s: Swarm, i: int) -> None:
     """A cell drifted onto robot ``i``: its waiting transition ends its episode, with the
     reward of the step it spent receiving."""
@@ -518,7 +517,7 @@ def learn_arrival(p: KernelParams, lrn: Learner, s: Swarm, i: int) -> None:
     s.pending[i] = False
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def learn_last(p: KernelParams, lrn: Learner, s: Swarm, i: int, state: int) -> None:
     """Robot ``i``'s waiting transition, now that its next ``state`` is perceived (eq. 2.7)."""
     if s.pending[i]:
@@ -528,7 +527,7 @@ def learn_last(p: KernelParams, lrn: Learner, s: Swarm, i: int, state: int) -> N
         )  # fmt: skip
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def learn(
     p: KernelParams, lrn: Learner, s: Swarm, i: int, state: int, action: int, reward: float,
     reached: bool,
@@ -545,7 +544,7 @@ def learn(
         s.last_reward[i] = reward
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def sense(
     p: KernelParams, rng: np.random.Generator, sim: Sim, lrn: Learner, i: int, t: int,
     learning: bool,
@@ -560,7 +559,7 @@ def sense(
     return False
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def respond(
     p: KernelParams, rng: np.random.Generator, sim: Sim, lrn: Learner, i: int, t: int,
     epsilon: float, learning: bool,

@@ -10,11 +10,11 @@ from how it learns. Everything here runs under numba, inlined into the compiled 
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 from numba.np.random.random_methods import buffered_bounded_lemire_uint32
 from numpy.typing import NDArray
 
 from nanonav.engine.communication import ATTRACTANT_RISING, REPELLENT
+from nanonav.engine.compiled import inlined
 from nanonav.engine.dynamics.brownian import turn_toward
 from nanonav.engine.dynamics.lattice import random_unit, slide, unit_or_random
 from nanonav.engine.qlearning import (
@@ -43,7 +43,7 @@ from nanonav.engine.state import (
 NO_BEHAVIOR = -1
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def below(rng: np.random.Generator, n: int) -> int:
     """A uniform integer of 0 .. n - 1, as ``rng.integers(0, n)`` draws it (the same bits, the
     same number) without allocating, so that the uncounted step may call it; for ``n`` of 1
@@ -54,7 +54,7 @@ def below(rng: np.random.Generator, n: int) -> int:
     return int(np.int64(drawn))  # int() of a uint32 would type as float under numba
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def epsilon_greedy(
     epsilon: float, rng: np.random.Generator, q: NDArray[np.float64], table: int, state: int
 ) -> int:
@@ -80,7 +80,7 @@ def epsilon_greedy(
     return 0
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def baseline_action(
     p: KernelParams, rng: np.random.Generator, heading: NDArray[np.float64], i: int,
     c: float, prev_c: float, gx: float, gy: float, gz: float, cell_d: float, heard: int,
@@ -129,7 +129,7 @@ def baseline_action(
     return behavior, dx, dy, dz, gx, gy, gz
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def _climb(
     p: KernelParams, rng: np.random.Generator, w: World, s: Swarm, i: int,
     px: float, py: float, pz: float, gx: float, gy: float, gz: float,
@@ -144,7 +144,7 @@ def _climb(
     return slide(p, rng, w, px, py, pz, dx, dy, dz, p.speed)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def behavior_direction(
     p: KernelParams,
     rng: np.random.Generator,
@@ -185,7 +185,7 @@ def behavior_direction(
     return s.heading[robot, 0], s.heading[robot, 1], s.heading[robot, 2], p.speed
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def steering_baseline(p: KernelParams, rng: np.random.Generator, rising: bool) -> int:
     """A fixed active Brownian policy's steering action this step: 'uncontrolled' keeps its
     heading; 'run_and_tumble' tumbles with probability 1 - exp(-rate dt), at a lower rate while
@@ -202,7 +202,7 @@ def steering_baseline(p: KernelParams, rng: np.random.Generator, rising: bool) -
     return KEEP_HEADING
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def steer(
     p: KernelParams, rng: np.random.Generator, s: Swarm, i: int, action: int,
     gx: float, gy: float, gz: float, tx: float, ty: float, tz: float,

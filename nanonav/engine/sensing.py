@@ -11,9 +11,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 from numpy.typing import NDArray
 
+from nanonav.engine.compiled import inlined, inlined_callable
 from nanonav.engine.dynamics.brownian import read_counted
 from nanonav.engine.fields import sample_many
 from nanonav.engine.qlearning import SIGN_THRESHOLD
@@ -25,7 +25,7 @@ OBSTACLE_NEAR_STEPS = 2.0
 CELL_NEAR_STEPS = 3.0
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def sense_all(
     p: KernelParams, w: World, s: Swarm, tr: Treatment, wanted: NDArray[np.bool_]
 ) -> None:
@@ -38,7 +38,7 @@ def sense_all(
     )  # fmt: skip
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined_callable
 def noisy_reading(p: KernelParams, rng: np.random.Generator, s: Swarm, i: int) -> tuple[float, ...]:
     """Robot ``i``'s reading of the concentration and its gradient, with relative sensor noise."""
     c = s.reading[i]
@@ -60,7 +60,7 @@ def noisy_reading(p: KernelParams, rng: np.random.Generator, s: Swarm, i: int) -
     return c, gx, gy, gz
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def tabular_state(
     p: KernelParams,
     c: float,
@@ -97,14 +97,14 @@ def tabular_state(
     return index * 2 + (1 if near_obstacle else 0)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def berg_purcell_reading(p: KernelParams, rng: np.random.Generator, c: float) -> float:
     """One reading over a step of the true concentration c (nM) by a robot at the Berg-Purcell
     limit of its size: relative error 1 / sqrt(pi D_m a c dt) (``dynamics.brownian``)."""
     return read_counted(rng, c, p.counting * c)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def _across_body(p: KernelParams, rng: np.random.Generator, c: float, g: float) -> float:
     """One component of the sensed gradient: two readings at the two ends of the body along
     that axis, (read(c + a g) - read(c - a g)) / 2a, the field taken to first order across it."""
@@ -114,7 +114,7 @@ def _across_body(p: KernelParams, rng: np.random.Generator, c: float, g: float) 
     return (ahead - behind) / (2.0 * a)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def sensed_gradient(
     p: KernelParams, rng: np.random.Generator, s: Swarm, i: int
 ) -> tuple[float, float, float]:
@@ -127,7 +127,7 @@ def sensed_gradient(
     )
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def steering_state(p: KernelParams, c: float, rising: bool, touching: bool, sensed: bool) -> int:
     """Mixed-radix state index, in the order of ``qlearning.steering_states``."""
     level = int(c > p.level_1) + int(c > p.level_2) + int(c > p.level_3)

@@ -37,6 +37,8 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from nanonav.engine.compiled import inlined, inlined_callable
+
 
 class SignalGrid(NamedTuple):
     """The arrays of the grid: ``conc[s]`` the concentration of species s at the nodes, ``scratch``
@@ -64,7 +66,7 @@ def grid_for(half: float, nodes_per_axis: int, species: int) -> SignalGrid:
     )
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined_callable
 def _weights(diffusion: float, decay: float, dt: float, spacing: float) -> tuple[float, float]:
     """The weights of one step, (a, r): the node's own and each neighbour's. ``stable_step``
     calls it too, so that the bound holds for the very numbers ``diffuse`` uses."""
@@ -89,7 +91,7 @@ def stable_step(diffusion: float, decay: float, spacing: float) -> float:
     return dt
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def _locate(v: float, origin: float, spacing: float, dims: int) -> tuple[int, float]:
     """The cell along one axis that holds v, clamped onto the grid, and where in it v is (0..1)."""
     u = (v - origin) / spacing

@@ -22,7 +22,7 @@ from numba import njit
 from numba.typed import List
 from numpy.typing import NDArray
 
-from nanonav.engine.compiled import uncounted
+from nanonav.engine.compiled import inlined, uncounted
 from nanonav.engine.contacts import CellList
 from nanonav.engine.generators import generator_at
 from nanonav.engine.kernel import begin_episode, observe, over
@@ -53,7 +53,7 @@ from nanonav.engine.state import (
 )
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def _perceive_all(p: KernelParams, rng: np.random.Generator, sim: Sim, t: int) -> None:
     """Every active robot perceives, in index order (the simultaneous schedule)."""
     s = sim.s
@@ -62,7 +62,7 @@ def _perceive_all(p: KernelParams, rng: np.random.Generator, sim: Sim, t: int) -
             perceive(p, rng, sim, i, t, True)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def _ended(p: KernelParams, sim: Sim, t: int) -> bool:
     """Step ``t`` has been reached: measure it if the world is measured (as ``simulate``'s
     evaluation does after each step, the last one recorded), and end the episode if it is
@@ -79,7 +79,7 @@ def _ended(p: KernelParams, sim: Sim, t: int) -> bool:
     return True
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def _next_turn(p: KernelParams, rng: np.random.Generator, sim: Sim, first: int) -> None:
     """The sequential schedule: the first active robot from ``first`` on that perceives (one a
     drifting cell reaches spends its turn so) gets the turn; when a step's robots have all had
@@ -127,19 +127,20 @@ def reset_world(
     if status != 0:
         clock[CLOCK_OVER] = 1
         return status
-    advance(p, rng, sim, 0)
+    t = clock[CLOCK_STEP]  # step 0, a variable: a constant would compile the phases again
+    advance(p, rng, sim, t)
     if p.schedule == SEQUENTIAL:
-        _next_turn(p, rng, sim, 0)
+        _next_turn(p, rng, sim, t)
         return 0
-    _perceive_all(p, rng, sim, 0)
+    _perceive_all(p, rng, sim, t)
     if not sim.s.active.any():
         # every robot spent step 0 receiving a cell that drifted onto it
-        clock[CLOCK_STEP] = 1
-        _ended(p, sim, 1)
+        clock[CLOCK_STEP] = t + 1
+        _ended(p, sim, t + 1)
     return 0
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def _act_on(
     p: KernelParams, rng: np.random.Generator, sim: Sim, i: int, t: int, action: int,
     turns: NDArray[np.float64], directions: NDArray[np.float64],
@@ -158,7 +159,7 @@ def _act_on(
     act(p, rng, sim, i, t, code, dx, dy, dz, gx, gy, gz)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def step_world(
     p: KernelParams, rng: np.random.Generator, sim: Sim, actions: NDArray[np.int64],
     turns: NDArray[np.float64], directions: NDArray[np.float64],
@@ -203,12 +204,12 @@ def step_world(
                 keep(p, rng, sim, i, t)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def _world_at(b: World, k: int) -> World:
     return World(b.cells[k], b.obstacles[k], b.offsets[k], b.sx[k], b.sy[k], b.sz[k])
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def _swarm_at(b: Swarm, k: int) -> Swarm:
     return Swarm(
         b.pos[k], b.heading[k], b.active[k], b.steps[k], b.prev_conc[k], b.returns[k],
@@ -218,24 +219,24 @@ def _swarm_at(b: Swarm, k: int) -> Swarm:
     )  # fmt: skip
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def _social_at(b: Social, k: int) -> Social:
     return Social(
         b.bound_to[k], b.bumps[k], b.signal[k], b.prev_signal[k], b.message[k], b.has_message[k]
     )
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def _treatment_at(b: Treatment, k: int) -> Treatment:
     return Treatment(b.load[k], b.treated_at[k], b.tx[k], b.ty[k], b.tz[k], b.treated_sources[k])
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def _cells_at(b: CellList, k: int) -> CellList:
     return CellList(b.heads[k], b.next[k], b.cell[k], b.origin, b.width, b.dims, b.slack)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def _recording_at(b: Recording, k: int) -> Recording:
     return Recording(
         b.pos[k], b.cells[k], b.obstacles[k], b.conc[k], b.dist[k], b.step[k], b.offsets[k],
@@ -243,7 +244,7 @@ def _recording_at(b: Recording, k: int) -> Recording:
     )  # fmt: skip
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def _percept_at(b: Percept, k: int) -> Percept:
     return Percept(
         b.obs[k], b.state[k], b.heard[k], b.target[k], b.target_d[k], b.way[k], b.reward[k],
@@ -251,7 +252,7 @@ def _percept_at(b: Percept, k: int) -> Percept:
     )  # fmt: skip
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def sim_at(b: Sim, k: int) -> Sim:
     """World ``k`` of a batch whose every array has a leading axis of worlds, as views: the
     worlds' arrays lie side by side in memory, so stepping them one after another streams

@@ -15,10 +15,11 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from nanonav.engine.compiled import inlined
 from nanonav.engine.state import KernelParams, Social, Treatment
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def nearest_target(
     cells: NDArray[np.float64], treated_at: NDArray[np.int64], x: float, y: float, z: float
 ) -> tuple[int, float]:
@@ -38,7 +39,7 @@ def nearest_target(
     return best, math.sqrt(best_d2)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def untreated(treated_at: NDArray[np.int64]) -> int:
     """How many cells still need drug."""
     left = 0

@@ -10,10 +10,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 from numpy.typing import NDArray
 
-from nanonav.engine.compiled import uncounted
+from nanonav.engine.compiled import inlined, uncounted
 from nanonav.engine.contacts import CellList, first_within, relist
 from nanonav.engine.state import KernelParams, Swarm, World
 from nanonav.scenario import Scenario, ScenarioError
@@ -38,13 +37,13 @@ def stream(seed: int, which: int, *more: int) -> np.random.Generator:
     return np.random.Generator(np.random.PCG64(np.random.SeedSequence(seed, spawn_key=key)))
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def _uniform(rng: np.random.Generator, out: NDArray[np.float64], low: float, high: float) -> None:
     for k in range(out.shape[0]):
         out[k] = low + (high - low) * rng.random()
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def _clear(point: NDArray[np.float64], others: NDArray[np.float64], distance: float) -> bool:
     for j in range(others.shape[0]):
         d2 = 0.0

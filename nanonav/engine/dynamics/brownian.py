@@ -23,6 +23,7 @@ from numpy.typing import NDArray
 from scipy.optimize import brentq
 from scipy.special import dawsn
 
+from nanonav.engine.compiled import inlined, inlined_callable
 from nanonav.engine.dynamics.lattice import reflect, segment_hit
 from nanonav.engine.state import KernelParams, Swarm, World
 
@@ -106,7 +107,7 @@ def berg_purcell_relative_error(
     return math.inf if counted <= 0.0 else 1.0 / math.sqrt(counted)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def _tangent_basis(
     nx: float, ny: float, nz: float
 ) -> tuple[float, float, float, float, float, float]:
@@ -123,13 +124,13 @@ def _tangent_basis(
     return ex, ey, ez, ny * ez - nz * ey, nz * ex - nx * ez, nx * ey - ny * ex
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined_callable
 def _unit(x: float, y: float, z: float) -> tuple[float, float, float]:
     norm = math.sqrt(x * x + y * y + z * z)
     return x / norm, y / norm, z / norm
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def _turned_across(
     nx: float, ny: float, nz: float, ex: float, ey: float, ez: float, fx: float, fy: float,
     fz: float, a: float, b: float, size: float, angle: float,
@@ -145,7 +146,7 @@ def _turned_across(
     )
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined_callable
 def diffuse_heading(
     rng: np.random.Generator, nx: float, ny: float, nz: float, sigma: float
 ) -> tuple[float, float, float]:
@@ -162,7 +163,7 @@ def diffuse_heading(
     return _turned_across(nx, ny, nz, ex, ey, ez, fx, fy, fz, g1, g2, g, sigma * g)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined_callable
 def turn_toward(
     nx: float, ny: float, nz: float, tx: float, ty: float, tz: float, largest: float
 ) -> tuple[float, float, float]:
@@ -193,7 +194,7 @@ def turn_toward(
     return _unit(c * nx + s * ux, c * ny + s * uy, c * nz + s * uz)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined_callable
 def body_frame(
     nx: float, ny: float, nz: float, sx: float, sy: float, sz: float
 ) -> tuple[float, float, float, float, float, float]:
@@ -216,7 +217,7 @@ def body_frame(
     return ex, ey, ez, ny * ez - nz * ey, nz * ex - nx * ez, nx * ey - ny * ex
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined_callable
 def turn_in_body(
     nx: float, ny: float, nz: float, sx: float, sy: float, sz: float, u_side: float,
     u_up: float, largest: float,
@@ -263,7 +264,7 @@ def swim(
         heading[i, 2] = nz
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined_callable
 def read_concentration(rng: np.random.Generator, concentration: float, relative_sd: float) -> float:
     """One reading of a true concentration with the given relative error: a gamma draw, whose
     mean is the concentration and whose sd is ``relative_sd`` times it, never negative."""
@@ -272,7 +273,7 @@ def read_concentration(rng: np.random.Generator, concentration: float, relative_
     return read_counted(rng, concentration, 1.0 / (relative_sd * relative_sd))
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def read_counted(rng: np.random.Generator, concentration: float, molecules: float) -> float:
     """A reading of a concentration from ``molecules`` counted: a gamma draw of that shape, mean
     the concentration and relative sd 1 / sqrt(molecules) (Berg-Purcell's, when ``molecules``
@@ -282,7 +283,7 @@ def read_counted(rng: np.random.Generator, concentration: float, molecules: floa
     return rng.gamma(molecules, concentration / molecules)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def move_robot(
     p: KernelParams, rng: np.random.Generator, w: World, s: Swarm, i: int,
     px: float, py: float, pz: float,

@@ -15,10 +15,11 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from nanonav.engine.compiled import inlined
 from nanonav.engine.state import KernelParams, Swarm, World
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def random_unit(rng: np.random.Generator) -> tuple[float, float, float]:
     """A direction drawn uniformly on the sphere (a normalised Gaussian vector)."""
     while True:
@@ -30,7 +31,7 @@ def random_unit(rng: np.random.Generator) -> tuple[float, float, float]:
             return x / n, y / n, z / n
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def unit_or_random(
     rng: np.random.Generator, x: float, y: float, z: float
 ) -> tuple[float, float, float]:
@@ -42,7 +43,7 @@ def unit_or_random(
     return random_unit(rng)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def reflect(v: float, half: float) -> float:
     """A coordinate that left the cube of half-width ``half`` mirrored back in off its wall."""
     if v > half:
@@ -52,7 +53,7 @@ def reflect(v: float, half: float) -> float:
     return v
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def nearest(points: NDArray[np.float64], x: float, y: float, z: float) -> tuple[int, float]:
     """Index of the point nearest to (x, y, z) and its distance (-1 and inf if none)."""
     best = -1
@@ -68,7 +69,7 @@ def nearest(points: NDArray[np.float64], x: float, y: float, z: float) -> tuple[
     return best, math.sqrt(best_d2)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def nearest_obstacle(
     obstacles: NDArray[np.float64], radius: float, x: float, y: float, z: float
 ) -> tuple[int, float]:
@@ -77,7 +78,7 @@ def nearest_obstacle(
     return best, distance - radius
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def _inside_obstacle(
     obstacles: NDArray[np.float64], radius: float, x: float, y: float, z: float
 ) -> bool:
@@ -91,7 +92,7 @@ def _inside_obstacle(
     return False
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def segment_hit(
     obstacles: NDArray[np.float64], radius: float,
     px: float, py: float, pz: float, nx: float, ny: float, nz: float,
@@ -124,7 +125,7 @@ def segment_hit(
     return -1
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def slide(
     p: KernelParams, rng: np.random.Generator, w: World,
     px: float, py: float, pz: float, dx: float, dy: float, dz: float, step: float,
@@ -217,7 +218,7 @@ def move_obstacles(p: KernelParams, rng: np.random.Generator, w: World, s: Swarm
             w.obstacles[j, 2] = z
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@inlined
 def move_robot(
     p: KernelParams, w: World, s: Swarm, i: int,
     px: float, py: float, pz: float, dx: float, dy: float, dz: float, step: float,
