@@ -76,7 +76,8 @@ bench: $(VENV)/.installed
 clean: clean-compiled
 	rm -rf $(VENV) var site .mypy_cache .ruff_cache .pytest_cache
 
-# numba's cache of the compiled engine: a cached function is compiled again when its own file
-# changes, not when a function it calls from another file does.
+# numba's cache of the compiled engine, kept by a digest of the engine's sources
+# (nanonav/engine/compiled.py), and any left from before there was one.
 clean-compiled:
+	rm -rf nanonav/engine/__pycache__/compiled-*
 	find nanonav -name '*.nbi' -delete -o -name '*.nbc' -delete

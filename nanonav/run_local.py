@@ -1,4 +1,5 @@
-"""``make run``: migrate the database, start the API and one worker, stop both on Ctrl-C.
+"""``make run``: migrate the database, start the API and one worker, stop both on Ctrl-C; a
+worker that dies is started again, saying how it died.
 
 The database is ``DATABASE_URL`` (default ``./var/nanonav.db``); the API listens on
 ``$HOST:$PORT`` (default 127.0.0.1:8000). The two parts run as child processes in their own
@@ -111,7 +112,7 @@ def main() -> int:
          "--port", str(settings.port)],
         start_new_session=True,
     )  # fmt: skip
-    worker = subprocess.Popen([sys.executable, "-m", "worker"], start_new_session=True)
+    worker = _start_worker()
     children = [api, worker]
     url = f"http://{settings.host}:{settings.port}"
     store = JobStore.from_url(settings.database_url, busy_timeout_s=settings.store_busy_timeout_s)
@@ -130,11 +131,17 @@ def main() -> int:
             if not worker_ready and _workers_seen(store):
                 worker_ready = True
                 print("nanonav: a worker is ready; submitted jobs run now", flush=True)
-            if any(child.poll() is not None for child in children):
-                name = "API" if api.poll() is not None else "worker"
-                print(f"nanonav: the {name} stopped unexpectedly; stopping", file=sys.stderr)
+            if api.poll() is not None:
+                print("nanonav: the API stopped unexpectedly; stopping", file=sys.stderr)
                 _stop(children)
                 return 1
+            if worker.poll() is not None and not stop.is_set():
+                # a dead worker is not a dead service: its job goes back to the queue once its
+                # lease runs out, and another worker takes it
+                print(f"nanonav: the worker {_ended(worker.returncode)}; starting another",
+                      file=sys.stderr, flush=True)  # fmt: skip
+                worker = _start_worker()
+                children[1] = worker
             stop.wait(0.5)
     finally:
         print("nanonav: stopping the API and the worker", flush=True)
@@ -142,6 +149,23 @@ def main() -> int:
         _stop(children)
     print("nanonav: stopped", flush=True)
     return 0
+
+
+def _start_worker() -> subprocess.Popen[bytes]:
+    return subprocess.Popen([sys.executable, "-m", "worker"], start_new_session=True)
+
+
+def _ended(code: int) -> str:
+    """How a process ended, in words: ``was killed by SIGKILL (out of memory?)``, ``exited
+    with status 1``."""
+    if code < 0:
+        try:
+            name = signal.Signals(-code).name
+        except ValueError:
+            name = f"signal {-code}"
+        hint = " (out of memory?)" if -code == signal.SIGKILL else ""
+        return f"was killed by {name}{hint}"
+    return f"exited with status {code}"
 
 
 if __name__ == "__main__":

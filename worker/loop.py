@@ -15,13 +15,17 @@ import socket
 import threading
 import time
 from datetime import UTC, datetime, timedelta
+from functools import partial
 from types import FrameType
 from typing import Any
 
+import numpy as np
+from numpy.typing import NDArray
 from sqlalchemy.exc import SQLAlchemyError
 
 from nanonav.engine import simulate
-from nanonav.scenario import Scenario
+from nanonav.rl.evaluate import evaluate
+from nanonav.scenario import Scenario, Steering
 from nanonav.settings import Settings
 from nanonav.store import JobStore, RetentionStore
 from nanonav.store.deliveries import DeliveryStore
@@ -49,11 +53,29 @@ WARM_UP = {
     "obstacles": {"count": 0},
     "learning": {"episodes": 0, "max_steps": 2},
 }
+# A network's evaluation: the worlds stepped from outside, deciding by action number in the
+# lattice and by a turn in the active Brownian physics
+DECIDED: tuple[tuple[dict[str, Any], Steering], ...] = (
+    (WARM_UP, "discrete"),
+    ({**WARM_UP, "physics": {"model": "active_brownian"}}, "continuous"),
+)
 
 
 def warm_up() -> None:
-    """Compile (or load from cache) the engine's kernels before the first job is claimed."""
+    """Compile (or load from cache) every path a job can take before the first job is
+    claimed: ``simulate``'s kernel, and the worlds' step that evaluates a network (a job
+    never waits on a compile, its lease held)."""
     simulate(Scenario.model_validate(WARM_UP))
+    for scenario, steering in DECIDED:
+        parts = 2 if steering == "continuous" else 0
+        evaluate(Scenario.model_validate(scenario), partial(_nothing, parts), steering=steering)
+
+
+def _nothing(parts: int, rows: NDArray[np.float64]) -> NDArray[Any]:
+    """A decision for each row: action 0, or no turn (``parts`` numbers of zero)."""
+    if parts:
+        return np.zeros((rows.shape[0], parts))
+    return np.zeros(rows.shape[0], dtype=np.int64)
 
 
 def work(settings: Settings, shutdown: threading.Event, *, max_jobs: int | None = None) -> int:

@@ -21,17 +21,75 @@ call may (``generators.generator_at``).
 
 A constant argument (``f(p, sim, 0)``) would compile the callee again for that constant (numba
 specialises on literals); callers pass variables.
+
+What numba compiles is kept on disk (``cache=True``) under a folder named by a digest of
+everything it was compiled from (``compiled_from``): every source of the engine and the
+scenario, and the versions of Python, numba, llvmlite and numpy, and the processor. Numba's own
+check looks at a function's file alone, so that a change to a function it calls from another
+file left the old machine code running; with the digest, any change to the engine compiles it
+anew, and the folders of other digests in the tree are removed.
 """
 
 from __future__ import annotations
 
+import hashlib
+import os
+import platform
+import shutil
+import sys
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any, TypeVar, cast
 
+import llvmlite
+import numba
+import numpy as np
+from llvmlite import binding as llvm
 from numba import njit
+from numba.core import config
 from numba.core.registry import CPUDispatcher
 
 _F = TypeVar("_F", bound=Callable[..., Any])
+ENGINE = Path(__file__).resolve().parent
+# The sources compiled code depends on: the engine's, and the scenario's (the engine's only
+# import of the rest of NanoNav)
+SOURCES = (ENGINE, ENGINE.parent / "scenario.py")
+CACHE_PREFIX = "compiled-"
+
+
+def compiled_from() -> str:
+    """A digest of everything the engine's machine code is compiled from."""
+    digest = hashlib.sha256()
+    files = sorted(
+        path for source in SOURCES
+        for path in (source.rglob("*.py") if source.is_dir() else [source])
+    )  # fmt: skip
+    for path in files:
+        digest.update(path.relative_to(ENGINE.parent).as_posix().encode() + b"\0")
+        digest.update(path.read_bytes())
+    host = llvm.get_host_cpu_name() + llvm.get_host_cpu_features().flatten()
+    for part in (sys.version, numba.__version__, llvmlite.__version__, np.__version__,
+                 platform.machine(), host):  # fmt: skip
+        digest.update(part.encode() + b"\0")
+    return digest.hexdigest()[:16]
+
+
+def keep_compiled_code() -> Path:
+    """Point numba's cache at the folder of this engine's digest (under ``NUMBA_CACHE_DIR``
+    if it is set, else in the engine's ``__pycache__``, where the folders of other digests
+    are removed); the folder. Called before any engine function is decorated."""
+    given = os.environ.get("NUMBA_CACHE_DIR")
+    base = Path(given) if given else ENGINE / "__pycache__"
+    folder = base / f"{CACHE_PREFIX}{compiled_from()}"
+    config.CACHE_DIR = str(folder)  # type: ignore[attr-defined]
+    if not given and base.is_dir():
+        for old in base.glob(f"{CACHE_PREFIX}*"):
+            if old != folder:
+                shutil.rmtree(old, ignore_errors=True)
+    return folder
+
+
+CACHE = keep_compiled_code()
 
 
 def uncounted(function: _F) -> _F:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import re
 import signal
 import socket
@@ -236,3 +237,41 @@ def test_a_port_in_use_is_one_line_naming_another_before_anything_starts(tmp_pat
     [line] = done.stderr.splitlines()
     assert f"127.0.0.1:{port} is in use" in line and f"make run PORT={port + 1}" in line
     assert not (tmp_path / "var").exists(), "nothing was migrated or started"
+
+
+def test_run_local_starts_another_worker_when_its_worker_dies(tmp_path: Path) -> None:
+    """A worker killed (as the kernel's out-of-memory killer would) is not a dead service: the
+    API goes on, another worker starts, saying how the first died, and jobs run."""
+    port = free_port()
+    log = tmp_path / "run.log"
+    command = [sys.executable, "-m", "nanonav.run_local"]
+    with running(command, log, clean_environment(PORT=str(port)), cwd=tmp_path) as process:
+        deadline = time.monotonic() + 180
+        until_logged(process, log, "a worker is ready", deadline)
+        worker = worker_of(process.pid)
+        os.kill(worker, signal.SIGKILL)
+        until_logged(process, log, "the worker was killed by SIGKILL (out of memory?); "
+                     "starting another", deadline)  # fmt: skip
+        with httpx.Client(base_url=f"http://127.0.0.1:{port}", timeout=10) as client:
+            job_id = client.post("/jobs", json=TINY).json()["id"]
+            while client.get(f"/jobs/{job_id}").json()["status"] != "succeeded":
+                assert time.monotonic() < deadline, log.read_text()
+                time.sleep(0.1)
+        assert worker_of(process.pid) != worker
+        process.send_signal(signal.SIGINT)
+        assert process.wait(timeout=30) == 0
+
+
+def worker_of(parent: int) -> int:
+    """The process id of the ``python -m worker`` that ``parent`` runs now."""
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            stat = (entry / "stat").read_text()
+            command = (entry / "cmdline").read_bytes().split(b"\0")
+        except OSError:
+            continue
+        if int(stat.rsplit(")", 1)[1].split()[1]) == parent and command[1:3] == [b"-m", b"worker"]:
+            return int(entry.name)
+    raise AssertionError(f"process {parent} runs no worker")

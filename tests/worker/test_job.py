@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 import os
 import signal
@@ -22,7 +23,7 @@ from nanonav.store import Claim, JobRecord, JobStatus, JobStore
 from tests.processes import sandbox_of
 from tests.rl import models
 from worker.health import healthy
-from worker.job import Stop, Watch, finite, run_job
+from worker.job import Stop, Watch, finite, heartbeat, run_job
 from worker.loop import work
 
 TINY: dict[str, Any] = {"robots": {"count": 2}, "learning": {"episodes": 1, "max_steps": 40}}
@@ -216,3 +217,38 @@ def test_the_time_limit_stops_a_network_within_a_call_that_does_not_end(
     assert record is not None and record.status is JobStatus.FAILED
     assert record.error == "stopped: the job ran past its time limit of 3 s"
     assert time.monotonic() - started < 15
+
+
+def test_a_compile_does_not_starve_the_leases_heartbeat(sqlite_store: JobStore) -> None:
+    """Numba compiling in the job's thread (the engine's field, ``fields.sample_many``, from
+    its Python source into a dispatcher of its own: nothing loaded from a cache) holds the
+    interpreter in bursts only: the heartbeat renews the lease all along, never later than a
+    lease after the last time."""
+    from numba import njit
+
+    from nanonav.engine import fields
+
+    claim = claimed(sqlite_store)
+    # renewed every third of a lease; the compiler holds the interpreter for up to about a
+    # quarter of a second at a time (measured), so that a renewal comes late by that much
+    settings = settings_for(sqlite_store, lease_s=1.0)
+    renewed: list[float] = []
+    renew = sqlite_store.renew
+
+    def recorded(claim: Claim, *, lease_s: float) -> None:
+        renewed.append(time.monotonic())
+        renew(claim, lease_s=lease_s)
+
+    sqlite_store.renew = recorded  # type: ignore[method-assign]
+    sources, points = np.zeros(4), np.ones((3, 3))
+    arguments = (fields.GAUSSIAN, sources, sources, sources, 1.0, 1.0, 0.1, points,
+                 np.ones(3, np.bool_), np.zeros(3), np.zeros((3, 3)), *fields._NONE_TREATED,
+                 0.0)  # fmt: skip
+    options = {"fastmath": fields.FASTMATH, "error_model": "numpy"}
+    started = time.monotonic()
+    with heartbeat(sqlite_store, claim, settings):
+        njit(**options)(fields.sample_many.py_func)(*arguments)  # compiled here, now
+        ended = time.monotonic()
+    assert ended - started > settings.lease_s, "the compile was too quick to show anything"
+    times = [started, *renewed, ended]
+    assert max(b - a for a, b in itertools.pairwise(times)) < settings.lease_s
