@@ -7,7 +7,8 @@ environment and first network policy, each in a fresh process from an empty comp
 The three starts, each a new process with ``NUMBA_CACHE_DIR`` pointed at an empty folder:
 
 - ``nanonav run``: ``nanonav run --preset paper-single`` (pictures written to a scratch folder);
-- ``NanoNavEnv``: ``NanoNavEnv("tumour-microswimmers")``, ``reset`` and 20 random steps;
+- ``NanoNavEnv``: ``NanoNavEnv({"preset": "tumour-microswimmers"})``, ``reset`` and 20 random
+  steps;
 - ``network policy``: a 64x64 MLP (ONNX) evaluated in a 'paper-single' evaluation by the
   service's path (``rl.evaluate``), as a worker runs a job that names a network.
 
@@ -38,7 +39,7 @@ STARTS = {
     "nanonav run": "from nanonav.cli import main; raise SystemExit(main(['run', '--preset', "
     "'paper-single', '--out', {out!r}]))",
     "NanoNavEnv": "import numpy as np; from nanonav.env import NanoNavEnv; "
-    "env = NanoNavEnv('tumour-microswimmers'); env.reset(seed=0); "
+    "env = NanoNavEnv({{'preset': 'tumour-microswimmers'}}); env.reset(seed=0); "
     "rng = np.random.default_rng(0); "
     f"[env.step(env.action_space.sample()) for _ in range({ENV_STEPS})]",
     "network policy": "import sys; sys.path.insert(0, {benchmarks!r}); "

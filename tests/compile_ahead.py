@@ -1,10 +1,10 @@
 """Compile the engine's two large kernels into numba's on-disk cache before the tests start.
 
-Each compiles for about five minutes from a cold cache (measured: 4.5 and 5.8 min, 3.5 and
-8.2 GB at peak): ``simulate``'s episode loop, and the world step the environments drive from
-outside. Left to the tests, every test process compiles
-the first for itself and one of them the second, while the other waits or works alone. Compiled
-here side by side, one process each, the test processes then load both from the cache.
+Each compiles for a minute or so from a cold cache (``benchmarks/first_start.py``):
+``simulate``'s episode loop, and the world step the environments drive from outside. Left to
+the tests, every test process compiles the first for itself and one of them the second, while
+the other waits or works alone. Compiled here side by side, one process each, the test
+processes then load both from the cache.
 
     python -m tests.compile_ahead kernel|env
 """
