@@ -105,6 +105,12 @@ class ApiServer(_Process):
 def sandbox_of(parent: int, timeout: float = 60.0) -> int:
     """The process id of the network's sandboxed process (``nanonav.rl.sandbox``) that the
     process ``parent`` runs now, waiting for one."""
+    return child_of(parent, b"nanonav.rl.sandbox", timeout)
+
+
+def child_of(parent: int, command: bytes, timeout: float = 60.0) -> int:
+    """The process id of a child of ``parent`` whose command line holds ``command``, waiting
+    for one."""
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         for entry in Path("/proc").iterdir():
@@ -112,13 +118,24 @@ def sandbox_of(parent: int, timeout: float = 60.0) -> int:
                 continue
             try:
                 stat = (entry / "stat").read_text()
-                command = (entry / "cmdline").read_bytes()
+                line = (entry / "cmdline").read_bytes()
             except OSError:
                 continue
-            if (
-                int(stat.rsplit(")", 1)[1].split()[1]) == parent
-                and b"nanonav.rl.sandbox" in command
-            ):
+            if int(stat.rsplit(")", 1)[1].split()[1]) == parent and command in line:
                 return int(entry.name)
         time.sleep(0.05)
-    raise AssertionError(f"process {parent} runs no network's process")
+    raise AssertionError(f"process {parent} runs no {command.decode()!r}")
+
+
+def gone(pid: int, timeout: float = 10.0) -> bool:
+    """Whether process ``pid`` is gone (or a zombie) within ``timeout``."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        try:
+            state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+        except OSError:
+            return True
+        if state == "Z":
+            return True
+        time.sleep(0.05)
+    return False

@@ -7,6 +7,7 @@ goes back to the queue (unless it has just finished), then the process exits.
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import logging
 import multiprocessing
 import os
@@ -25,7 +26,9 @@ import numpy as np
 from numpy.typing import NDArray
 from sqlalchemy.exc import SQLAlchemyError
 
+from nanonav.children import die_with_parent
 from nanonav.engine import simulate
+from nanonav.engine.compiled import CACHE
 from nanonav.rl.evaluate import evaluate
 from nanonav.scenario import Scenario, Steering
 from nanonav.settings import Settings
@@ -73,20 +76,46 @@ def warm_up() -> None:
         evaluate(Scenario.model_validate(scenario), partial(_nothing, parts), steering=steering)
 
 
-def prepare() -> None:
+def prepare(shutdown: threading.Event) -> bool:
     """``warm_up`` in a process of its own first, which compiles what the cache lacks, then
     here, which loads it: what compiling takes (up to a gigabyte) is freed with that process,
-    and a worker holds what it runs (about 0.35 GB). Should that process fail, this one
-    compiles for itself."""
+    and a worker holds what it runs (about 0.35 GB). Once a worker was ready on this cache,
+    the next loads it at once. Should that process fail, this one compiles for itself. False
+    if ``shutdown`` came first (the compile stopped)."""
     started = time.monotonic()
-    done = subprocess.run(
-        [sys.executable, "-c", "from worker.loop import warm_up; warm_up()"], check=False
-    )
-    if done.returncode != 0:
-        logger.warning("compiling in a process of its own failed (%s); compiling here",
-                       done.returncode)  # fmt: skip
+    ready = CACHE / f"worker-ready-{_warm_up_digest()}"
+    if not ready.exists():
+        compiling = subprocess.Popen(
+            [sys.executable, "-c",
+             f"from worker.loop import compile_alone; compile_alone({os.getpid()})"],
+        )  # fmt: skip
+        while compiling.poll() is None:
+            if shutdown.wait(0.2):
+                compiling.kill()
+                compiling.wait()
+                return False
+        if compiling.returncode == 0:
+            with contextlib.suppress(OSError):
+                ready.touch()
+        else:
+            logger.warning("compiling in a process of its own failed (%s); compiling here",
+                           compiling.returncode)  # fmt: skip
     warm_up()
     logger.info("the engine is ready (%.1f s)", time.monotonic() - started)
+    return not shutdown.is_set()
+
+
+def compile_alone(parent: int) -> None:
+    """``prepare``'s process that compiles: it goes with the worker, should the worker be
+    killed while it compiles."""
+    die_with_parent(parent)
+    warm_up()
+
+
+def _warm_up_digest() -> str:
+    """What ``warm_up`` runs, as a digest: a worker that runs more finds its cache not ready."""
+    text = repr((WARM_UP, DECIDED)).encode()
+    return hashlib.sha256(text).hexdigest()[:12]
 
 
 def _nothing(parts: int, rows: NDArray[np.float64]) -> NDArray[Any]:
@@ -227,7 +256,9 @@ def run_worker(settings: Settings, *, orphan_check: bool = False) -> None:
         _stop_when_orphaned(shutdown)
     if settings.worker_nice:
         os.nice(settings.worker_nice)
-    prepare()
+    if not prepare(shutdown):
+        logger.info("stopped before the engine was ready")
+        return
     logger.info("worker %d ready on %s", os.getpid(), _safe_url(settings))
     work(settings, shutdown)
 

@@ -264,6 +264,22 @@ def sim_at(b: Sim, k: int) -> Sim:
     )  # fmt: skip
 
 
+@njit(cache=True)
+def held(
+    p: KernelParams,
+    batch: Sim,
+    world_handles: NDArray[np.uint64],
+    handles: NDArray[np.uint64],
+    due: NDArray[np.int64],
+) -> List[tuple[KernelParams, Sim, NDArray[np.uint64], NDArray[np.uint64], NDArray[np.int64]]]:
+    """The one-item list ``step_worlds`` takes, made in compiled code: numba compiles a typed
+    list's methods called from Python anew in every process (5 s of each process's first
+    environment), where this is kept compiled with the engine."""
+    out = List()
+    out.append((p, batch, world_handles, handles, due))
+    return out
+
+
 @njit(cache=True, error_model="numpy")
 def step_worlds(
     held: List[tuple[KernelParams, Sim, NDArray[np.uint64], NDArray[np.uint64], NDArray[np.int64]]],

@@ -288,7 +288,7 @@ class Worlds:
                 NDArray[np.uint64],
                 NDArray[np.int64],
             ]
-        ] = List([(self.params, self.batch, self._world_handles, self._handles, due)])
+        ] = stepping.held(self.params, self.batch, self._world_handles, self._handles, due)
         pc = self.batch.pc
         self.obs = pc.obs  # (worlds, robots, features)
         self.state = pc.state

@@ -37,6 +37,7 @@ from typing import Any, NoReturn
 import numpy as np
 from numpy.typing import NDArray
 
+from nanonav.children import die_with_parent
 from nanonav.rl.graph import InvalidModel, ModelInfo
 
 # How often a wait asks ``keep_going``, seconds
@@ -156,8 +157,9 @@ class Sandbox:
         self.memory_bytes = memory_bytes
         self.cpu_s = cpu_s
         env = {**os.environ, "OMP_NUM_THREADS": "1", "PYTHONDONTWRITEBYTECODE": "1"}
+        limits = (str(memory_bytes), str(math.ceil(cpu_s)), str(os.getpid()))
         self._process = subprocess.Popen(
-            [sys.executable, "-m", "nanonav.rl.sandbox", str(memory_bytes), str(math.ceil(cpu_s))],
+            [sys.executable, "-m", "nanonav.rl.sandbox", *limits],
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
             stderr=subprocess.DEVNULL,
@@ -334,9 +336,9 @@ class _Waiting:
 # ---------------------------------------------------------------- the process's own side
 
 
-def _limit(memory_bytes: int, cpu_s: int) -> None:
+def _limit(memory_bytes: int, cpu_s: int, parent: int) -> None:
     """The process's limits, from now: its address space, ``cpu_s`` more seconds of CPU, no
-    core dump, no file; and death with the thread that started it."""
+    core dump, no file; and death with the thread of ``parent`` that started it."""
     import resource
 
     used = resource.getrusage(resource.RUSAGE_SELF)
@@ -345,12 +347,7 @@ def _limit(memory_bytes: int, cpu_s: int) -> None:
     resource.setrlimit(resource.RLIMIT_AS, (memory_bytes, memory_bytes))
     resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
     resource.setrlimit(resource.RLIMIT_FSIZE, (0, 0))
-    if sys.platform == "linux":
-        import ctypes
-
-        libc = ctypes.CDLL(None, use_errno=True)
-        pr_set_pdeathsig = 1
-        libc.prctl(pr_set_pdeathsig, signal.SIGKILL, 0, 0, 0)
+    die_with_parent(parent)
 
 
 def _blocking_read() -> bytes:
@@ -371,7 +368,7 @@ def _send(fd: int, message: Message) -> None:
         data = data[os.write(fd, data) :]
 
 
-def _serve(memory_bytes: int, cpu_s: int) -> None:
+def _serve(memory_bytes: int, cpu_s: int, parent: int) -> None:
     """Answer the parent's messages until it closes the pipe."""
     import onnxruntime
 
@@ -381,7 +378,7 @@ def _serve(memory_bytes: int, cpu_s: int) -> None:
     answers = os.dup(1)
     quiet = os.open(os.devnull, os.O_WRONLY)
     os.dup2(quiet, 1)
-    _limit(memory_bytes, cpu_s)
+    _limit(memory_bytes, cpu_s, parent)
     session = None
     inputs: list[str] = []
     outputs: list[str] = []
@@ -431,4 +428,4 @@ def _session(onnxruntime: Any, model: bytes) -> Any:
 
 
 if __name__ == "__main__":
-    _serve(int(sys.argv[1]), int(sys.argv[2]))
+    _serve(int(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3]))

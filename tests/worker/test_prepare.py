@@ -1,0 +1,74 @@
+"""A worker compiles the engine in a process of its own before it claims a job: the compile
+goes with the worker (a stop ends it, and so does a kill), and once a worker was ready on a
+cache the next one loads from it without that process."""
+
+from __future__ import annotations
+
+import signal
+import threading
+from pathlib import Path
+from typing import Any, ClassVar
+
+import pytest
+
+import worker.loop as loop
+from tests.conftest import sqlite_url_in
+from tests.processes import Worker, child_of, gone
+
+pytestmark = pytest.mark.timeout(120)
+
+
+def compiling_worker(tmp_path: Path, name: str) -> tuple[Worker, int]:
+    """A ``python -m worker`` on an empty cache of its own, and its compiling process."""
+    cache = tmp_path / "cache"
+    worker = Worker(sqlite_url_in(tmp_path), tmp_path / f"{name}.log", NUMBA_CACHE_DIR=str(cache))
+    return worker, child_of(worker.process.pid, b"compile_alone")
+
+
+def test_a_stop_while_the_engine_compiles_ends_the_compile_and_the_worker(
+    tmp_path: Path,
+) -> None:
+    worker, compiling = compiling_worker(tmp_path, "stopped")
+    assert worker.terminate(timeout=20) == 0
+    assert gone(compiling)
+    assert "stopped before the engine was ready" in worker.text()
+    assert " ready on " not in worker.text()
+
+
+def test_a_killed_workers_compile_dies_with_it(tmp_path: Path) -> None:
+    worker, compiling = compiling_worker(tmp_path, "killed")
+    worker.process.send_signal(signal.SIGKILL)
+    worker.process.wait()
+    worker.terminate()
+    assert gone(compiling)
+
+
+class _Compiled:
+    """What ``subprocess.Popen`` gives ``prepare``: a process that compiled, at once."""
+
+    started: ClassVar[list[list[str]]] = []
+    returncode = 0
+
+    def __init__(self, command: list[str], **_: Any) -> None:
+        self.started.append(command)
+
+    def poll(self) -> int:
+        return self.returncode
+
+
+def test_a_worker_ready_on_a_cache_leaves_the_next_no_compile(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    loaded: list[int] = []
+    monkeypatch.setattr(loop, "CACHE", tmp_path)
+    monkeypatch.setattr(loop, "warm_up", lambda: loaded.append(1))
+    monkeypatch.setattr(loop.subprocess, "Popen", _Compiled)
+    _Compiled.started.clear()
+    assert loop.prepare(threading.Event())
+    assert len(_Compiled.started) == 1 and "compile_alone" in _Compiled.started[0][-1]
+    assert loop.prepare(threading.Event())  # the cache was made ready by the first
+    assert len(_Compiled.started) == 1 and len(loaded) == 2
+    for mark in tmp_path.glob("worker-ready-*"):  # a cache another worker's warm-up made
+        mark.rename(tmp_path / "worker-ready-000000000000")
+    assert loop.prepare(threading.Event())
+    assert len(_Compiled.started) == 2
