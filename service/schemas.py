@@ -461,7 +461,14 @@ class Queue(BaseModel):
 
 
 class Workers(BaseModel):
-    seen: int = Field(description="Worker processes that said they were alive lately.")
+    seen: int = Field(
+        description="Worker processes that said they were alive lately, ready to take jobs."
+    )
+    preparing: int = Field(
+        0,
+        description="Worker processes alive lately that still prepare the engine before they "
+        "take a job: on a first start a worker compiles it, which takes a minute or two.",
+    )
     window_s: float = Field(description="How far back 'lately' reaches, in seconds.")
 
 

@@ -1,6 +1,7 @@
 """``python -m worker.health``: exit 0 if a worker on this machine said it was alive within
-the last 30 s (it says so every 5 s from a thread), 1 otherwise: the worker container's health
-check. It proves the process runs and reaches the store, which a process check alone does not."""
+the last 30 s (it says so every 5 s from a thread, from its start: one that prepares the engine
+is alive), 1 otherwise: the worker container's health check. It proves the process runs and
+reaches the store, which a process check alone does not."""
 
 from __future__ import annotations
 
@@ -15,7 +16,8 @@ from nanonav.store.queue import PRESENCE_WINDOW_S
 
 
 def healthy(settings: Settings, host: str | None = None) -> bool:
-    """Whether a worker on ``host`` (this machine) was seen within the presence window."""
+    """Whether a worker on ``host`` (this machine) was seen within the presence window, ready
+    or preparing (restarted for being slow to compile, it would compile again)."""
     store = JobStore.from_url(settings.database_url, busy_timeout_s=5.0)
     try:
         census = store.census(seen_within_s=PRESENCE_WINDOW_S, host=host or socket.gethostname())
@@ -23,7 +25,7 @@ def healthy(settings: Settings, host: str | None = None) -> bool:
         return False
     finally:
         store.close()
-    return census.workers > 0
+    return census.workers + census.preparing > 0
 
 
 if __name__ == "__main__":

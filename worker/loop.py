@@ -179,12 +179,13 @@ def work(settings: Settings, shutdown: threading.Event, *, max_jobs: int | None 
     return ran
 
 
-def _announce(store: JobStore, owner: str, stopped: threading.Event) -> None:
-    """Say every few seconds that this worker is alive, whether it runs a job or waits."""
+def _announce(store: JobStore, owner: str, stopped: threading.Event, *, ready: bool = True) -> None:
+    """Say every few seconds that this worker is alive, whether it runs a job or waits (or,
+    not ``ready``, prepares the engine)."""
     started = datetime.now(UTC)
     while True:
         try:
-            store.worker_seen(owner, started_at=started)
+            store.worker_seen(owner, started_at=started, ready=ready)
         except SQLAlchemyError:
             logger.warning("could not record that this worker is alive; retrying")
         if stopped.wait(PRESENCE_INTERVAL_S):
@@ -256,11 +257,32 @@ def run_worker(settings: Settings, *, orphan_check: bool = False) -> None:
         _stop_when_orphaned(shutdown)
     if settings.worker_nice:
         os.nice(settings.worker_nice)
-    if not prepare(shutdown):
+    if not _prepare_seen(settings, shutdown):
         logger.info("stopped before the engine was ready")
         return
     logger.info("worker %d ready on %s", os.getpid(), _safe_url(settings))
     work(settings, shutdown)
+
+
+def _prepare_seen(settings: Settings, shutdown: threading.Event) -> bool:
+    """``prepare``, saying all along that this worker is alive and preparing (``/healthz``
+    counts it apart from those ready); False, and forgotten, if ``shutdown`` came first."""
+    owner = f"{socket.gethostname()}:{os.getpid()}"
+    store = JobStore.from_url(settings.database_url, busy_timeout_s=settings.store_busy_timeout_s)
+    prepared = threading.Event()
+    presence = threading.Thread(target=_announce, args=(store, owner, prepared),
+                                kwargs={"ready": False}, name="presence", daemon=True)  # fmt: skip
+    presence.start()
+    try:
+        ready = prepare(shutdown)
+    finally:
+        prepared.set()
+        presence.join()
+    if not ready:
+        with contextlib.suppress(SQLAlchemyError):
+            store.worker_gone(owner)
+    store.close()
+    return ready
 
 
 def _child(settings_data: dict[str, Any]) -> None:

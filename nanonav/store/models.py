@@ -192,6 +192,8 @@ class Worker(Base):
     name: Mapped[str] = mapped_column(String(200), primary_key=True)
     started_at: Mapped[datetime] = mapped_column(UTCDateTime())
     seen_at: Mapped[datetime] = mapped_column(UTCDateTime(), index=True)
+    # when it was ready to take jobs; null while it prepares the engine (compiles it, at first)
+    ready_at: Mapped[datetime | None] = mapped_column(UTCDateTime())
     # when its webhook sender last made progress (a pass, or a try within one); null without one
     webhooks_passed_at: Mapped[datetime | None] = mapped_column(UTCDateTime())
 

@@ -160,8 +160,9 @@ class Census:
 
     queued: int
     running: int
-    workers: int  # worker processes seen within the window asked for
+    workers: int  # worker processes seen within the window asked for, ready for jobs
     oldest_queued_at: datetime | None
+    preparing: int = 0  # and those seen that still prepare the engine
 
 
 class JobStore:
@@ -414,34 +415,49 @@ class JobStore:
             .where(Job.status.in_([JobStatus.QUEUED, JobStatus.RUNNING]))
             .group_by(Job.status)
         )
-        seen = select(func.count()).where(Worker.seen_at >= now - timedelta(seconds=seen_within_s))
+        seen = (
+            select(Worker.ready_at.is_not(None), func.count())
+            .where(Worker.seen_at >= now - timedelta(seconds=seen_within_s))
+            .group_by(Worker.ready_at.is_not(None))
+        )
         if host is not None:  # a worker is named host:pid
             seen = seen.where(Worker.name.startswith(f"{host}:", autoescape=True))
         with unit_of_work(self._sessions) as session:
             found = {
                 JobStatus(status): (n, oldest) for status, n, oldest in session.execute(counts)
             }
-            workers = session.scalar(seen) or 0
+            ready = {bool(is_ready): n for is_ready, n in session.execute(seen)}
         queued, oldest_queued = found.get(JobStatus.QUEUED, (0, None))
         running, _ = found.get(JobStatus.RUNNING, (0, None))
         return Census(
             queued=queued,
             running=running,
-            workers=workers,
+            workers=ready.get(True, 0),
             oldest_queued_at=None if oldest_queued is None else aware(oldest_queued),
+            preparing=ready.get(False, 0),
         )
 
     # -- the worker's side ------------------------------------------------------------------
 
-    def worker_seen(self, name: str, *, started_at: datetime, now: datetime | None = None) -> None:
-        """Record that the worker ``name`` is alive (it calls this every few seconds)."""
+    def worker_seen(
+        self,
+        name: str,
+        *,
+        started_at: datetime,
+        ready: bool = True,
+        now: datetime | None = None,
+    ) -> None:
+        """Record that the worker ``name`` is alive (it calls this every few seconds), and
+        whether it is ready for jobs or still prepares the engine."""
         now = now or utcnow()
         with unit_of_work(self._sessions, write=True) as session:
             row = session.get(Worker, name)
             if row is None:
-                session.add(Worker(name=name, started_at=started_at, seen_at=now))
-            else:
-                row.seen_at = now
+                row = Worker(name=name, started_at=started_at, seen_at=now)
+                session.add(row)
+            row.seen_at = now
+            if ready and row.ready_at is None:
+                row.ready_at = now
 
     def worker_gone(self, name: str) -> None:
         """Forget a worker that stopped cleanly."""

@@ -56,7 +56,12 @@ def healthz(
     backlog = deliveries.backlog(now=now)
     window_s = sender_window_s(settings)
     notes = []
-    if census.queued and not census.workers:
+    if not census.workers and census.preparing:
+        notes.append(
+            f"{census.preparing} worker(s) still prepare the engine (a first start compiles "
+            "it: a minute or two); jobs queued wait for them"
+        )
+    elif census.queued and not census.workers:
         notes.append(
             f"{census.queued} jobs are queued but no worker has been seen in the last "
             f"{PRESENCE_WINDOW_S:g} s: start one with `nanonav worker`"
@@ -79,7 +84,9 @@ def healthz(
             running=census.running,
             oldest_queued_at=census.oldest_queued_at,
         ),
-        workers=Workers(seen=census.workers, window_s=PRESENCE_WINDOW_S),
+        workers=Workers(
+            seen=census.workers, preparing=census.preparing, window_s=PRESENCE_WINDOW_S
+        ),
         webhooks=Webhooks(
             due=backlog.due,
             retrying=backlog.retrying,

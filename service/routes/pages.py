@@ -91,7 +91,12 @@ def _page(request: Request, name: str, status: int = 200, **context: Any) -> HTM
     store = request.app.state.store
     census = store.census(seen_within_s=PRESENCE_WINDOW_S)
     note = None
-    if census.queued and not census.workers:
+    if not census.workers and census.preparing:
+        note = (
+            f"{census.preparing} worker(s) still prepare the engine (a first start compiles "
+            "it: a minute or two); jobs queued wait for them."
+        )
+    elif census.queued and not census.workers:
         note = (
             f"{census.queued} jobs are queued but no worker is running: start one with "
             "`nanonav worker`."

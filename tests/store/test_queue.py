@@ -307,6 +307,21 @@ def test_the_census_counts_waiting_and_running_jobs_and_recent_workers(store: Jo
     assert store.census(seen_within_s=30, now=now, host="other%").workers == 0
 
 
+def test_the_census_tells_workers_preparing_from_workers_ready(store: JobStore) -> None:
+    now = datetime.now(UTC)
+    store.worker_seen("host:1", started_at=now, ready=False, now=now)
+    census = store.census(seen_within_s=30, now=now)
+    assert (census.workers, census.preparing) == (0, 1)
+    store.worker_seen("host:2", started_at=now, now=now)
+    store.worker_seen("host:1", started_at=now, now=now)  # its engine is ready
+    census = store.census(seen_within_s=30, now=now)
+    assert (census.workers, census.preparing) == (2, 0)
+    later = now + timedelta(seconds=60)
+    store.worker_seen("host:1", started_at=now, ready=False, now=later)  # ready it stays
+    census = store.census(seen_within_s=30, now=later)
+    assert (census.workers, census.preparing) == (1, 0)
+
+
 def test_jobs_are_listed_by_policy(store: JobStore) -> None:
     for policy in ("gradient", "q_learning", "gradient"):
         store.enqueue({"robots": {"policy": policy}}, robot_steps=1, episodes=1)

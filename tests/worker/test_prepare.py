@@ -1,17 +1,21 @@
-"""A worker compiles the engine in a process of its own before it claims a job: the compile
-goes with the worker (a stop ends it, and so does a kill), and once a worker was ready on a
-cache the next one loads from it without that process."""
+"""A worker compiles the engine in a process of its own before it claims a job, saying all
+along that it is alive and preparing: the compile goes with the worker (a stop ends it, and
+so does a kill), and once a worker was ready on a cache the next one loads from it without
+that process."""
 
 from __future__ import annotations
 
 import signal
 import threading
+import time
 from pathlib import Path
 from typing import Any, ClassVar
 
 import pytest
 
 import worker.loop as loop
+from nanonav.store import JobStore
+from nanonav.store.migrate import upgrade
 from tests.conftest import sqlite_url_in
 from tests.processes import Worker, child_of, gone
 
@@ -21,16 +25,29 @@ pytestmark = pytest.mark.timeout(120)
 def compiling_worker(tmp_path: Path, name: str) -> tuple[Worker, int]:
     """A ``python -m worker`` on an empty cache of its own, and its compiling process."""
     cache = tmp_path / "cache"
-    worker = Worker(sqlite_url_in(tmp_path), tmp_path / f"{name}.log", NUMBA_CACHE_DIR=str(cache))
+    url = sqlite_url_in(tmp_path)
+    upgrade(url)
+    worker = Worker(url, tmp_path / f"{name}.log", NUMBA_CACHE_DIR=str(cache))
     return worker, child_of(worker.process.pid, b"compile_alone")
 
 
-def test_a_stop_while_the_engine_compiles_ends_the_compile_and_the_worker(
+def test_a_worker_compiling_is_preparing_and_a_stop_ends_the_compile_and_the_worker(
     tmp_path: Path,
 ) -> None:
     worker, compiling = compiling_worker(tmp_path, "stopped")
-    assert worker.terminate(timeout=20) == 0
-    assert gone(compiling)
+    store = JobStore.from_url(sqlite_url_in(tmp_path))
+    try:
+        deadline = time.monotonic() + 30
+        while (census := store.census(seen_within_s=30)).preparing == 0:
+            assert time.monotonic() < deadline, "the worker never said it was preparing"
+            time.sleep(0.1)
+        assert census.workers == 0
+        assert worker.terminate(timeout=20) == 0
+        assert gone(compiling)
+        census = store.census(seen_within_s=30)
+        assert (census.workers, census.preparing) == (0, 0)  # it is forgotten
+    finally:
+        store.close()
     assert "stopped before the engine was ready" in worker.text()
     assert " ready on " not in worker.text()
 
