@@ -370,6 +370,39 @@ class Policy:
         )
 
 
+@dataclass(frozen=True, kw_only=True)
+class PolicyDetail(Policy):
+    """A policy as ``GET /policies/{id}`` answers it: a table's rows and values, or what a
+    network reads and what it costs. Fields of the other kind are None."""
+
+    actions: list[str]
+    states: list[str] | None = None  # a table's rows
+    values: list[Any] | None = None  # [state][action], or [robot][state][action]
+    greedy: list[dict[str, Any]] | None = None  # a table's greedy action of every state
+    observation: list[str] | None = None  # a network's input columns
+    model_bytes: int | None = None  # a network's ONNX model's size
+    memory: int | None = None  # a recurrent network's memory inputs (0 for none)
+    multiply_adds: int | None = None  # a network's multiply-adds an observation
+    live_bytes: int | None = None  # a network's most memory held at once, an observation
+
+    @classmethod
+    def of(cls, data: dict[str, Any]) -> PolicyDetail:
+        summary = Policy.of(data)
+        shown = {f.name: getattr(summary, f.name) for f in fields(Policy)}
+        return cls(
+            **shown,
+            actions=list(data["actions"]),
+            states=data.get("states"),
+            values=data.get("values"),
+            greedy=data.get("greedy"),
+            observation=data.get("observation"),
+            model_bytes=data.get("model_bytes"),
+            memory=data.get("memory"),
+            multiply_adds=data.get("multiply_adds"),
+            live_bytes=data.get("live_bytes"),
+        )
+
+
 _D = TypeVar("_D", JobCounts, Interval, Difference)
 
 
@@ -701,10 +734,11 @@ class Client:
             body["name"] = name
         return Policy.of(self._json("POST", "/policies", json=body, key=idempotency_key))
 
-    def policy(self, policy_id: int) -> dict[str, Any]:
+    def policy(self, policy_id: int) -> PolicyDetail:
         """A policy with its table: ``states``, ``actions``, ``values`` and ``greedy``; or a
-        network's ``observation``, ``actions`` and ``model_bytes``."""
-        return self._json("GET", f"/policies/{policy_id}")
+        network's ``observation``, ``actions``, ``model_bytes`` and cost (``raw`` is the
+        answer as it came)."""
+        return PolicyDetail.of(self._json("GET", f"/policies/{policy_id}"))
 
     def network_model(self, policy_id: int) -> bytes:
         """A network's ONNX model, as it was sent (``ApiError`` 404 for a table)."""

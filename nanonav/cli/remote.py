@@ -251,8 +251,8 @@ def _fetch(args: argparse.Namespace) -> int:
 def _policy_files(api: Client, policy_id: int) -> Iterator[tuple[str, bytes]]:
     """A policy's document, and a network's model."""
     policy = api.policy(policy_id)
-    yield "policy.json", _document(policy)
-    if policy.get("kind") == "network":
+    yield "policy.json", _document(policy.raw)
+    if policy.kind == "network":
         yield "policy.onnx", api.network_model(policy_id)
 
 

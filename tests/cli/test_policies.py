@@ -43,8 +43,8 @@ def test_a_fetched_jobs_table_is_sent_listed_evaluated_fetched_and_deleted(
         policy_id, policy_from = sent_policy(out)
         assert out.endswith("(behaviors actions, 72 states x 4 actions)\n")
         sent = client.policy(policy_id)
-        assert sent["values"] == client.qtable(job.id)["values"]
-        assert sent["name"] == "job 31"
+        assert sent.values == client.qtable(job.id)["values"]
+        assert sent.name == "job 31"
 
         evaluated = client.submit(
             {**TINY, "seed": 31, "learning": {"episodes": 0, "max_steps": 60},
@@ -63,11 +63,11 @@ def test_a_fetched_jobs_table_is_sent_listed_evaluated_fetched_and_deleted(
         assert main(["fetch", "--policy", str(policy_id), "--out", str(tmp_path / "p"), *url]) == 0
         capsys.readouterr()
         fetched = json.loads((tmp_path / "p" / "policy.json").read_text())
-        assert fetched["id"] == policy_id and fetched["values"] == sent["values"]
+        assert fetched["id"] == policy_id and fetched["values"] == sent.values
         assert main(["policy", str(tmp_path / "p" / "policy.json"), *url]) == 0
         again, _ = sent_policy(capsys.readouterr().out)
-        assert client.policy(again)["values"] == sent["values"]
-        assert client.policy(again)["name"] == "job 31", "the name policy.json carries"
+        assert client.policy(again).values == sent.values
+        assert client.policy(again).name == "job 31", "the name policy.json carries"
 
         code = main(["delete", "--policy", str(policy_id), *url])
         assert (code, capsys.readouterr().out) == (0, f"Deleted policy {policy_id}\n")
@@ -91,8 +91,8 @@ def test_a_table_trained_through_the_env_is_sent_from_an_npz(
     assert sent_policy(capsys.readouterr().out)[0] == policy_id, "the key gives it back"
     with Client(live_api.url, timeout=10) as client:
         sent = client.policy(policy_id)
-    assert sent["name"] == "trained" and sent["action_set"] == "directions"
-    assert np.array_equal(np.asarray(sent["values"]), values)
+    assert sent.name == "trained" and sent.action_set == "directions"
+    assert np.array_equal(np.asarray(sent.values), values)
 
 
 def test_a_file_that_holds_no_table_is_refused_before_anything_is_sent(

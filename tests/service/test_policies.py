@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from sqlalchemy import delete
 
-from nanonav.client import Client
+from nanonav.client import Client, PolicyDetail
 from nanonav.engine import qlearning
 from nanonav.policy import MAX_Q, greedy_table
 from nanonav.settings import Settings
@@ -289,7 +289,10 @@ def test_the_client_sends_lists_reads_and_deletes_policies(api: Api) -> None:
             2,
             True,
         )
-        assert np.array_equal(np.asarray(client.policy(sent.id)["values"]), values)
+        detail = client.policy(sent.id)
+        assert isinstance(detail, PolicyDetail) and detail.per_robot and detail.memory is None
+        assert np.array_equal(np.asarray(detail.values), values)
+        assert detail.states == list(states) and detail.actions == list(actions)
         greedy = client.send_policy(
             states, actions, greedy=[{"state": states[0], "action": "explore"}]
         )
