@@ -152,8 +152,8 @@ def work(settings: Settings, shutdown: threading.Event, *, max_jobs: int | None 
         while not shutdown.is_set() and (max_jobs is None or ran < max_jobs):
             try:
                 claim = store.claim(owner, lease_s=settings.lease_s)
-            except SQLAlchemyError:
-                logger.exception("the store is unavailable; retrying")
+            except SQLAlchemyError as error:
+                logger.warning("the store is unavailable (%s); retrying", reason(error))
                 shutdown.wait(max(settings.poll_interval_s, 1.0))
                 continue
             if claim is None:

@@ -59,13 +59,40 @@ def read_json_object(path: Path, what: str) -> dict[str, Any]:
     return loaded
 
 
+# pydantic's words before a validator's own message, which say nothing to a user
+PYDANTIC_PREFIXES = ("Value error, ", "Assertion failed, ")
+
+
 def validation_messages(error: ValidationError) -> list[str]:
     """One line per error, naming the field by its dotted path (``robots.count: ...``)."""
     lines = []
     for item in error.errors(include_url=False):
         where = ".".join(str(part) for part in item["loc"]) or "scenario"
-        lines.append(f"{where}: {item['msg']}")
+        lines.append(f"{where}: {_message(item['msg'])}")
     return lines
+
+
+def settings_messages(error: ValidationError) -> list[str]:
+    """One line per error in the settings, naming each by its environment variable
+    (``NANONAV_PORT: ...``); one about several is the settings'."""
+    lines = []
+    for item in error.errors(include_url=False):
+        names = [str(part) for part in item["loc"]]
+        if not names:
+            lines.append(f"settings: {_message(item['msg'])}")
+            continue
+        first = names[0].upper()
+        variable = first if first.startswith("NANONAV_") else f"NANONAV_{first}"
+        where = ".".join([variable, *names[1:]])
+        lines.append(f"{where}: {_message(item['msg'])}")
+    return lines
+
+
+def _message(text: str) -> str:
+    for prefix in PYDANTIC_PREFIXES:
+        if text.startswith(prefix):
+            return text.removeprefix(prefix)
+    return text
 
 
 URL_HELP = "the API's base URL (default: $NANONAV_URL, else http://127.0.0.1:8000)"

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 
 from pydantic import ValidationError
 
-from nanonav.cli.common import EXIT_OK, Subcommands, UsageError, validation_messages
+from nanonav.cli.common import EXIT_OK, Failed, Subcommands, UsageError, settings_messages
 
 if TYPE_CHECKING:
     from nanonav.settings import Settings
@@ -22,7 +22,7 @@ def _settings() -> Settings:
     try:
         return Settings()
     except ValidationError as error:
-        raise UsageError(validation_messages(error)) from error
+        raise UsageError(settings_messages(error)) from error
 
 
 def add_api(subcommands: Subcommands) -> None:
@@ -104,11 +104,16 @@ def add_migrate(subcommands: Subcommands) -> None:
 
 def _migrate(args: argparse.Namespace) -> int:
     from sqlalchemy.engine import make_url
+    from sqlalchemy.exc import SQLAlchemyError
 
+    from nanonav.store.faults import reason
     from nanonav.store.migrate import head_revision, upgrade
 
     settings = _settings()
-    upgrade(settings.database_url)
     shown = make_url(settings.database_url).render_as_string(hide_password=True)
+    try:
+        upgrade(settings.database_url)
+    except SQLAlchemyError as error:
+        raise Failed([f"cannot migrate {shown}: {reason(error)}"]) from error
     print(f"{shown} is at migration {head_revision()}")
     return EXIT_OK
