@@ -228,7 +228,11 @@ def openapi_document() -> dict[str, Any]:
 
 def routes_page() -> str:
     """Every route with its summary; the whole OpenAPI document is served at /openapi.json."""
+    from service.security import OPEN_PATHS
+
     document = openapi_document()
+    # the routes a request without a key may take, as the service's guard has them
+    unkeyed = ", ".join(f"`{path}`" for path in sorted(OPEN_PATHS) if path in document["paths"])
     lines = [
         GENERATED,
         "# HTTP routes",
@@ -237,7 +241,7 @@ def routes_page() -> str:
         "`/openapi.json` (request and response schemas, every error's problem+json) and an "
         "interactive page at `/docs`. Errors are `application/problem+json` with a `type`, a "
         "`title` and, for a refused input, the field it names. With API keys on, every route "
-        "but `/healthz`, `/readyz` and the dashboard's login needs `Authorization: Bearer KEY` "
+        f"but {unkeyed} and the dashboard's login needs `Authorization: Bearer KEY` "
         "(see [Keys and sessions](../how-to/keys-and-sessions.md)).",
         "",
         "An id in a path is written in plain decimal digits (`/jobs/12`): another spelling of a "
