@@ -46,6 +46,14 @@ def _wait_until_ready(url: str, api: subprocess.Popen[bytes], stop: threading.Ev
     return False
 
 
+def next_free_port(host: str, port: int, *, tries: int = 100) -> int | None:
+    """The first port after ``port`` that nothing listens on (within ``tries``), to suggest."""
+    for candidate in range(port + 1, min(port + 1 + tries, 65536)):
+        if not port_in_use(host, candidate):
+            return candidate
+    return None
+
+
 def port_in_use(host: str, port: int) -> bool:
     """Whether something already listens on ``host:port``: then the API could not bind it, and
     the one answering /healthz there would be another server, taken for this one."""
@@ -88,9 +96,11 @@ def main() -> int:
             print(f"nanonav: {line}", file=sys.stderr)
         return 2
     if port_in_use(settings.host, settings.port):
+        free = next_free_port(settings.host, settings.port)
+        choose = "choose another port" if free is None else f"`make run PORT={free}`, free now"
         print(
             f"nanonav: {settings.host}:{settings.port} is in use (another `make run`, or another "
-            f"program): stop it, or choose another port: `make run PORT={settings.port + 1}`",
+            f"program): stop it, or {choose}",
             file=sys.stderr,
         )
         return 1

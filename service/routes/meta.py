@@ -13,7 +13,7 @@ from nanonav.scenario import PRESETS, preset_scenario
 from nanonav.settings import Settings
 from nanonav.store.deliveries import Backlog
 from nanonav.store.migrate import current_revision, head_revision
-from nanonav.store.queue import PRESENCE_WINDOW_S
+from nanonav.store.queue import PRESENCE_WINDOW_S, Census
 from service.deps import DeliveriesDep, SettingsDep, StoreDep
 from service.schemas import Health, Queue, Version, Webhooks, Workers
 
@@ -56,22 +56,8 @@ def healthz(
     backlog = deliveries.backlog(now=now)
     window_s = sender_window_s(settings)
     notes = []
-    if not census.workers and census.preparing:
-        notes.append(
-            f"{census.preparing} worker(s) still prepare the engine (a first start compiles "
-            "it: a minute or two); jobs queued wait for them"
-        )
-    elif census.queued and not census.workers:
-        notes.append(
-            f"{census.queued} jobs are queued but no worker has been seen in the last "
-            f"{PRESENCE_WINDOW_S:g} s: start one with `nanonav worker`"
-        )
-    elif not census.workers:
-        # the API answers before a worker is ready (one starting compiles the engine first)
-        notes.append(
-            f"no worker has been seen in the last {PRESENCE_WINDOW_S:g} s, so a job submitted "
-            "now waits: start one with `nanonav worker`, or wait for the one starting"
-        )
+    if waiting := workers_note(census):
+        notes.append(waiting)
     if stalled := _stalled_webhooks(backlog, now, window_s):
         notes.append(stalled)
     return Health(
@@ -96,6 +82,29 @@ def healthz(
             window_s=window_s,
         ),
         note="; ".join(notes) or None,
+    )
+
+
+def workers_note(census: Census) -> str | None:
+    """What /healthz and the dashboard say when no worker takes jobs: those preparing the
+    engine, or none seen (with jobs waiting or not); None while a worker is ready."""
+    if census.workers:
+        return None
+    if census.preparing:
+        workers = "1 worker is" if census.preparing == 1 else f"{census.preparing} workers are"
+        return (
+            f"{workers} preparing the engine (a first start compiles it: a minute or two); "
+            "queued jobs wait for it"
+        )
+    if census.queued:
+        jobs = "1 job is" if census.queued == 1 else f"{census.queued} jobs are"
+        return (
+            f"{jobs} queued but no worker has been seen in the last {PRESENCE_WINDOW_S:g} s: "
+            "start one with `nanonav worker`"
+        )
+    return (
+        f"no worker has been seen in the last {PRESENCE_WINDOW_S:g} s, so a job submitted now "
+        "waits: start one with `nanonav worker`"
     )
 
 

@@ -49,6 +49,7 @@ from service.numerals import positive_int
 from service.paging import Cursor, decode_cursor, encode_cursor
 from service.problems import Unauthorized
 from service.reports import Reports
+from service.routes.meta import workers_note
 from service.routes.policies import get_policy
 from service.routes.studies import list_studies, study_answer
 from service.schemas import Job
@@ -90,19 +91,10 @@ PageId = Annotated[str, PathParam(max_length=40)]
 def _page(request: Request, name: str, status: int = 200, **context: Any) -> HTMLResponse:
     store = request.app.state.store
     census = store.census(seen_within_s=PRESENCE_WINDOW_S)
-    note = None
-    if not census.workers and census.preparing:
-        note = (
-            f"{census.preparing} worker(s) still prepare the engine (a first start compiles "
-            "it: a minute or two); jobs queued wait for them."
-        )
-    elif census.queued and not census.workers:
-        note = (
-            f"{census.queued} jobs are queued but no worker is running: start one with "
-            "`nanonav worker`."
-        )
+    note = workers_note(census)
     health = {"queued": census.queued, "running": census.running, "workers": census.workers,
-              "window_s": PRESENCE_WINDOW_S, "note": note}  # fmt: skip
+              "preparing": census.preparing, "window_s": PRESENCE_WINDOW_S,
+              "note": note and f"{note}."}  # fmt: skip
     signed_in = caller_of(request).scoped  # with keys, a page shown is a page logged in to
     return templates.TemplateResponse(
         request, name, {"health": health, "signed_in": signed_in, **context}, status_code=status

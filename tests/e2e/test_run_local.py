@@ -17,6 +17,7 @@ from typing import Any
 import httpx
 import pytest
 
+from nanonav.run_local import port_in_use
 from nanonav.store import JobStatus, JobStore
 from nanonav.store.migrate import upgrade
 from tests.processes import clean_environment, free_port
@@ -218,13 +219,34 @@ def test_make_run_installs_the_driver_its_database_url_needs(url: str, extra: bo
     assert planned.rstrip().endswith("-m nanonav.run_local")
 
 
-def test_a_port_in_use_is_one_line_naming_another_before_anything_starts(tmp_path: Path) -> None:
-    """Another server on the port: ``make run`` says so and how to choose another, instead of
-    taking that server's /healthz for its own API's."""
-    with socket.socket() as taken:
-        taken.bind(("127.0.0.1", 0))
-        taken.listen()
-        port = taken.getsockname()[1]
+def consecutive_ports_taken(count: int) -> list[socket.socket]:
+    """``count`` listening sockets on consecutive ports of 127.0.0.1."""
+    while True:
+        first = socket.socket()
+        first.bind(("127.0.0.1", 0))
+        first.listen()
+        taken, base = [first], first.getsockname()[1]
+        try:
+            for offset in range(1, count):
+                sock = socket.socket()
+                taken.append(sock)
+                sock.bind(("127.0.0.1", base + offset))
+                sock.listen()
+        except OSError:
+            for sock in taken:
+                sock.close()
+            continue
+        return taken
+
+
+def test_a_port_in_use_is_one_line_naming_a_free_one_before_anything_starts(
+    tmp_path: Path,
+) -> None:
+    """Another server on the port, and on the next: ``make run`` says so and names a port that
+    is free, instead of taking that server's /healthz for its own API's."""
+    taken = consecutive_ports_taken(2)
+    port = taken[0].getsockname()[1]
+    try:
         done = subprocess.run(
             [sys.executable, "-m", "nanonav.run_local"],
             cwd=tmp_path,
@@ -233,9 +255,15 @@ def test_a_port_in_use_is_one_line_naming_another_before_anything_starts(tmp_pat
             text=True,
             timeout=60,
         )
+    finally:
+        for sock in taken:
+            sock.close()
     assert done.returncode == 1 and done.stdout == ""
     [line] = done.stderr.splitlines()
-    assert f"127.0.0.1:{port} is in use" in line and f"make run PORT={port + 1}" in line
+    assert f"127.0.0.1:{port} is in use" in line
+    suggested = int(line.split("make run PORT=")[1].split("`")[0])
+    assert suggested > port + 1, "the next port was taken too"
+    assert not port_in_use("127.0.0.1", suggested)
     assert not (tmp_path / "var").exists(), "nothing was migrated or started"
 
 

@@ -327,8 +327,8 @@ def test_healthz_says_why_queued_jobs_wait(api: Api) -> None:
     submit(api)
     health = api.client.get("/healthz").json()
     assert health["queue"]["queued"] == 1
-    assert health["workers"] == {"seen": 0, "window_s": 30.0}
-    assert "no worker has been seen" in health["note"]
+    assert health["workers"] == {"seen": 0, "preparing": 0, "window_s": 30.0}
+    assert health["note"].startswith("1 job is queued but no worker has been seen")
     api.store.worker_seen("host:7", started_at=datetime.now(UTC))
     health = api.client.get("/healthz").json()
     assert health["workers"]["seen"] == 1 and health["note"] is None

@@ -23,7 +23,7 @@ def test_healthz_counts_due_webhooks_and_says_when_no_sender_sends_them(api: Api
     api.store.worker_seen("host:7", started_at=datetime.now(UTC), ready=False)
     preparing = api.client.get("/healthz").json()
     assert preparing["workers"] == {"seen": 0, "preparing": 1, "window_s": 30.0}
-    assert preparing["note"].startswith("1 worker(s) still prepare the engine")
+    assert preparing["note"].startswith("1 worker is preparing the engine (a first start")
     api.store.worker_seen("host:7", started_at=datetime.now(UTC))
     assert api.client.get("/healthz").json()["note"] is None
     job_id = api.client.post("/jobs", params={"callback_url": HOOK}, json={}).json()["id"]

@@ -7,6 +7,7 @@ import html as markup
 import json
 import re
 import threading
+from datetime import UTC, datetime
 from typing import Any
 
 import httpx
@@ -356,3 +357,25 @@ def test_with_keys_an_empty_list_says_what_was_made_before_keys_is_not_shown(
         assert "ownerless-note" not in api.client.get("/ui/jobs", headers=bearer(KEY_A)).text
     with served(Settings(database_url=sqlite_url)) as api:
         assert f"/ui/jobs/{job}" in api.client.get("/ui/jobs").text
+
+
+def test_the_banner_says_what_the_workers_do_in_words_that_count(api: Api) -> None:
+    """A worker preparing the engine is named as such, not "no worker is running: start one";
+    one job is "1 job"."""
+    api.store.enqueue(Scenario.model_validate(TINY).model_dump(mode="json"), robot_steps=1,
+                      episodes=3)  # fmt: skip
+
+    def banner() -> str:
+        page = api.client.get("/ui/jobs").text
+        found = re.search(r'<p class="note warn">(.*?)</p>', page, re.S)
+        assert found is not None, "no note"
+        return markup.unescape(found.group(1))
+
+    assert banner() == ("1 job is queued but no worker has been seen in the last 30 s: start "
+                        "one with `nanonav worker`.")  # fmt: skip
+    api.store.worker_seen("box:1", started_at=datetime.now(UTC), ready=False)
+    assert banner() == ("1 worker is preparing the engine (a first start compiles it: a minute "
+                        "or two); queued jobs wait for it.")  # fmt: skip
+    assert "1 preparing" in api.client.get("/ui/jobs").text
+    api.store.worker_seen("box:1", started_at=datetime.now(UTC))
+    assert '<p class="note warn">' not in api.client.get("/ui/jobs").text
