@@ -247,6 +247,8 @@ class Difference:
     ci_high: float | None
     p_value: float | None  # Wilcoxon signed-rank, two-sided
     method: str = "student_t"
+    p_holm: float | None = None  # p_value adjusted by Holm's over the metric's comparisons
+    holm_comparisons: int | None = None  # how many comparisons p_holm adjusts over
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -300,6 +302,7 @@ class Study(StudySummary):
     comparisons: list[Comparison]
     interval: str  # how the confidence intervals are computed
     test: str  # how the paired p-values are computed
+    adjustment: str = ""  # how they are adjusted for the study's many comparisons
 
     @classmethod
     def of(cls, data: dict[str, Any]) -> Study:
@@ -329,6 +332,7 @@ class Study(StudySummary):
             ],
             interval=str(data.get("interval", "")),
             test=str(data.get("test", "")),
+            adjustment=str(data.get("adjustment", "")),
         )
 
 

@@ -298,6 +298,15 @@ def _average_ranks(values: NDArray[np.float64]) -> NDArray[np.float64]:
     return ranks
 
 
+ADJUSTMENT_METHOD = (
+    "Holm's step-down adjustment (p_holm), metric by metric: a metric's family is every "
+    "comparison of it the study makes (each compared value against the baseline, at every "
+    "combination of the other grid keys, holm_comparisons of them), so that a difference "
+    "called resolved at 0.05 by p_holm has at most a 5 % chance that any of its family's is "
+    "a false alarm"
+)
+
+
 def _wilcoxon_p_value(differences: NDArray[np.float64]) -> float:
     """Two-sided p-value of the signed-rank test; see ``paired`` for the choices made.
 

@@ -599,6 +599,14 @@ class Difference(BaseModel):
     ci_low: float | None = Field(description="95% Student t interval of the mean difference.")
     ci_high: float | None
     p_value: float | None = Field(description="Wilcoxon signed-rank, two-sided; null when n < 2.")
+    p_holm: float | None = Field(
+        None,
+        description="p_value adjusted by Holm's method over every comparison of this metric in "
+        "the study (the study's 'adjustment' says how); null without a p_value.",
+    )
+    holm_comparisons: int | None = Field(
+        None, description="How many comparisons of this metric p_holm adjusts over."
+    )
     method: str = Field("student_t", description="How the interval was made: Student t.")
 
 
@@ -654,6 +662,9 @@ class Study(StudySummary):
     spec: dict[str, Any] = Field(description="The study as submitted, seeds resolved.")
     interval: str = Field(description="How the confidence intervals are computed.")
     test: str = Field(description="How the paired p-values are computed.")
+    adjustment: str = Field(
+        "", description="How the p-values are adjusted for the study's many comparisons."
+    )
     metrics: list[str]
     points: list[StudyPoint]
     comparisons: list[StudyComparison] = Field(

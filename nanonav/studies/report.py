@@ -158,6 +158,7 @@ def report(
         "metrics": list(metrics),
         "interval": stats.CONFIDENCE_METHOD,
         "test": stats.TEST_METHOD,
+        "adjustment": stats.ADJUSTMENT_METHOD,
         "points": point_rows,
         "comparisons": comparisons(spec, values, by_point, metrics),
     }
@@ -180,6 +181,8 @@ def comparisons(
         others = tuple((k, v) for k, v in point_values.items() if k != key)
         groups.setdefault(others, {})[point_values[key]] = index
     found = []
+    # each metric's comparisons, the family Holm's adjustment is made over
+    families: dict[str, list[dict[str, Any]]] = {metric: [] for metric in metrics}
     for others, members in groups.items():
         baseline = {job.seed: job for job in by_point[members[baseline_value]]}
         for method in spec.grid[key][1:]:
@@ -195,6 +198,7 @@ def comparisons(
                 compared[metric] = stats.paired(
                     [a for a, _ in pairs], [b for _, b in pairs]
                 ).to_dict()
+                families[metric].append(compared[metric])
             found.append(
                 {
                     "values": dict(others),
@@ -203,7 +207,23 @@ def comparisons(
                     "metrics": compared,
                 }
             )
+    for family in families.values():
+        adjust_by_holm(family)
     return found
+
+
+def adjust_by_holm(family: Sequence[dict[str, Any]]) -> None:
+    """Each difference of ``family`` (one metric's comparisons) given ``p_holm``, its p-value
+    adjusted by Holm's method over those of the family that have one, and ``holm_comparisons``,
+    how many that is (a difference without a p-value gets neither)."""
+    tested = [d for d in family if d.get("p_value") is not None]
+    adjusted = stats.holm([d["p_value"] for d in tested]) if tested else []
+    for difference in family:
+        difference["p_holm"] = None
+        difference["holm_comparisons"] = None
+    for difference, p_holm in zip(tested, adjusted, strict=True):
+        difference["p_holm"] = p_holm
+        difference["holm_comparisons"] = len(tested)
 
 
 def table(

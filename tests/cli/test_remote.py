@@ -175,7 +175,12 @@ def test_study_wait_prints_intervals_paired_differences_and_failures(
     assert pair[4] == "2"
     assert difference.mean_difference is not None
     assert float(pair[5]) == pytest.approx(difference.mean_difference, 1e-3, abs=1e-9)
-    assert difference.p_value is not None and float(pair[-1]) == round(difference.p_value, 3)
+    assert difference.p_value is not None and float(pair[-2]) == round(difference.p_value, 3)
+    # one comparison of each metric: Holm's adjustment leaves it as it is
+    assert difference.p_holm == difference.p_value and difference.holm_comparisons == 1
+    assert float(pair[-1]) == round(difference.p_value, 3)
+    assert lines[lines.index("Paired differences, seed by seed (robots.policy):") + 1].split()[
+        -2:] == ["p", "Holm"]  # fmt: skip
 
     assert main(["study", "--id", str(study.id), "--url", live_api.url]) == 0
     shown = capsys.readouterr().out

@@ -72,7 +72,10 @@ def fresh_report(polled: Polled) -> dict[str, Any]:
 
 
 def statistics(answer: dict[str, Any]) -> dict[str, Any]:
-    return {key: answer[key] for key in ("metrics", "interval", "test", "points", "comparisons")}
+    return {
+        key: answer[key]
+        for key in ("metrics", "interval", "test", "adjustment", "points", "comparisons")
+    }
 
 
 def test_polling_an_unchanged_study_computes_its_report_once(polled: Polled) -> None:

@@ -9,6 +9,7 @@ from typing import Any
 
 import pytest
 
+from nanonav import stats
 from nanonav.studies.report import (
     METRICS,
     PAPER_METRICS,
@@ -69,6 +70,34 @@ def test_differences_pair_only_seeds_where_both_succeeded() -> None:
     steps = comparison["metrics"]["total_steps"]
     assert steps["n"] == 2  # seeds 1 and 3: seed 2 failed on one side, seed 4 was cancelled
     assert steps["mean_difference"] == pytest.approx(statistics.fmean([90 - 100, 60 - 80]))
+
+
+def test_each_metrics_p_values_are_adjusted_by_holm_over_its_comparisons() -> None:
+    """Two methods against the baseline at two obstacle counts: four comparisons of each
+    metric, adjusted together (Holm's step-down over the four raw p-values)."""
+    spec = StudySpec.model_validate(
+        {"grid": {"robots.policy": ["q_learning", "gradient", "random"],
+                  "obstacles.count": [0, 10]},
+         "seeds": list(range(1, 9)), "compare": "robots.policy"}
+    )  # fmt: skip
+    values = point_values(spec)
+    shifts = {"q_learning": 0.0, "gradient": -3.0, "random": 0.4}
+    jobs = []
+    for point, point_value in enumerate(values):
+        for seed in spec.seeds or []:
+            steps = 100.0 + seed * (1 + point) % 7 + shifts[str(point_value["robots.policy"])]
+            jobs.append(outcome(len(jobs) + 1, point, seed, steps * (1 + 0.01 * seed)))
+    found = report(spec, values, jobs)
+    family = [c["metrics"]["total_steps"] for c in found["comparisons"]]
+    assert len(family) == 4
+    raw = [d["p_value"] for d in family]
+    assert [d["p_holm"] for d in family] == pytest.approx(stats.holm(raw))
+    assert all(d["holm_comparisons"] == 4 for d in family)
+    assert all(d["p_holm"] >= d["p_value"] for d in family)
+    assert min(d["p_holm"] for d in family) == pytest.approx(min(1.0, 4 * min(raw)))
+    assert "Holm" in found["adjustment"]
+    # a metric no method moves: every raw p-value is 1, and so is every adjusted one
+    assert [c["metrics"]["success_rate"]["p_holm"] for c in found["comparisons"]] == [1.0] * 4
 
 
 def test_a_metric_a_job_lacks_is_left_out_of_its_sample() -> None:
