@@ -14,10 +14,12 @@ for every robot, such calls ran the engine five times slower. So the phases are 
 by LLVM (``inlined``), not by numba (``inline="always"``): numba copied and retyped a
 function's whole body at each place it was inlined, and nested, the copies were most of the
 engine's first compile (308 s and 3.2 GB for ``simulate``; 59 s and 0.7 GB inlined by LLVM,
-as fast to run, ``benchmarks/first_start.py``). A numba-inlined function remains where the
-inlined code must take its caller's floating-point flags (``fields.sample`` in
-``sample_many``, whose contraction the field's digests hold) or returns what only an inlined
-call may (``generators.generator_at``).
+as fast to run, ``benchmarks/first_start.py``). An inlined function's own code is only linked
+(``_LinkedOnly``): numba would optimise it with all it calls, then make it machine code, at
+every level of the calls, where the function Python calls optimises and compiles it all once.
+A numba-inlined function remains where the inlined code must take its caller's floating-point
+flags (``fields.sample`` in ``sample_many``, whose contraction the field's digests hold) or
+returns what only an inlined call may (``generators.generator_at``).
 
 A constant argument (``f(p, sim, 0)``) would compile the callee again for that constant (numba
 specialises on literals); callers pass variables.
@@ -47,7 +49,11 @@ import numpy as np
 from llvmlite import binding as llvm
 from numba import njit
 from numba.core import config
+from numba.core.codegen import JITCodeLibrary
+from numba.core.compiler import CompilerBase, DefaultPassBuilder
+from numba.core.compiler_machinery import LoweringPass, register_pass
 from numba.core.registry import CPUDispatcher
+from numba.core.typed_passes import AnnotateTypes
 
 _F = TypeVar("_F", bound=Callable[..., Any])
 ENGINE = Path(__file__).resolve().parent
@@ -112,12 +118,76 @@ class CompiledOnly(CPUDispatcher):
         )
 
 
+class _LinkedOnly(JITCodeLibrary):
+    """The code of a function that only compiled callers inline: numba's library would
+    optimise it with everything it calls and make it machine code, which its callers do again
+    once it is inlined (at every level of the calls: the optimising repeated was most of a
+    step's compile). Here it is linked, not optimised beyond numba's function passes, and
+    never made machine code; no cache keeps it (it has no object code to keep)."""
+
+    @property
+    def codegen(self) -> Any:
+        """numba's codegen, but for the environment it would set in the machine code."""
+        return _WithoutEnvironment(self._codegen)
+
+    def _optimize_final_module(self) -> None:
+        """Left to the caller that is called from Python, once everything is inlined."""
+
+    def _finalize_final_module(self) -> None:
+        """Ready to be linked, not added to the machine-code engine."""
+        self._finalize_dynamic_globals()  # type: ignore[no-untyped-call]
+        self._verify_declare_only_symbols()  # type: ignore[no-untyped-call]
+        self._finalized = True
+
+
+class _WithoutEnvironment:
+    """A codegen whose ``set_env`` does nothing: a ``_LinkedOnly`` function has no machine
+    code of its own to set it in (inlined, it runs in its callers' code, which are set)."""
+
+    def __init__(self, codegen: Any) -> None:
+        self._codegen = codegen
+
+    def set_env(self, name: str, environment: Any) -> None:
+        """Nothing to set."""
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._codegen, name)
+
+
+@register_pass(mutates_CFG=False, analysis_only=False)  # type: ignore[no-untyped-call]
+class _LinkOnly(LoweringPass):
+    """Lowers into a ``_LinkedOnly`` library."""
+
+    _name = "nanonav_link_only"
+
+    def __init__(self) -> None:
+        LoweringPass.__init__(self)  # type: ignore[no-untyped-call]
+
+    def run_pass(self, state: Any) -> bool:
+        codegen, name = state.targetctx.codegen(), state.func_id.func_qualname
+        state.library = _LinkedOnly(codegen, name)  # type: ignore[no-untyped-call]
+        state.library.enable_object_caching()
+        return True
+
+
+class _LinkOnlyCompiler(CompilerBase):
+    """numba's nopython pipeline, lowering into a ``_LinkedOnly`` library."""
+
+    def define_pipelines(self) -> list[Any]:
+        build = DefaultPassBuilder.define_nopython_pipeline
+        pipeline = build(self.state)  # type: ignore[no-untyped-call]
+        pipeline.add_pass_after(_LinkOnly, AnnotateTypes)
+        pipeline.finalize()
+        return [pipeline]
+
+
 def inlined(function: _F) -> _F:
     """``uncounted``, and inlined into every compiled caller by LLVM (its ``alwaysinline``:
     numba's ``forceinline``): compiled and typed once, whatever its callers, and without the
     wrapper that lets Python call it (which costs its compile a sixth)."""
-    options: dict[str, Any] = {"cache": True, "error_model": "numpy", "_nrt": False,
-                               "forceinline": True, "no_cpython_wrapper": True}  # fmt: skip
+    options: dict[str, Any] = {"error_model": "numpy", "_nrt": False, "forceinline": True,
+                               "no_cpython_wrapper": True,
+                               "pipeline_class": _LinkOnlyCompiler}  # fmt: skip
     dispatcher = njit(**options)(function)
     dispatcher.__class__ = CompiledOnly
     return cast(_F, dispatcher)
