@@ -28,13 +28,14 @@ def test_a_learner_trains_and_leaves_what_it_learned(
 ) -> None:
     out = tmp_path / algo
     args = ["train", "--preset", "paper-single", "--seed", "5000", "--algo", algo,
-            "--steps", "256", "--envs", "4", "--checkpoint-every", "128", "--out", str(out),
+            "--steps", "256", "--envs", "2", "--checkpoint-every", "128", "--out", str(out),
             "--no-progress"]  # fmt: skip
     # PPO and its recurrent kin collect 2,048 decisions a world before their first update, so
-    # they run past --steps to the end of that rollout, and say how far
+    # they run past --steps to the end of that rollout, and say how far (two worlds: a rollout
+    # of the recurrent learner took 91 s of the suite with four)
     assert main(args) == 0
     report = json.loads((out / "training.json").read_text())
-    assert report["algo"] == algo and report["envs"] == 4 and report["seed"] == 5000
+    assert report["algo"] == algo and report["envs"] == 2 and report["seed"] == 5000
     assert report["decisions"] >= 256 and report["decisions_per_s"] > 0
     assert f"trained {algo}" in capsys.readouterr().out
     kept = list((out / "checkpoints").iterdir())
