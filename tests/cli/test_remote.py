@@ -469,3 +469,23 @@ def test_the_client_and_the_command_load_neither_service_worker_nor_engine() -> 
         [sys.executable, "-c", probe], capture_output=True, text=True, timeout=60, check=True
     )
     assert done.stdout == "[]\n"
+
+
+def test_set_gives_a_field_by_its_dotted_name_or_is_refused_naming_it(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    from nanonav.cli.remote import _setting, _with_setting
+
+    scenario: dict[str, Any] = {"learning": {"alpha": 0.1}}
+    for text in ("learning.episodes=20", "robots.policy=gradient", "cells.capacity=null"):
+        _with_setting(scenario, *_setting(text))
+    assert scenario == {"learning": {"alpha": 0.1, "episodes": 20},
+                        "robots": {"policy": "gradient"}, "cells": {"capacity": None}}  # fmt: skip
+    url = ["--url", "http://127.0.0.1:9"]
+    assert main(["submit", "--preset", "paper-single", "--set", "episodes", *url]) == 2
+    assert "not FIELD=VALUE: 'episodes'" in capsys.readouterr().err
+    assert main(["submit", "--preset", "paper-single", "--set", "robots=3", "--set",
+                 "robots.count=2", *url]) == 2  # fmt: skip
+    assert capsys.readouterr().err == (
+        "nanonav submit: --set robots.count: robots is not a section\n"
+    )

@@ -256,3 +256,20 @@ def test_every_command_a_page_shows_runs_as_printed(
             assert written.stat().st_size > 0, command
             if written.suffix == ".png":
                 assert written.read_bytes().startswith(PNG), command
+    if page in (README, TUTORIALS["first_job.py"]):
+        the_same_job_twice(fresh_service)
+
+
+def the_same_job_twice(url: str) -> None:
+    """The page's curl and its ``nanonav submit`` made the same job (jobs 1 and 2): the same
+    scenario, and so the same numbers (the page says so; the CLI ran 50 training episodes
+    where curl asked for 20)."""
+    idle(url)
+    first, second = (httpx.get(f"{url}/jobs/{job}").json() for job in (1, 2))
+    assert first["scenario"] == second["scenario"]
+    assert first["scenario"]["learning"]["episodes"] == 20
+    summaries = [httpx.get(f"{url}/jobs/{job}/metrics").json()["summary"] for job in (1, 2)]
+    first_numbers, second_numbers = (
+        {k: v for k, v in summary.items() if k != "duration_s"} for summary in summaries
+    )  # everything but the wall-clock time each took
+    assert first_numbers == second_numbers and "total_steps" in first_numbers
