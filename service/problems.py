@@ -7,6 +7,7 @@ Validation errors carry the offending fields, as JSON pointers into the body or 
 from __future__ import annotations
 
 import logging
+import sys
 from collections.abc import Sequence
 from http import HTTPStatus
 from typing import Any
@@ -227,6 +228,20 @@ STORE_ERRORS: dict[type[Exception], tuple[int, str, str]] = {
 }
 
 
+def unreadable_body(cause: BaseException | None) -> str | None:
+    """What made a JSON body unreadable where the framework says only that it could not parse
+    it: bytes that are not UTF-8, nesting past the parser's depth, or a number of more digits
+    than Python reads; None for any other cause."""
+    if isinstance(cause, UnicodeDecodeError):
+        return f"it is not UTF-8 ({cause.reason} at byte {cause.start})"
+    if isinstance(cause, RecursionError):
+        return "its arrays and objects nest too deeply (a scenario nests a few levels)"
+    if isinstance(cause, ValueError) and "digits" in str(cause):
+        limit = sys.get_int_max_str_digits()
+        return f"it has a number of more than {limit} digits"
+    return None
+
+
 def install(app: FastAPI) -> None:
     """Map every error type to its problem document, once for the whole app."""
 
@@ -307,6 +322,10 @@ def install(app: FastAPI) -> None:
 
     async def on_http(request: Request, exc: Exception) -> Response:
         assert isinstance(exc, StarletteHTTPException)
+        if exc.status_code == 400 and (unread := unreadable_body(exc.__cause__)) is not None:
+            error = FieldError(pointer="#", loc=["body"], detail=unread, type="json_invalid")
+            detail = f"the request body is not valid JSON: {unread}"
+            return respond(request, 400, "malformed-json", "Malformed JSON", detail, [error])
         slug = {413: "body-too-large", 404: "not-found", 405: "method-not-allowed"}.get(
             exc.status_code, "http-error"
         )

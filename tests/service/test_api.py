@@ -147,6 +147,24 @@ def test_malformed_json_is_400(api: Api) -> None:
     assert problem["errors"][0]["pointer"] == "#"  # the body, not a member "1" of it
 
 
+@pytest.mark.parametrize(
+    ("body", "said"),
+    [
+        (b'{"seed": 1, "name": "\xff"}', "it is not UTF-8 (invalid start byte at byte 21)"),
+        (b"[" * 5000 + b"]" * 5000, "its arrays and objects nest too deeply"),
+        (b'{"seed": ' + b"9" * 5000 + b"}", "it has a number of more than 4300 digits"),
+    ],
+    ids=["not-utf-8", "5000-deep", "5000-digits"],
+)
+def test_a_body_no_parser_reads_says_why(api: Api, body: bytes, said: str) -> None:
+    """Not "There was an error parsing the body": what is wrong with it, as for malformed JSON."""
+    response = api.client.post("/jobs", content=body, headers={"content-type": "application/json"})
+    problem = assert_problem(response, 400)
+    assert problem["type"].endswith("malformed-json")
+    assert problem["detail"].startswith("the request body is not valid JSON: " + said)
+    assert problem["errors"][0]["pointer"] == "#"
+
+
 @pytest.mark.parametrize("content_type", ["text/plain", "application/x-www-form-urlencoded", None])
 def test_a_body_not_declared_as_json_is_415(api: Api, content_type: str | None) -> None:
     headers = {} if content_type is None else {"content-type": content_type}
