@@ -314,6 +314,18 @@ def metric_png(
     title: str | None = None,
     bounds: tuple[float, float] | None = None,
 ) -> bytes:
+    """``metric_figure`` as a PNG."""
+    return png(metric_figure(metric, series, x_label=x_label, title=title, bounds=bounds))
+
+
+def metric_figure(
+    metric: str,
+    series: Sequence[Series],
+    *,
+    x_label: str | None,
+    title: str | None = None,
+    bounds: tuple[float, float] | None = None,
+) -> Figure:
     """One metric (mean and confidence interval) for each series at each swept value.
 
     When every x is a number, one line per series with markers and error bars, series nudged
@@ -321,7 +333,8 @@ def metric_png(
     positive and span a factor of 100 or more. Otherwise (policies, field models: names), a
     grouped bar chart, one group per x in first-seen order. Without any mean to draw, the axes
     say so, and the PNG is still valid and of the same size. A share (``bounds`` (0, 1)) is drawn
-    on an axis from exactly 0 to 1, its error bars whole on the frame where they reach it.
+    on an axis from exactly 0 to 1, its error bars whole on the frame where they reach it; a
+    metric that cannot be negative (``bounds`` from 0) on an axis from 0, to 1 if all is 0.
     """
     share = bounds == (0.0, 1.0)
     if share:
@@ -338,15 +351,20 @@ def metric_png(
         handles = _draw_bars(ax, series, _styles(series))
     if share:
         ax.set_ylim(0.0, 1.0)
+    elif bounds is not None and bounds[0] == 0.0 and handles:
+        highest = max((v for one in series for v in (*one.mean, *one.high) if v is not None),
+                      default=0.0)  # fmt: skip
+        ax.set_ylim(0.0, ax.get_ylim()[1] if highest > 0 else 1.0)
+    if bounds is not None and bounds[0] == 0.0:
         for line in ax.get_lines():
-            line.set_clip_on(False)  # a mean of 1 keeps its whole marker
+            line.set_clip_on(False)  # a mean at a bound keeps its whole marker
     ax.set_ylabel(_readable(metric), fontsize=_LABEL_SIZE)
     if x_label:
         ax.set_xlabel(x_label, fontsize=_LABEL_SIZE)
     if title:
         ax.set_title(title, fontsize=_TITLE_SIZE)
     _legend(fig, handles)
-    return png(fig)
+    return fig
 
 
 def bin_average(columns: NDArray[np.float64], limit: int) -> NDArray[np.float64]:

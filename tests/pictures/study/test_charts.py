@@ -234,3 +234,22 @@ def test_learning_with_nothing_to_draw_says_so_in_each_panel() -> None:
 def test_learning_curves_need_numeric_episodes() -> None:
     with pytest.raises(ValueError, match="numeric episodes"):
         learning_png({"steps": [series("a", ["one", "two"], [1.0, 2.0])]})
+
+
+@pytest.mark.parametrize("x", [[0, 10, 30], ["gradient", "q_learning", "random"]])
+def test_a_metric_that_cannot_be_negative_is_drawn_from_0(x: list[float | int | str]) -> None:
+    """All-zero collisions drew on an axis from -0.04 to 0.04, as if collisions could be
+    negative: from 0 (to 1 when all is 0), and small counts from 0 too."""
+    zero = [Series("gradient", x, [0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0])]
+    figure = charts.metric_figure("collisions", zero, x_label="obstacles", bounds=(0.0, np.inf))
+    assert figure.axes[0].get_ylim() == (0.0, 1.0)
+    some = [Series("gradient", x, [0.5, 2.0, 3.0], [0.1, 1.0, 2.0], [0.9, 3.0, 4.0])]
+    figure = charts.metric_figure("collisions", some, x_label="obstacles", bounds=(0.0, np.inf))
+    low, high = figure.axes[0].get_ylim()
+    assert low == 0.0 and high >= 4.0
+    unbounded = [Series("gradient", x, [-1.0, 0.0, 1.0], [-2.0, -1.0, 0.0], [0.0, 1.0, 2.0])]
+    figure = charts.metric_figure("mean_return", unbounded, x_label="obstacles", bounds=None)
+    assert figure.axes[0].get_ylim()[0] < -2.0
+    image = decode(charts.metric_png("collisions", zero, x_label="obstacles",
+                                     bounds=(0.0, np.inf)))  # fmt: skip
+    assert size(image) == METRIC_SIZE
