@@ -155,17 +155,19 @@ def _all_treated_at(steps: NDArray[np.int64], counts: NDArray[np.int64], cells: 
 def _draw_cell_lines(
     ax: Axes, steps: NDArray[np.int64], loads: NDArray[np.int64], capacity: int | None
 ) -> list[Artist]:
-    """A step line per cell, nudged up apart so that cells with the same load stay visible (a
-    payload count is never negative, nor is its axis: the line at 0 is drawn over the frame)."""
+    """A step line per cell at its exact load, each drawn thinner than the one before, over it,
+    so that cells with the same load stay visible as nested lines (a line nudged up apart read
+    3.13 payloads, over the capacity line at 3). A payload count is never negative, nor is its
+    axis: the line at 0 is drawn over the frame."""
     cells = loads.shape[1]
     top = int(loads.max(initial=0))
-    nudge = 0.12 * np.linspace(0.0, 1.0, cells) if cells > 1 else np.zeros(1)
+    widths = np.linspace(4.0, 1.4, cells) if cells > 1 else np.array([1.6])
     handles: list[Artist] = []
     for j in range(cells):
         colour = _CELL_COLOURS[j % len(_CELL_COLOURS)]
-        ax.step(steps, loads[:, j] + nudge[j], where="post", color=colour, linewidth=1.6,
+        ax.step(steps, loads[:, j], where="post", color=colour, linewidth=widths[j],
                 clip_on=False)  # fmt: skip
-        handles.append(Line2D([], [], color=colour, linewidth=1.6, label=f"cell {j}"))
+        handles.append(Line2D([], [], color=colour, linewidth=widths[j], label=f"cell {j}"))
     if capacity is not None:
         ax.axhline(capacity, color=_CAPACITY_GREY, linestyle="-.", linewidth=1.0)
         handles.append(Line2D([], [], color=_CAPACITY_GREY, linestyle="-.", linewidth=1.0,

@@ -99,6 +99,22 @@ def test_a_few_cells_get_a_line_each_and_many_are_stacked() -> None:
     assert_picture(treatment_png(loaded(MAX_CELL_LINES + 4, None)), EXPECTED_SIZE["treatment"])
 
 
+def test_each_cells_line_is_at_its_exact_load_and_never_over_the_capacity() -> None:
+    """Lines nudged apart read 3.13 payloads over the capacity line at 3: each is drawn at its
+    load, those of the same load nested, thinner over wider."""
+    result = loaded(MAX_CELL_LINES, 3)
+    axes = treatment_figure(result).axes[1]
+    assert result.trajectory is not None and result.trajectory.cell_loads is not None
+    lines = [line for line in axes.get_lines() if str(line.get_label()).startswith("_child")]
+    cells = [line for line in lines if line.get_linestyle() == "-"]
+    assert len(cells) == MAX_CELL_LINES
+    for j, line in enumerate(cells):
+        assert np.array_equal(line.get_ydata(), result.trajectory.cell_loads[:, j])
+        assert max(line.get_ydata()) <= 3
+    widths = [line.get_linewidth() for line in cells]
+    assert widths == sorted(widths, reverse=True) and widths[-1] >= 1.2
+
+
 def test_without_a_capacity_the_picture_counts_the_cells_that_received_a_payload() -> None:
     figure = treatment_figure(loaded(3, None))
     assert figure.axes[0].get_ylabel() == "cells with a payload"
