@@ -50,6 +50,26 @@ def step_label(scenario: Scenario) -> str:
     return "step"
 
 
+def duration(scenario: Scenario, steps: int) -> str:
+    """``steps`` steps as the scenario speaks of time: seconds in the active Brownian physics
+    (``60 s``), steps in the lattice (``6,000 steps``)."""
+    if scenario.physics.model == "active_brownian":
+        return f"{steps * scenario.physics.step_s:.3g} s"
+    return f"{steps:,} step{'' if steps == 1 else 's'}"
+
+
+def reach_summary(scenario: Scenario, trajectory: Trajectory) -> str:
+    """Who reached a cell in the evaluation episode, and when: the same words in every
+    picture's title, the time in the physics' own unit."""
+    n = len(trajectory.reached)
+    reached = int(np.count_nonzero(trajectory.reached))
+    if n == 1:
+        if reached:
+            return f"reached a cell after {duration(scenario, int(trajectory.robot_steps[0]))}"
+        return f"did not reach a cell within {duration(scenario, trajectory.length)}"
+    return f"{reached} of {n} reached a cell within {duration(scenario, trajectory.length)}"
+
+
 def concentration_unit(scenario: Scenario) -> str:
     """nM in the active Brownian physics, else arbitrary units."""
     return "nM" if scenario.physics.model == "active_brownian" else "a.u."

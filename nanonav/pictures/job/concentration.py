@@ -21,6 +21,7 @@ from nanonav.pictures.job.common import (
     evaluation_trajectory,
     last_row,
     length_unit,
+    reach_summary,
     resolve_scale,
     sized_figure,
     step_label,
@@ -63,16 +64,6 @@ def searching_stats(trajectory: Trajectory) -> SearchingStats:
     return SearchingStats(trajectory.step, count, quartiles[0], quartiles[1])
 
 
-def _reach_summary(trajectory: Trajectory) -> str:
-    n = len(trajectory.reached)
-    reached = int(np.count_nonzero(trajectory.reached))
-    if n == 1:
-        if reached:
-            return f"reached a cell at step {int(trajectory.robot_steps[0])}"
-        return f"did not reach a cell in {trajectory.length} steps"
-    return f"{reached} of {n} reached a cell within {trajectory.length} steps"
-
-
 def _concentration_label(log_scale: bool, unit: str) -> str:
     return f"biomarker concentration ({unit}{', log scale' if log_scale else ''})"
 
@@ -100,7 +91,7 @@ def concentration_figure(result: SimulationResult) -> Figure:
         _draw_searching_swarm(fig, trajectory, log_scale, units)
     fig.suptitle(
         "Biomarker concentration and distance to the nearest cell, evaluation episode\n"
-        + _reach_summary(trajectory)
+        + reach_summary(result.scenario, trajectory)
     )
     return fig
 

@@ -28,6 +28,7 @@ from nanonav.pictures.job.common import (
     evaluation_trajectory,
     last_row,
     length_unit,
+    reach_summary,
     sized_figure,
     thin,
 )
@@ -280,11 +281,9 @@ def trajectory_figure(result: SimulationResult) -> Figure:
         notes.append(f"paths of the first {shown} robots")
     if len(drawn) < cells_total:
         notes.append(f"paths of the {len(drawn)} cells most reached")
-    reached_total = int(np.count_nonzero(trajectory.reached))
     title = (
         f"Paths of the {who} and the {cells}, evaluation episode\n"
-        f"{reached_total} of {robots_total} reached a cell in "
-        f"{counted(trajectory.length, 'step')}"
+        f"{reach_summary(result.scenario, trajectory)}"
     )
     if notes:
         title += f"; {' and '.join(notes)} drawn"

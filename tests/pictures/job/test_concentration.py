@@ -60,4 +60,4 @@ def test_one_robot_keeps_the_papers_twin_axes_up_to_its_reach(single: Simulation
     assert distance.get_ylabel().startswith("distance to the nearest cell")
     (line,) = distance.get_lines()
     assert int(line.get_xdata()[-1]) == int(trajectory.robot_steps[0])
-    assert f"reached a cell at step {int(trajectory.robot_steps[0])}" in figure.get_suptitle()
+    assert f"reached a cell after {int(trajectory.robot_steps[0])} steps" in figure.get_suptitle()

@@ -41,6 +41,22 @@ def test_active_brownian_lengths_are_in_micrometres(microswimmers: SimulationRes
     assert not any("um" in label.split() or "(um)" in label for label in labels)
 
 
+def test_both_titles_say_who_reached_a_cell_within_the_same_seconds(
+    microswimmers: SimulationResult,
+) -> None:
+    """The trajectory's title said "in 6000 steps" and the concentration's "within": both say
+    "within" the episode's length, in seconds in the active Brownian physics."""
+    trajectory = microswimmers.trajectory
+    assert trajectory is not None
+    seconds = trajectory.length * microswimmers.scenario.physics.step_s
+    reached = int(np.count_nonzero(trajectory.reached))
+    said = f"{reached} of 4 reached a cell within {seconds:.3g} s"
+    for figure in (trajectory_figure(microswimmers), concentration_figure(microswimmers)):
+        title = figure.axes[0].get_title() + figure.get_suptitle()
+        assert said in title, title
+        assert "steps" not in title.split(said)[1].split("\n")[0]
+
+
 def cell_spheres(result: SimulationResult) -> list[Poly3DCollection]:
     return [
         c
