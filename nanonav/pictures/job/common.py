@@ -113,7 +113,8 @@ def thin(path: NDArray[np.float64]) -> NDArray[np.float64]:
 
 def resolve_scale(result: SimulationResult, scale: ColourScale) -> Literal["linear", "log"]:
     """``scale``, with ``"auto"`` made linear for the Gaussian field and logarithmic for the
-    others, which span decades."""
+    others, which span decades (the concentration picture also takes a log axis for a Gaussian
+    field felt over decades: ``concentration.spans_decades``)."""
     if scale != "auto":
         return scale
     return "linear" if biomarker_of(result.scenario).model == "gaussian" else "log"

@@ -64,6 +64,17 @@ def searching_stats(trajectory: Trajectory) -> SearchingStats:
     return SearchingStats(trajectory.step, count, quartiles[0], quartiles[1])
 
 
+DECADES_FOR_LOG = 2  # positive values felt spanning this many powers of ten: a log axis
+
+
+def spans_decades(values: NDArray[np.float64]) -> bool:
+    """Whether the positive concentrations felt span ``DECADES_FOR_LOG`` powers of ten or more:
+    a Gaussian field felt far from its cells (the diffuse tumour) is flat at 0 on a linear axis
+    however it changes."""
+    felt = values[np.isfinite(values) & (values > 0)]
+    return felt.size > 1 and float(felt.max()) >= 10.0**DECADES_FOR_LOG * float(felt.min())
+
+
 def _concentration_label(log_scale: bool, unit: str) -> str:
     return f"biomarker concentration ({unit}{', log scale' if log_scale else ''})"
 
@@ -79,7 +90,7 @@ def concentration_figure(result: SimulationResult) -> Figure:
     how many still search, so that thousands of robots read as easily as two.
     """
     trajectory = evaluation_trajectory(result)
-    log_scale = resolve_scale(result, "auto") == "log"
+    log_scale = resolve_scale(result, "auto") == "log" or spans_decades(trajectory.concentration)
     fig = sized_figure("concentration")
     units = (
         length_unit(result.scenario), concentration_unit(result.scenario),

@@ -1,5 +1,7 @@
 """Concentration and distance (Figure 4): each robot only while it searches."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -61,3 +63,15 @@ def test_one_robot_keeps_the_papers_twin_axes_up_to_its_reach(single: Simulation
     (line,) = distance.get_lines()
     assert int(line.get_xdata()[-1]) == int(trajectory.robot_steps[0])
     assert f"reached a cell after {int(trajectory.robot_steps[0])} steps" in figure.get_suptitle()
+
+
+def test_a_gaussian_field_felt_over_decades_is_drawn_on_a_log_axis() -> None:
+    """The diffuse tumour's Gaussian field, felt far from its cells, spans decades and lay flat
+    at 0 on a linear axis: a log axis then; a field felt within one decade stays linear."""
+    trajectory = drifting_cell_and_three_robots()
+    far = replace(trajectory, concentration=np.exp(-(trajectory.distance**2) / 18.0))
+    near = replace(trajectory, concentration=1.0 + 0.1 * trajectory.distance)
+    for felt, scale in ((far, "log"), (near, "linear")):
+        figure = concentration_figure(result_of(felt, robots={"count": 3}))
+        assert figure.axes[1].get_yscale() == scale
+        assert ("log" in figure.axes[1].get_ylabel()) == (scale == "log")
