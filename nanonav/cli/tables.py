@@ -40,6 +40,30 @@ def plural(count: int, word: str) -> str:
     return f"{count} {word}{'s' if count != 1 else ''}"
 
 
+def policy_words(scenario: Mapping[str, Any]) -> str:
+    """What decides a job's robots: a policy sent to the service (``policy-3, sent``), the
+    table another job learned (``job 12's table``), else the scenario's policy, and a learner's
+    action set (``q_learning (behaviors)``)."""
+    source = scenario.get("policy_from")
+    if isinstance(source, str):
+        return f"{source}, sent"
+    if source is not None:
+        return f"job {source}'s table"
+    robots = scenario.get("robots") or {}
+    policy = str(robots.get("policy", ""))
+    if policy == "q_learning":
+        return f"{policy} ({(scenario.get('learning') or {}).get('actions', 'behaviors')})"
+    return policy
+
+
+def _decided_by(scenario: Mapping[str, Any]) -> str:
+    """``policy_words`` in one word for a list's column: policy-3, job-12, gradient."""
+    source = scenario.get("policy_from")
+    if source is not None:
+        return source if isinstance(source, str) else f"job-{source}"
+    return str((scenario.get("robots") or {}).get("policy", ""))
+
+
 def format_table(document: Mapping[str, Any]) -> str:
     """Table 1 of the paper as text, from a run's metrics document (``SimulationResult.to_dict``
     or ``GET /jobs/{id}/metrics``), with success rate, collisions and path efficiency, and for a
@@ -53,7 +77,7 @@ def format_table(document: Mapping[str, Any]) -> str:
     header = (
         f"Table 1: {scenario.get('preset') or 'custom scenario'}, seed {scenario['seed']}, "
         f"{plural(robots, 'robot')}, {plural(int(scenario['cells']['count']), 'cell')}, "
-        f"{scenario['robots']['policy']}, "
+        f"{policy_words(scenario)}, "
         f"{plural(int(scenario['learning']['episodes']), 'training episode')}, then "
         + (f"the mean over {plural(int(worlds), 'evaluation world')}" if worlds else "evaluation")
     )
@@ -200,7 +224,7 @@ def format_jobs(jobs: Sequence[Job]) -> str:
                 str(job.id),
                 job.status,
                 f"{100 * job.progress:.0f}%",
-                str(robots.get("policy", "")),
+                _decided_by(job.scenario),
                 str(robots.get("count", "")),
                 str(job.scenario.get("seed", "")),
                 "-" if job.study_id is None else str(job.study_id),

@@ -489,3 +489,16 @@ def test_set_gives_a_field_by_its_dotted_name_or_is_refused_naming_it(
     assert capsys.readouterr().err == (
         "nanonav submit: --set robots.count: robots is not a section\n"
     )
+
+
+def test_a_job_decided_by_a_policy_from_elsewhere_is_named_by_it() -> None:
+    """A job evaluating a sent policy was headed "q_learning, 0 training episodes"."""
+    from nanonav.cli.tables import _decided_by, policy_words
+
+    sent = {"robots": {"policy": "q_learning"}, "policy_from": "policy-3"}
+    learned = {"robots": {"policy": "q_learning"}, "policy_from": 12}
+    own = {"robots": {"policy": "q_learning"}, "learning": {"actions": "directions"}}
+    assert [policy_words(s) for s in (sent, learned, own)] == [
+        "policy-3, sent", "job 12's table", "q_learning (directions)"
+    ]  # fmt: skip
+    assert [_decided_by(s) for s in (sent, learned, own)] == ["policy-3", "job-12", "q_learning"]

@@ -379,3 +379,13 @@ def test_the_banner_says_what_the_workers_do_in_words_that_count(api: Api) -> No
     assert "1 preparing" in api.client.get("/ui/jobs").text
     api.store.worker_seen("box:1", started_at=datetime.now(UTC))
     assert '<p class="note warn">' not in api.client.get("/ui/jobs").text
+
+
+def test_the_jobs_list_names_the_policy_a_job_evaluates(api: Api) -> None:
+    """It said "q_learning (behaviors)" for a job that evaluates a policy sent from elsewhere."""
+    sent = send_policy(api.client, "behaviors", "none")
+    scenario = {"policy_from": sent["policy_from"], "learning": {"episodes": 0}}
+    assert api.client.post("/jobs", json=scenario).status_code == 202
+    page = api.client.get("/ui/jobs").text
+    assert f'<a href="/ui/policies/{sent["id"]}">{sent["policy_from"]}</a>, sent' in page
+    assert "q_learning (behaviors)" not in page
