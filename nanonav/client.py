@@ -567,6 +567,13 @@ class Client:
         params = {"format": "npz", "stride": stride}
         return self._request("GET", f"/jobs/{job_id}/trajectory", params=params).content
 
+    def trajectory_xyz(self, job_id: int, *, stride: int = 1) -> bytes:
+        """The evaluation episode as extended XYZ (a frame per ``stride``-th step: robots,
+        cells and obstacles, in the physics' units), which OVITO, ParaView, VMD and ASE open
+        (``nanonav.extxyz``)."""
+        params = {"format": "xyz", "stride": stride}
+        return self._request("GET", f"/jobs/{job_id}/trajectory", params=params).content
+
     def arrays(self, job_id: int, *, stride: int = 1) -> dict[str, NDArray[Any]]:
         """The evaluation episode's arrays (``robots`` is ``(steps, robots, 3)``, ...)."""
         blob = self.trajectory_npz(job_id, stride=stride)

@@ -246,7 +246,8 @@ def add_fetch(subcommands: Subcommands) -> None:
     fetch = subcommands.add_parser(
         "fetch",
         help="download a job's or a study's results into a directory",
-        description="Write a succeeded job's metrics.json, trajectory.npz, qtable.json and "
+        description="Write a succeeded job's metrics.json, trajectory.npz, trajectory.xyz "
+        "(extended XYZ, for OVITO, ParaView, VMD or ASE), qtable.json and "
         "every picture (<name>.png; qtable.png if it learned a Q-table) into DIR; or, with "
         "--study, a study's results.csv, results.parquet, study.json and its pictures; or, "
         "with --policy, a policy's policy.json (its table, which `nanonav policy` sends "
@@ -337,6 +338,7 @@ def _job_files(api: Client, job_id: int) -> Iterator[tuple[str, bytes]]:
         raise UsageError([f"job {job_id} has no results: {ended}{why}"])
     yield "metrics.json", _document(api.metrics(job_id))
     yield "trajectory.npz", api.trajectory_npz(job_id)
+    yield "trajectory.xyz", api.trajectory_xyz(job_id)
     if job.links.get("qtable"):
         yield "qtable.json", _document(api.qtable(job_id))
     plots = job.links.get("plots") or {}

@@ -16,6 +16,7 @@ from fastapi.responses import StreamingResponse
 from numpy.typing import NDArray
 
 from nanonav.engine import SimulationResult
+from nanonav.extxyz import xyz_frames
 from nanonav.pictures import job as pictures
 from nanonav.policy import greedy_table
 from nanonav.scenario import MAX_EXACT_INT, Policy, Scenario
@@ -227,8 +228,8 @@ def get_metrics(job_id: JobId, store: StoreDep, response: Response) -> Metrics:
     responses={
         **NOT_FOUND_OR_NOT_READY,
         200: {
-            "content": {"application/octet-stream": {}, "text/csv": {}},
-            "description": "JSON, or an .npz / .csv download with ?format=.",
+            "content": {"application/octet-stream": {}, "text/csv": {}, "chemical/x-xyz": {}},
+            "description": "JSON, or an .npz / .csv / extended .xyz download with ?format=.",
         },
     },
 )
@@ -237,13 +238,15 @@ def get_trajectory(
     store: StoreDep,
     settings: SettingsDep,
     stride: Annotated[int, Query(ge=1, le=1_000_000, description="Keep every N-th step.")] = 1,
-    format: Annotated[Literal["json", "npz", "csv"], Query()] = "json",
+    format: Annotated[Literal["json", "npz", "csv", "xyz"], Query()] = "json",
 ) -> Any:
     """The evaluation episode's paths, concentrations and distances, every ``stride`` steps.
 
     A JSON answer holds at most ``NANONAV_TRAJECTORY_JSON_VALUES`` numbers; a larger one is
     refused with 422 naming the stride that fits. ``npz`` is the stored file itself (at
-    stride 1) and CSV is streamed, so both work at any size."""
+    stride 1); CSV and ``xyz`` (extended XYZ, a frame per step with the robots, cells and
+    obstacles, for OVITO, ParaView, VMD or ASE: ``nanonav.extxyz``) are streamed, so all three
+    work at any size."""
     name = f"nanonav-job-{job_id}-trajectory"
     download = {"Content-Disposition": f'attachment; filename="{name}.{format}"', **IMMUTABLE}
     if format == "npz" and stride == 1:
@@ -258,6 +261,10 @@ def get_trajectory(
         return StreamingResponse(
             _csv_lines(strided), media_type="text/csv; charset=utf-8", headers=download
         )
+    if format == "xyz":
+        scenario = Scenario.model_validate(store.get(job_id).scenario)
+        frames = xyz_frames(arrays, scenario, rows)
+        return StreamingResponse(frames, media_type="chemical/x-xyz", headers=download)
     limit = settings.trajectory_json_values
     values = _json_values(arrays, len(rows))
     if values > limit:

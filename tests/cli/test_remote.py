@@ -15,6 +15,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+import ase.io
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
@@ -225,7 +226,8 @@ def test_fetch_writes_a_jobs_results(
     assert main(["fetch", str(job.id), "--out", str(out_dir), "--url", live_api.url]) == 0
     out = capsys.readouterr().out
     drawn = [n for n in JOB_PICTURES if n not in SWARM_PICTURES]  # lone robots: no treatment
-    names = ["metrics.json", "trajectory.npz", "qtable.json", *(f"{n}.png" for n in drawn)]
+    names = ["metrics.json", "trajectory.npz", "trajectory.xyz", "qtable.json",
+             *(f"{n}.png" for n in drawn)]  # fmt: skip
     assert sorted(p.name for p in out_dir.iterdir()) == sorted(names)
     lines = out.splitlines()
     assert lines[0] == f"Wrote {len(names)} files to {out_dir}:"
@@ -239,6 +241,11 @@ def test_fetch_writes_a_jobs_results(
         ]
     for name in drawn:
         assert imread(out_dir / f"{name}.png", format="png").ndim == 3
+    frames = ase.io.read(out_dir / "trajectory.xyz", index=":", format="extxyz")
+    with np.load(out_dir / "trajectory.npz", allow_pickle=False) as arrays:
+        assert len(frames) == arrays["step"].shape[0]
+        robots = [i for i, kind in enumerate(frames[-1].arrays["kind"]) if kind == "robot"]
+        assert np.allclose(frames[-1].positions[robots], arrays["robots"][-1])
 
 
 def test_fetch_of_a_swarm_job_writes_its_treatment_picture(

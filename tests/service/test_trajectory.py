@@ -7,9 +7,12 @@ import csv
 import io
 import threading
 
+import ase.io
 import httpx
 import numpy as np
+import pytest
 
+from nanonav.scenario import Scenario
 from nanonav.settings import Settings
 from nanonav.store import JobStatus, JobStore
 from nanonav.store.arrays import unpack
@@ -150,4 +153,56 @@ def test_a_swarm_trajectory_carries_cell_loads_deliveries_and_signals(sqlite_url
         assert claim is not None
         run_job(store, claim, settings, threading.Event())
         assert client.get(f"/jobs/{plain_id}/trajectory").json()["signals"] is None
+    store.close()
+
+
+def test_the_trajectory_as_extended_xyz_opens_in_ase_with_time_and_lengths_in_units(
+    sqlite_url: str,
+) -> None:
+    """A frame per recorded step (at the stride asked), the robots, cells and obstacles as
+    particles where the .npz has them, the box the cube, the time in seconds in the active
+    Brownian physics and in steps in the lattice: read back by ASE, the format's own reader."""
+    settings = Settings(database_url=sqlite_url)
+    upgrade(sqlite_url)
+    store = JobStore.from_url(sqlite_url)
+    brownian = {
+        "physics": {"model": "active_brownian"},
+        "robots": {"count": 3},
+        "learning": {"episodes": 0, "max_steps": 40},
+        "evaluation": {"worlds": 1},
+    }
+    lattice = {"robots": {"count": 2}, "learning": {"episodes": 0, "max_steps": 30},
+               "evaluation": {"worlds": 1}}  # fmt: skip
+    with serve(create_app(settings)) as url, httpx.Client(base_url=url, timeout=30) as client:
+        for scenario, unit in ((brownian, "s"), (lattice, "step")):
+            job_id = client.post("/jobs", json=scenario).json()["id"]
+            claim = store.claim("test", lease_s=30)
+            assert claim is not None
+            record = run_job(store, claim, settings, threading.Event())
+            assert record is not None and record.status is JobStatus.SUCCEEDED
+            resolved = Scenario.model_validate(client.get(f"/jobs/{job_id}").json()["scenario"])
+            arrays = store.trajectory(job_id)
+            answer = client.get(f"/jobs/{job_id}/trajectory", params={"format": "xyz",
+                                                                       "stride": 3})  # fmt: skip
+            assert answer.status_code == 200, answer.text
+            assert answer.headers["content-disposition"].endswith('-trajectory.xyz"')
+            frames = ase.io.read(io.StringIO(answer.text), index=":", format="extxyz")
+            rows = list(range(0, len(arrays["step"]), 3))
+            if rows[-1] != len(arrays["step"]) - 1:
+                rows.append(len(arrays["step"]) - 1)
+            assert len(frames) == len(rows)
+            step_s = resolved.physics.step_s if unit == "s" else 1.0
+            for frame, row in zip(frames, rows, strict=True):
+                kinds = list(frame.arrays["kind"])
+                robots, cells = kinds.count("robot"), kinds.count("cell")
+                assert (robots, cells) == (scenario["robots"]["count"], 1)
+                assert kinds.count("obstacle") == resolved.obstacles.count
+                assert list(frame.get_chemical_symbols()[:robots]) == ["N"] * robots
+                assert np.allclose(frame.positions[:robots], arrays["robots"][row])
+                assert np.allclose(frame.positions[robots : robots + 1], arrays["cells"][row])
+                assert frame.info["step"] == int(arrays["step"][row])
+                assert frame.info["time"] == pytest.approx(frame.info["step"] * step_s)
+                assert frame.info["time_unit"] == unit
+                assert not frame.pbc.any()
+                assert np.allclose(frame.cell.lengths(), [resolved.space.size] * 3)
     store.close()
