@@ -24,6 +24,7 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
+from matplotlib.text import Text
 from matplotlib.ticker import MaxNLocator, NullLocator
 from matplotlib.typing import LineStyleType
 from numpy.typing import NDArray
@@ -484,9 +485,18 @@ class HabitRow:
 
 
 def habits_png(rows: Sequence[HabitRow], *, title: str | None = None) -> bytes:
+    """``habits_figure`` as a PNG."""
+    return png(habits_figure(rows, title=title))
+
+
+NOTE_START = 1.01  # where a habit's note begins, in shares of seeds (the bars end at 1)
+NOTE_PAD_PX = 6.0  # between the longest note and the frame
+
+
+def habits_figure(rows: Sequence[HabitRow], *, title: str | None = None) -> Figure:
     """A horizontal bar per row, split by greedy action (a colour per action, the same in every
-    row) in proportion to the seeds that chose it, the note at the bar's end. No row: a panel
-    that says so."""
+    row) in proportion to the seeds that chose it, the note at the bar's end, the axis as long
+    as the longest note needs to stay inside the frame. No row: a panel that says so."""
     fig = new_figure(HABITS_WIDTH, HABIT_FIXED_IN + HABIT_ROW_IN * max(len(rows), 1))
     ax = fig.add_subplot()
     _style_axes(ax)
@@ -502,14 +512,31 @@ def habits_png(rows: Sequence[HabitRow], *, title: str | None = None) -> bytes:
         for action, share in row.shares.items():
             ax.barh(y, share, left=left, color=colours[action], edgecolor="white", height=0.7)
             left += share
-        ax.text(1.01, y, row.note, va="center", fontsize=_LEGEND_SIZE)
+    notes = [
+        ax.text(NOTE_START, y, row.note, va="center", fontsize=_LEGEND_SIZE)
+        for y, row in enumerate(rows)
+    ]
     if rows:
         ax.set_yticks(range(len(rows)), [r.label for r in rows], fontsize=_LEGEND_SIZE)
         ax.set_ylim(len(rows) - 0.5, -0.5)
-    ax.set_xlim(0.0, 1.5)  # room for the notes right of the bars
     ax.set_xticks([0.0, 0.25, 0.5, 0.75, 1.0])
     ax.set_xlabel("share of seeds whose greedy action it is", fontsize=_LABEL_SIZE)
     if title:
         fig.suptitle(title, fontsize=_TITLE_SIZE)
     _legend(fig, [Patch(facecolor=colours[a], label=a) for a in actions])
-    return png(fig)
+    ax.set_xlim(0.0, 1.5)
+    if notes:
+        _fit_notes(fig, ax, notes)
+    return fig
+
+
+def _fit_notes(fig: Figure, ax: Axes, notes: Sequence[Text]) -> None:
+    """Lengthen the x axis until the longest note, which starts at ``NOTE_START``, ends inside
+    the frame (a note of 30 seeds ran over it and off the image)."""
+    fig.draw_without_rendering()  # the layout first: it sets the frame's width
+    renderer = fig.canvas.get_renderer()  # type: ignore[attr-defined]
+    frame = ax.get_window_extent(renderer)
+    longest = max(note.get_window_extent(renderer).width for note in notes)
+    room = frame.width - NOTE_PAD_PX - longest
+    if room > 0:
+        ax.set_xlim(0.0, max(1.5, NOTE_START * frame.width / room))

@@ -253,3 +253,29 @@ def test_a_metric_that_cannot_be_negative_is_drawn_from_0(x: list[float | int | 
     image = decode(charts.metric_png("collisions", zero, x_label="obstacles",
                                      bounds=(0.0, np.inf)))  # fmt: skip
     assert size(image) == METRIC_SIZE
+
+
+def test_every_habit_note_ends_inside_the_frame_and_the_image() -> None:
+    """The note "..., 30 seeds" ran off the image and over the frame."""
+    shares = {"approach": 0.6, "explore": 0.4}
+    rows = [
+        charts.HabitRow(
+            f"robots.policy=q_learning\nstate {i}",
+            shares,
+            f"{27 + i}% of visits, mean gap 0.{i}3, 30 seeds",
+        )
+        for i in range(5)
+    ]
+    figure = charts.habits_figure(rows, title="a study")
+    figure.draw_without_rendering()
+    renderer = figure.canvas.get_renderer()  # type: ignore[attr-defined]
+    ax = figure.axes[0]
+    frame = ax.get_window_extent(renderer)
+    notes = [t for t in ax.texts if "seeds" in t.get_text()]
+    assert len(notes) == 5
+    for note in notes:
+        box = note.get_window_extent(renderer)
+        assert box.x1 <= frame.x1 and box.x1 <= figure.bbox.x1
+    assert ax.get_xlim()[0] == 0.0 and ax.get_xlim()[1] >= 1.5
+    image = decode(charts.habits_png(rows, title="a study"))
+    assert image.shape[1] == 1000
