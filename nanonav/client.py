@@ -37,7 +37,7 @@ from numpy.typing import NDArray
 import nanonav
 
 Status = Literal["queued", "running", "succeeded", "failed", "cancelled"]
-GridValue = bool | int | float | str
+GridValue = bool | int | float | str | None
 FINISHED: frozenset[str] = frozenset({"succeeded", "failed", "cancelled"})
 # A job's pictures by name: the path under /jobs/{id}/ and its query.
 JOB_PICTURES: dict[str, tuple[str, dict[str, str]]] = {

@@ -543,7 +543,7 @@ class Version(BaseModel):
 
 # ---------------------------------------------------------------- studies
 
-GridValue = bool | int | float | str
+GridValue = bool | int | float | str | None
 
 
 class JobCounts(BaseModel):

@@ -40,6 +40,11 @@ def plural(count: int, word: str) -> str:
     return f"{count} {word}{'s' if count != 1 else ''}"
 
 
+def grid_text(value: Any) -> str:
+    """A grid value in a table: null as the study's JSON says it, the rest as Python does."""
+    return "null" if value is None else str(value)
+
+
 def policy_words(scenario: Mapping[str, Any]) -> str:
     """What decides a job's robots: a policy sent to the service (``policy-3, sent``), the
     table another job learned (``job 12's table``), else the scenario's policy, and a learner's
@@ -156,7 +161,7 @@ def format_study(study: Study) -> str:
     for point in study.points:
         for i, metric in enumerate(study.metrics):
             found = point.metrics[metric]
-            where = [str(point.values[k]) if i == 0 else "" for k in keys]
+            where = [grid_text(point.values[k]) if i == 0 else "" for k in keys]
             rows.append(
                 (
                     *where,
@@ -178,8 +183,12 @@ def format_study(study: Study) -> str:
         for comparison in study.comparisons:
             for i, metric in enumerate(study.metrics):
                 diff = comparison.metrics[metric]
-                where = [str(comparison.values[k]) if i == 0 else "" for k in others]
-                pair = f"{comparison.method} - {comparison.baseline}" if i == 0 else ""
+                where = [grid_text(comparison.values[k]) if i == 0 else "" for k in others]
+                pair = (
+                    f"{grid_text(comparison.method)} - {grid_text(comparison.baseline)}"
+                    if i == 0
+                    else ""
+                )
                 rows.append(
                     (
                         *where,

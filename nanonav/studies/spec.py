@@ -26,20 +26,25 @@ from pydantic_core import InitErrorDetails, PydanticCustomError
 
 from nanonav.scenario import MAX_EXACT_INT, Scenario, whole
 
-GridValue = bool | int | float | str
+GridValue = bool | int | float | str | None
 
 
 def _scalar(value: Any) -> GridValue:
-    """One error for any value that is not a JSON scalar (not one per union member)."""
-    if isinstance(value, bool | int | str) or (isinstance(value, float) and math.isfinite(value)):
+    """One error for any value that is not a JSON scalar (not one per union member). null is
+    one: a field whose default is null (``cells.capacity``) is swept through it."""
+    if value is None or isinstance(value, bool | int | str):
         return value
-    raise ValueError("a grid value is a finite number, a string, true or false")
+    if isinstance(value, float) and math.isfinite(value):
+        return value
+    raise ValueError("a grid value is a finite number, a string, true, false or null")
 
 
 GridValueField = Annotated[
     GridValue,
     PlainValidator(_scalar),
-    WithJsonSchema({"anyOf": [{"type": "number"}, {"type": "string"}, {"type": "boolean"}]}),
+    WithJsonSchema(
+        {"anyOf": [{"type": "number"}, {"type": "string"}, {"type": "boolean"}, {"type": "null"}]}
+    ),
 ]
 MAX_GRID_VALUES = 100
 MAX_SEEDS = 10_000
@@ -62,17 +67,11 @@ GRID_KEYS = grid_keys()
 
 
 def _value_schema(key: str) -> dict[str, Any]:
-    """The JSON Schema of one grid key's values: its scenario field's type and bounds, without
-    null (a grid value is a number, a string, true or false)."""
+    """The JSON Schema of one grid key's values: its scenario field's type and bounds, null
+    among them where the field takes null."""
     model = GRID_KEYS[key] or Scenario
     field = model.model_json_schema()["properties"][key.rpartition(".")[2]]
-    kept = {k: v for k, v in field.items() if k not in ("title", "description", "default")}
-    branches = [b for b in kept.pop("anyOf", []) if b != {"type": "null"}]
-    if len(branches) == 1:
-        kept.update(branches[0])
-    elif branches:
-        kept["anyOf"] = branches
-    return kept
+    return {k: v for k, v in field.items() if k not in ("title", "description", "default")}
 
 
 def _grid_schema() -> dict[str, Any]:

@@ -3,9 +3,12 @@ value at fault, the job cap, idempotency, listing, cancelling, and what a job kn
 
 from __future__ import annotations
 
+import io
+import threading
 from typing import Any
 
 import httpx
+import pyarrow.parquet as pq
 import pytest
 
 from nanonav.settings import Settings
@@ -14,6 +17,7 @@ from nanonav.store.migrate import upgrade
 from service.app import create_app
 from tests.conftest import Api, serve
 from tests.service.test_api import assert_problem
+from worker.job import run_job
 
 GRID: dict[str, Any] = {
     "name": "policy x obstacles",
@@ -180,3 +184,33 @@ def test_a_new_study_table_lists_its_jobs_with_empty_metrics(api: Api) -> None:
     assert lines[0].startswith("job_id,seed,robots.policy,obstacles.count,status,total_steps")
     assert len(lines) == 13
     assert lines[1].split(",")[4] == "queued"
+
+
+def test_a_study_sweeps_a_field_through_null_and_says_null_everywhere(
+    api: Api, api_settings: Settings
+) -> None:
+    """cells.capacity: [null, 1], compared: queued, run, reported, tabled, drawn and shown."""
+    body = {
+        "base": {"robots": {"count": 2, "exclusion": True}, "cells": {"count": 2},
+                 "learning": {"episodes": 0, "max_steps": 30}, "evaluation": {"worlds": 1}},
+        "grid": {"cells.capacity": [None, 1]}, "seeds": [1, 2], "compare": "cells.capacity",
+    }  # fmt: skip
+    study = create(api, body)
+    while (claim := api.store.claim("test", lease_s=30)) is not None:
+        record = run_job(api.store, claim, api_settings, threading.Event())
+        assert record is not None and record.status is JobStatus.SUCCEEDED
+    found = api.client.get(f"/studies/{study['id']}").json()
+    assert [p["values"] for p in found["points"]] == [{"cells.capacity": None},
+                                                      {"cells.capacity": 1}]  # fmt: skip
+    [comparison] = found["comparisons"]
+    assert (comparison["baseline"], comparison["method"]) == (None, 1)
+    rows = api.client.get(f"/studies/{study['id']}/results.csv").text.splitlines()
+    assert sorted(row.split(",")[2] for row in rows[1:]) == ["", "", "1", "1"]
+    parquet = api.client.get(f"/studies/{study['id']}/results.csv", params={"format": "parquet"})
+    assert parquet.status_code == 200
+    column = pq.read_table(io.BytesIO(parquet.content)).column("cells.capacity").to_pylist()
+    assert sorted(column, key=str) == [1, 1, None, None]
+    page = api.client.get(f"/ui/studies/{study['id']}").text
+    assert "<td>null</td>" in page and "1 \u2212 null" in page
+    picture = api.client.get(f"/studies/{study['id']}/plots/success_rate.png")
+    assert picture.status_code == 200 and picture.content.startswith(b"\x89PNG")

@@ -5,6 +5,7 @@ from __future__ import annotations
 import pytest
 from pydantic import ValidationError
 
+from nanonav.scenario import Scenario
 from nanonav.studies.spec import GRID_KEYS, StudySpec, point_values, points
 
 
@@ -83,3 +84,21 @@ def test_a_study_sweeps_robot_radius_and_gets_a_fitting_step_at_each() -> None:
     for point in found:  # 60 s whatever the step
         ph = point.scenario.physics
         assert point.scenario.learning.max_steps * ph.step_s == pytest.approx(60.0, abs=ph.step_s)
+
+
+def test_a_field_whose_default_is_null_is_swept_through_null() -> None:
+    """{"cells.capacity": [null, 2]} was refused: null is a grid value where the field takes
+    it, and refused, naming the value, where it does not."""
+    swept = spec(grid={"cells.capacity": [None, 2], "physics.dt_s": [None, 0.01]},
+                 base={"physics": {"model": "active_brownian"}})  # fmt: skip
+    found = points(swept)
+    assert [p.scenario.cells.capacity for p in found] == [None, None, 2, 2]
+    assert [p.values["physics.dt_s"] for p in found] == [None, 0.01, None, 0.01]
+    # null is the field's own default: the step the physics chooses (here also 0.01 s)
+    assert found[0].scenario.physics.dt_s == Scenario.model_validate(swept.base).physics.dt_s
+    with pytest.raises(ValidationError) as raised:
+        points(spec(grid={"robots.count": [None, 2]}))
+    assert raised.value.errors()[0]["loc"] == ("grid", "robots.count", 0)
+    with pytest.raises(ValidationError) as raised:
+        spec(grid={"cells.capacity": [None, 2, None]})
+    assert raised.value.errors()[0]["loc"] == ("grid", "cells.capacity", 2)  # listed twice

@@ -72,6 +72,8 @@ def readable_key(key: str) -> str:
 
 
 def _readable_value(value: GridValue) -> str:
+    if value is None:
+        return "null"  # as the study's JSON says it
     if isinstance(value, bool):
         return "true" if value else "false"  # as the study's JSON says it
     return f"{value:g}" if isinstance(value, float) else str(value)
