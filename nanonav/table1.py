@@ -33,7 +33,8 @@ METRICS: tuple[tuple[str, str, Callable[[Any], str]], ...] = (
     ("Final Distance", "final_distance", number),
     ("Average Distance", "average_distance", number),
     ("Average Biomarker Concentration", "average_concentration", number),
-    ("Simulation Duration per World", "duration_s", seconds),
+    # the wall-clock time the machine took, not simulated time
+    ("Computing Time per World", "duration_s", seconds),
     ("Success Rate", "success_rate", percent),
     ("Collisions", "collisions", number),
     ("Path Efficiency", "path_efficiency", number),
@@ -68,6 +69,13 @@ def micrometres(value: Any) -> str:
     return number(value, suffix=" µm")
 
 
+# In the lattice: its lengths and the field's concentration have no physical unit, and say so
+LATTICE_LABELS: dict[str, str] = {
+    "final_distance": "Final Distance (length units)",
+    "average_distance": "Average Distance (length units)",
+    "average_concentration": "Average Biomarker Concentration (a.u.)",
+}
+
 # In the active Brownian physics: the same metrics with their units
 PHYSICAL: dict[str, tuple[str, Callable[[Any], str]]] = {
     "final_distance": ("Final Distance", micrometres),
@@ -80,7 +88,8 @@ def rows(document: Mapping[str, Any]) -> list[tuple[str, str, str]]:
     """(parameter, result, 95% interval over the evaluation worlds) for each Table 1 metric;
     the interval is empty when there is none (one world, or a metric without spread). In the
     active Brownian physics lengths are given in µm and concentrations in nM (each value with
-    its unit), and steps with how long one lasts."""
+    its unit), and steps with how long one lasts; in the lattice the labels say that lengths are
+    in its length units and concentrations arbitrary. The computing time is the machine's."""
     summary = document.get("summary") or {}
     uncertainty = document.get("uncertainty") or {}
     physics = (document.get("scenario") or {}).get("physics") or {}
@@ -89,6 +98,8 @@ def rows(document: Mapping[str, Any]) -> list[tuple[str, str, str]]:
     for label, key, show in METRICS:
         if physical and key in PHYSICAL:
             label, show = PHYSICAL[key]
+        elif not physical:
+            label = LATTICE_LABELS.get(key, label)
         if physical and key == "total_steps" and physics.get("dt_s"):
             label = f"Total Steps (of {physics['dt_s']:g} s)"
         spread = uncertainty.get(key) or {}

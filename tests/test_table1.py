@@ -40,14 +40,17 @@ def test_a_physical_concentration_keeps_its_digits_and_unit_in_the_interval() ->
     assert shown["Average Biomarker Concentration"] == ("2.3e-05 nM", "[1.04e-05 nM, 4.1e-05 nM]")
 
 
-def test_lattice_rows_are_the_papers() -> None:
+def test_lattice_rows_are_the_papers_with_their_units() -> None:
+    """The lattice's lengths and concentrations had no unit, and its wall-clock time read as
+    simulated time ("Simulation Duration per World 2.13e-05 seconds")."""
     document = {"summary": SUMMARY, "scenario": {"physics": {"model": "lattice"}}}
     labels = [label for label, _, _ in table1.rows(document)]
-    assert labels[:4] == [
+    assert labels[:5] == [
         "Total Steps",
-        "Final Distance",
-        "Average Distance",
-        "Average Biomarker Concentration",
+        "Final Distance (length units)",
+        "Average Distance (length units)",
+        "Average Biomarker Concentration (a.u.)",
+        "Computing Time per World",
     ]
     assert [label for label, _, _ in table1.rows({"summary": SUMMARY})] == labels
 

@@ -32,7 +32,7 @@ pytestmark = pytest.mark.timeout(180)
 WAIT_S = 60.0
 TABLE_1 = (
     "Total Steps", "Final Distance", "Average Distance", "Average Biomarker Concentration",
-    "Simulation Duration per World", "Success Rate", "Collisions", "Path Efficiency",
+    "Computing Time per World", "Success Rate", "Collisions", "Path Efficiency",
 )  # fmt: skip
 
 

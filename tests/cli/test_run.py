@@ -27,7 +27,7 @@ TABLE_ROWS = (
     "Final Distance",
     "Average Distance",
     "Average Biomarker Concentration",
-    "Simulation Duration per World",
+    "Computing Time per World",
     "Success Rate",
     "Collisions",
     "Path Efficiency",
