@@ -249,6 +249,7 @@ class Difference:
     method: str = "student_t"
     p_holm: float | None = None  # p_value adjusted by Holm's over the metric's comparisons
     holm_comparisons: int | None = None  # how many comparisons p_holm adjusts over
+    resolvable: float | None = None  # the smallest difference these seeds find, 80 % power
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -19,7 +19,7 @@ from functools import lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import stats
+from scipy import optimize, stats
 
 DEFAULT_CONFIDENCE = 0.95
 # Up to this many non-zero differences without ties, the exact null distribution of the
@@ -469,6 +469,40 @@ def pairs_to_resolve(
         else:
             low = middle
     return int(high)
+
+
+RESOLVING_POWER = 0.8
+"""The chance a study's seeds find a difference it calls resolvable: 80 %, the usual design
+target."""
+
+
+def resolvable_difference(
+    sd: float | None, n: int, *, alpha: float = 0.05, power: float = RESOLVING_POWER
+) -> float | None:
+    """The smallest mean paired difference that ``n`` seeds, whose differences spread by
+    ``sd``, find at two-sided level ``alpha`` with chance ``power``: the paired t-test's, from
+    the noncentral t distribution (the Wilcoxon test the reports use needs about 5 % more seeds
+    for normal differences, its asymptotic efficiency being 0.955). A study resolving a smaller
+    difference needs more seeds, about ``n * (this / difference)**2``. None with fewer than two
+    seeds or no spread to go by."""
+    if sd is None or n < 2 or not math.isfinite(sd) or sd <= 0:
+        return None
+    if not (0 < alpha < 1 and 0 < power < 1):
+        raise ValueError("alpha and power must lie strictly between 0 and 1")
+    df = n - 1
+    critical = float(stats.t.ppf(1 - alpha / 2, df))
+
+    def short_of_power(effect: float) -> float:
+        shift = effect * math.sqrt(n)
+        upper = float(stats.nct.sf(critical, df, shift))
+        # the wrong tail: scipy gives NaN where it is far below 1e-30 (large shifts)
+        lower = float(stats.nct.cdf(-critical, df, shift))
+        return upper + (lower if math.isfinite(lower) else 0.0) - power
+
+    high = 1.0
+    while short_of_power(high) < 0:
+        high *= 2.0
+    return float(optimize.brentq(short_of_power, 0.0, high, xtol=1e-10)) * sd
 
 
 def holm(p_values: Sequence[float]) -> list[float]:

@@ -607,6 +607,13 @@ class Difference(BaseModel):
     holm_comparisons: int | None = Field(
         None, description="How many comparisons of this metric p_holm adjusts over."
     )
+    resolvable: float | None = Field(
+        None,
+        description="The smallest mean difference these seeds find with 80 % chance at "
+        "two-sided 0.05, given the differences' spread (sd): a paired power calculation by "
+        "the t-test. A smaller difference needs about n * (resolvable / difference)^2 seeds. "
+        "Null with fewer than two seeds or no spread.",
+    )
     method: str = Field("student_t", description="How the interval was made: Student t.")
 
 

@@ -195,10 +195,11 @@ def comparisons(
                     if (a := _value(treated[seed], metric)) is not None
                     and (b := _value(baseline[seed], metric)) is not None
                 ]
-                compared[metric] = stats.paired(
-                    [a for a, _ in pairs], [b for _, b in pairs]
-                ).to_dict()
-                families[metric].append(compared[metric])
+                found_pair = stats.paired([a for a, _ in pairs], [b for _, b in pairs])
+                difference: dict[str, Any] = found_pair.to_dict()
+                difference["resolvable"] = stats.resolvable_difference(found_pair.sd, found_pair.n)
+                compared[metric] = difference
+                families[metric].append(difference)
             found.append(
                 {
                     "values": dict(others),

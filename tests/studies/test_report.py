@@ -96,6 +96,10 @@ def test_each_metrics_p_values_are_adjusted_by_holm_over_its_comparisons() -> No
     assert all(d["p_holm"] >= d["p_value"] for d in family)
     assert min(d["p_holm"] for d in family) == pytest.approx(min(1.0, 4 * min(raw)))
     assert "Holm" in found["adjustment"]
+    # and the smallest difference these 8 seeds would find, from each comparison's spread
+    for difference in family:
+        assert difference["resolvable"] == stats.resolvable_difference(difference["sd"], 8)
+        assert difference["resolvable"] > 0
     # a metric no method moves: every raw p-value is 1, and so is every adjusted one
     assert [c["metrics"]["success_rate"]["p_holm"] for c in found["comparisons"]] == [1.0] * 4
 
