@@ -42,7 +42,8 @@ def test_a_finished_jobs_page_reads_without_javascript(api: Api, api_settings: S
     assert page.status_code == 200 and page.headers["content-type"].startswith("text/html")
     html = page.text
     assert f"Job #{job_id}" in html and "succeeded" in html
-    for label in ("Total Steps", "Final Distance", "Average Distance", "Success Rate"):
+    for label in ("Total Steps", "Final Distance (length units)",
+                  "Average Distance (length units)", "Success Rate"):  # fmt: skip
         assert f'<th scope="row">{label}</th>' in html, label
     assert "mean over 2 evaluation worlds" in html
     for picture in ("plots/learning.png", "heatmap.png?plane=xy", "plots/qtable.png"):
