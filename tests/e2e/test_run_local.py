@@ -20,7 +20,7 @@ import pytest
 from nanonav.run_local import port_in_use
 from nanonav.store import JobStatus, JobStore
 from nanonav.store.migrate import upgrade
-from tests.processes import clean_environment, free_port
+from tests.processes import child_of, clean_environment, free_port
 
 pytestmark = pytest.mark.timeout(240)
 TINY: dict[str, Any] = {"robots": {"count": 2}, "learning": {"episodes": 1, "max_steps": 40}}
@@ -276,7 +276,7 @@ def test_run_local_starts_another_worker_when_its_worker_dies(tmp_path: Path) ->
     with running(command, log, clean_environment(PORT=str(port)), cwd=tmp_path) as process:
         deadline = time.monotonic() + 180
         until_logged(process, log, "a worker is ready", deadline)
-        worker = worker_of(process.pid)
+        worker = child_of(process.pid, b"-m\0worker\0")
         os.kill(worker, signal.SIGKILL)
         until_logged(process, log, "the worker was killed by SIGKILL (out of memory?); "
                      "starting another", deadline)  # fmt: skip
@@ -285,21 +285,6 @@ def test_run_local_starts_another_worker_when_its_worker_dies(tmp_path: Path) ->
             while client.get(f"/jobs/{job_id}").json()["status"] != "succeeded":
                 assert time.monotonic() < deadline, log.read_text()
                 time.sleep(0.1)
-        assert worker_of(process.pid) != worker
+        assert child_of(process.pid, b"-m\0worker\0") != worker
         process.send_signal(signal.SIGINT)
         assert process.wait(timeout=30) == 0
-
-
-def worker_of(parent: int) -> int:
-    """The process id of the ``python -m worker`` that ``parent`` runs now."""
-    for entry in Path("/proc").iterdir():
-        if not entry.name.isdigit():
-            continue
-        try:
-            stat = (entry / "stat").read_text()
-            command = (entry / "cmdline").read_bytes().split(b"\0")
-        except OSError:
-            continue
-        if int(stat.rsplit(")", 1)[1].split()[1]) == parent and command[1:3] == [b"-m", b"worker"]:
-            return int(entry.name)
-    raise AssertionError(f"process {parent} runs no worker")
