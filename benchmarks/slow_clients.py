@@ -250,10 +250,13 @@ async def slow_part(
            f"answers they got: {', '.join(answers) or 'none'}")  # fmt: skip
 
 
-def drive_progress(database_url: str, job_id: int, stop: threading.Event) -> None:
+def drive_progress(
+    database_url: str, job_id: int, claimed: threading.Event, stop: threading.Event
+) -> None:
     """Run the job as a worker would, as far as its streams can tell: progress 4 times a s."""
     store = JobStore.from_url(database_url)
     claim = store.claim("benchmark", lease_s=600)
+    claimed.set()
     assert claim is not None and claim.job.id == job_id
     step = 0
     while not stop.wait(0.25):
@@ -266,8 +269,12 @@ def drive_progress(database_url: str, job_id: int, stop: threading.Event) -> Non
 async def open_stream(port: int, path: str, source: str) -> tuple[str, asyncio.Task[Slow] | None]:
     """A stream's status, and for a 200 the task that keeps reading it."""
     reader, writer = await asyncio.open_connection(HOST, port, local_addr=(source, 0))
-    writer.write(f"GET {path} HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n".encode())
-    head = await asyncio.wait_for(reader.readuntil(b"\r\n\r\n"), 30)
+    try:
+        writer.write(f"GET {path} HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n".encode())
+        head = await asyncio.wait_for(reader.readuntil(b"\r\n\r\n"), 30)
+    except BaseException:
+        writer.close()  # else it is closed when collected, after its loop, with a warning
+        raise
     status = head[9:12].decode()
     if status != "200":
         writer.close()
@@ -286,9 +293,14 @@ async def open_stream(port: int, path: str, source: str) -> tuple[str, asyncio.T
 async def streams_part(service: Api, job_id: int, args: argparse.Namespace, script: Path) -> None:
     port = int(service.url.rsplit(":", 1)[1])
     sources = [f"127.0.0.{2 + i}" for i in range(args.addresses)]
-    stop = threading.Event()
-    driver = threading.Thread(target=drive_progress, args=(service.database_url, job_id, stop))
+    claimed, stop = threading.Event(), threading.Event()
+    driver = threading.Thread(
+        target=drive_progress, args=(service.database_url, job_id, claimed, stop)
+    )
     driver.start()
+    # the driver's first connection and claim hold the interpreter in turns with this loop:
+    # streams open once it runs, as a worker's progress would come from another process
+    await asyncio.to_thread(claimed.wait, 30)
     statuses: dict[str, int] = {}
     tasks: list[asyncio.Task[Slow]] = []
     try:

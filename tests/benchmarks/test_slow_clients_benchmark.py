@@ -25,11 +25,13 @@ def test_slow_clients_benchmark_prints_latencies_and_what_is_left_open(
         if in_ci():
             pytest.fail("wrk must be installed in CI; .ci/run installs it")
         pytest.skip("wrk is not installed (apt-get install wrk)")
-    argv = ["--parts", "headers,streams", "--slow-headers", "20", "--streams", "30",
-            "--addresses", "2", "--wrk-s", "1", "--hold-s", "2.5",
-            "--api-env", "NANONAV_API_HEADER_TIMEOUT_S=1",
-            "--api-env", "NANONAV_EVENTS_STREAMS_PER_KEY=10"]  # fmt: skip
-    assert slow_clients_benchmark.main(argv) == 0
+    common = ["--slow-headers", "20", "--streams", "30", "--addresses", "2", "--wrk-s", "1",
+              "--hold-s", "2.5", "--api-env", "NANONAV_EVENTS_STREAMS_PER_KEY=10"]  # fmt: skip
+    # A head timeout of 1 s cuts the slow headers within the hold; the streams are measured
+    # under the default, as a client of a loaded machine may take a second to send its head.
+    headers = ["--parts", "headers", "--api-env", "NANONAV_API_HEADER_TIMEOUT_S=1"]
+    assert slow_clients_benchmark.main([*headers, *common]) == 0
+    assert slow_clients_benchmark.main(["--parts", "streams", *common]) == 0
     out = capsys.readouterr().out
     assert "0 of 20 still open after 2.5 s; answers they got: 408" in out, out
     assert "answered: 20 200, 10 503; 20 open while measured" in out, out
