@@ -304,6 +304,7 @@ class Study(StudySummary):
     interval: str  # how the confidence intervals are computed
     test: str  # how the paired p-values are computed
     adjustment: str = ""  # how they are adjusted for the study's many comparisons
+    resolution: str = ""  # what each difference's resolvable is
 
     @classmethod
     def of(cls, data: dict[str, Any]) -> Study:
@@ -334,6 +335,7 @@ class Study(StudySummary):
             interval=str(data.get("interval", "")),
             test=str(data.get("test", "")),
             adjustment=str(data.get("adjustment", "")),
+            resolution=str(data.get("resolution", "")),
         )
 
 
@@ -684,6 +686,27 @@ class Client:
         """The study's table as a Parquet file (ids and seeds int64, metrics float64)."""
         params = {"format": "parquet"}
         return self._request("GET", f"/studies/{study_id}/results.csv", params=params).content
+
+    def study_comparisons_csv(self, study_id: int) -> bytes:
+        """The study's paired comparisons as the server writes them: a row per difference
+        (method against baseline, in one metric) with p_value beside p_holm; no rows unless
+        the study compares."""
+        return self._request("GET", f"/studies/{study_id}/comparisons.csv").content
+
+    def study_comparisons(self, study_id: int) -> list[dict[str, Any]]:
+        """The study's paired comparisons, a dict per difference, cells parsed as
+        ``parse_cell`` says."""
+        text = self.study_comparisons_csv(study_id).decode("utf-8")
+        return [
+            {key: parse_cell(value) for key, value in row.items()}
+            for row in csv.DictReader(io.StringIO(text))
+        ]
+
+    def study_comparisons_parquet(self, study_id: int) -> bytes:
+        """The study's paired comparisons as a Parquet file (n and holm_comparisons int64,
+        the statistics float64)."""
+        params = {"format": "parquet"}
+        return self._request("GET", f"/studies/{study_id}/comparisons.csv", params=params).content
 
     def study_picture(self, study_id: int, name: str) -> bytes:
         """A PNG: a metric's means and CIs across the grid (``name`` is a metric, as in

@@ -474,6 +474,11 @@ def pairs_to_resolve(
 RESOLVING_POWER = 0.8
 """The chance a study's seeds find a difference it calls resolvable: 80 %, the usual design
 target."""
+RESOLVABLE_METHOD = (
+    "the smallest mean difference these seeds find with 80 % chance at two-sided 0.05, given "
+    "the differences' spread (the paired t-test's power); a difference d needs about "
+    "n * (resolves / d)^2 seeds"
+)
 
 
 def resolvable_difference(

@@ -639,6 +639,10 @@ class StudyLinks(BaseModel):
     jobs: str
     results_csv: str
     results_parquet: str
+    comparisons_csv: str = Field(
+        description="The paired comparisons as a table, a row per difference (add "
+        "?format=parquet for Parquet); no rows unless the study compares."
+    )
     plots: dict[str, str]
 
 
@@ -671,6 +675,9 @@ class Study(StudySummary):
     test: str = Field(description="How the paired p-values are computed.")
     adjustment: str = Field(
         "", description="How the p-values are adjusted for the study's many comparisons."
+    )
+    resolution: str = Field(
+        "", description="What each paired difference's 'resolvable' is, and how it is found."
     )
     metrics: list[str]
     points: list[StudyPoint]

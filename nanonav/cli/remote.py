@@ -249,7 +249,8 @@ def add_fetch(subcommands: Subcommands) -> None:
         description="Write a succeeded job's metrics.json, trajectory.npz, trajectory.xyz "
         "(extended XYZ, for OVITO, ParaView, VMD or ASE), qtable.json and "
         "every picture (<name>.png; qtable.png if it learned a Q-table) into DIR; or, with "
-        "--study, a study's results.csv, results.parquet, study.json and its pictures; or, "
+        "--study, a study's results.csv, results.parquet, comparisons.csv and comparisons.parquet "
+        "(if it compares), study.json and its pictures; or, "
         "with --policy, a policy's policy.json (its table, which `nanonav policy` sends "
         "again; a network's labels) and a network's policy.onnx. DIR is created if missing.",
     )
@@ -359,6 +360,9 @@ def _study_files(api: Client, study_id: int) -> Iterator[tuple[str, bytes]]:
         )
     yield "results.csv", api.study_csv(study_id)
     yield "results.parquet", api.study_parquet(study_id)
+    if study.spec.get("compare") is not None:
+        yield "comparisons.csv", api.study_comparisons_csv(study_id)
+        yield "comparisons.parquet", api.study_comparisons_parquet(study_id)
     yield "study.json", _document(study.raw)
     for name in study.links.get("plots") or {}:
         yield f"{name}.png", api.study_picture(study_id, name)

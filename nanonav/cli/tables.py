@@ -199,16 +199,21 @@ def format_study(study: Study) -> str:
                         _interval(diff.ci_low, diff.ci_high),
                         _p(diff.p_value),
                         _p(diff.p_holm),
+                        _figure(diff.resolvable),
                     )
                 )
-        columns = (*others, str(compared), "metric", "n", "mean diff", "95% CI", "p", "p Holm")
-        right = (*(False for _ in others), False, False, True, True, True, True, True)
+        columns = (
+            *others, str(compared), "metric", "n", "mean diff", "95% CI", "p", "p Holm", "resolves"
+        )  # fmt: skip
+        right = (*(False for _ in others), False, False, True, True, True, True, True, True)
         lines += ["", f"Paired differences, seed by seed ({compared}):"]
         lines += text_table(columns, rows, align_right=right)
         if study.test:
             lines += textwrap.wrap(f"p-values: {study.test}", WIDTH)
         if study.adjustment:
             lines += textwrap.wrap(f"Adjusted: {study.adjustment}", WIDTH)
+        if study.resolution:
+            lines += textwrap.wrap(f"resolves: {study.resolution}", WIDTH)
     if study.jobs.failed:
         lines += ["", f"{plural(study.jobs.failed, 'failed job')} left out of the means"]
     return "\n".join(lines)

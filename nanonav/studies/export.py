@@ -1,4 +1,5 @@
-"""A study's table (a row per job) as CSV or Parquet bytes, column types kept in Parquet."""
+"""A study's tables (a row per job; a row per paired difference) as CSV or Parquet bytes, column
+types kept in Parquet."""
 
 from __future__ import annotations
 
@@ -11,9 +12,11 @@ from typing import Any
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from nanonav.studies.report import METRICS, WALL_CLOCK_COLUMN
+from nanonav.studies.report import DIFFERENCE_COLUMNS, METRICS, WALL_CLOCK_COLUMN
 
 PARQUET_MEDIA_TYPE = "application/vnd.apache.parquet"
+# Columns of whole numbers in either table, typed so even when every cell is empty.
+COUNTS = ("job_id", "seed", "n", "holm_comparisons")
 
 
 def to_csv(columns: Sequence[str], rows: Sequence[dict[str, Any]]) -> str:
@@ -31,8 +34,8 @@ def _cell(value: Any) -> Any:
 
 
 def to_parquet(columns: Sequence[str], rows: Sequence[dict[str, Any]]) -> bytes:
-    """The table as a Parquet file: ids and seeds int64, metrics float64 (null when missing),
-    grid values as their own type when a column has one, else strings."""
+    """The table as a Parquet file: ids, seeds and counts int64, metrics and statistics float64
+    (null when missing), grid values as their own type when a column has one, else strings."""
     arrays = [_column(k, rows) for k in columns]
     table = pa.Table.from_arrays(arrays, names=list(columns))
     out = io.BytesIO()
@@ -49,9 +52,9 @@ def _column(column: str, rows: Sequence[dict[str, Any]]) -> pa.Array:
 
 
 def _type(column: str, rows: Sequence[dict[str, Any]]) -> pa.DataType:
-    if column in ("job_id", "seed"):
+    if column in COUNTS:
         return pa.int64()
-    if column in METRICS or column == WALL_CLOCK_COLUMN:
+    if column in METRICS or column == WALL_CLOCK_COLUMN or column in DIFFERENCE_COLUMNS:
         return pa.float64()
     values = [row[column] for row in rows if row.get(column) is not None]
     if values and all(isinstance(v, bool) for v in values):

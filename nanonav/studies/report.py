@@ -159,6 +159,7 @@ def report(
         "interval": stats.CONFIDENCE_METHOD,
         "test": stats.TEST_METHOD,
         "adjustment": stats.ADJUSTMENT_METHOD,
+        "resolution": stats.RESOLVABLE_METHOD,
         "points": point_rows,
         "comparisons": comparisons(spec, values, by_point, metrics),
     }
@@ -249,3 +250,43 @@ def table_columns(spec: StudySpec, jobs: Sequence[JobOutcome]) -> list[str]:
     """The table's columns: ids, grid keys, status, the metrics a study of ``jobs`` reports and
     the wall-clock time per world, last."""
     return ["job_id", "seed", *spec.grid, "status", *reported_metrics(jobs), WALL_CLOCK_COLUMN]
+
+
+DIFFERENCE_COLUMNS = (
+    "n",
+    "mean_difference",
+    "sd",
+    "ci_low",
+    "ci_high",
+    "p_value",
+    "p_holm",
+    "holm_comparisons",
+    "resolvable",
+)
+"""What the comparisons' table gives of each paired difference, in the report's own names."""
+
+
+def comparison_columns(spec: StudySpec) -> list[str]:
+    """The comparisons' table's columns: the other grid keys, the compared key (its value, the
+    method), ``baseline`` (the value it is measured against), ``metric``, then each
+    ``DIFFERENCE_COLUMNS``."""
+    others = [key for key in spec.grid if key != spec.compare]
+    compared = [] if spec.compare is None else [spec.compare, "baseline"]
+    return [*others, *compared, "metric", *DIFFERENCE_COLUMNS]
+
+
+def comparison_table(spec: StudySpec, found: Mapping[str, Any]) -> list[dict[str, Any]]:
+    """A row per paired difference of the report ``found`` (a method against the baseline at
+    one combination of the other keys, in one metric), in the report's order: what a reader of
+    a paper's table takes in, each p-value beside its Holm-adjusted one; none unless the study
+    compares."""
+    rows = []
+    for comparison in found.get("comparisons", []):
+        for metric, difference in comparison["metrics"].items():
+            row: dict[str, Any] = dict(comparison["values"])
+            row[str(spec.compare)] = comparison["method"]
+            row["baseline"] = comparison["baseline"]
+            row["metric"] = metric
+            row.update({column: difference.get(column) for column in DIFFERENCE_COLUMNS})
+            rows.append(row)
+    return rows

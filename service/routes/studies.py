@@ -26,6 +26,8 @@ from nanonav.studies import export
 from nanonav.studies.report import (
     JobOutcome,
     StudyStatus,
+    comparison_columns,
+    comparison_table,
     report,
     status_counts,
     status_of,
@@ -286,9 +288,47 @@ def get_results(
     loaded = _Loaded.of(studies, studies.get(study_id))
     rows = table(point_values(loaded.spec), loaded.outcomes)
     columns = table_columns(loaded.spec, loaded.outcomes)
-    name = f"nanonav-study-{study_id}"
-    # A finished study's table never changes; an unfinished one's is asked for again.
-    caching = IMMUTABLE if loaded.done else {}
+    return _table_file(f"nanonav-study-{study_id}", format, columns, rows, done=loaded.done)
+
+
+@router.get(
+    "/{study_id}/comparisons.csv",
+    response_class=Response,
+    responses={
+        200: {
+            "content": {"text/csv": {}, export.PARQUET_MEDIA_TYPE: {}},
+            "description": "A row per paired difference: the other grid values, the method "
+            "and its baseline, the metric, n, the mean difference with its 95% interval, "
+            "p_value beside p_holm and holm_comparisons, and resolvable.",
+        },
+        **problems(404, 422),
+    },
+)
+def get_comparisons(
+    study_id: StudyId,
+    studies: StudiesDep,
+    format: Annotated[Literal["csv", "parquet"], Query()] = "csv",
+) -> Response:
+    """The study's paired comparisons as a table, as its report gives them (no rows unless the
+    study compares): each p-value beside Holm's adjustment of it, for a paper's table."""
+    loaded = _Loaded.of(studies, studies.get(study_id))
+    rows = comparison_table(loaded.spec, loaded.report(studies))
+    columns = comparison_columns(loaded.spec)
+    name = f"nanonav-study-{study_id}-comparisons"
+    return _table_file(name, format, columns, rows, done=loaded.done)
+
+
+def _table_file(
+    name: str,
+    format: Literal["csv", "parquet"],
+    columns: list[str],
+    rows: list[dict[str, Any]],
+    *,
+    done: bool,
+) -> Response:
+    """A table as the file asked for, named ``name``; a finished study's never changes, an
+    unfinished one's is asked for again."""
+    caching = IMMUTABLE if done else {}
     if format == "parquet":
         return Response(
             export.to_parquet(columns, rows),
@@ -472,5 +512,6 @@ def _links(study_id: int, plots: tuple[str, ...]) -> StudyLinks:
         jobs=f"/jobs?study={study_id}",
         results_csv=f"{base}/results.csv",
         results_parquet=f"{base}/results.csv?format=parquet",
+        comparisons_csv=f"{base}/comparisons.csv",
         plots={name: f"{base}/plots/{name}.png" for name in plots},
     )

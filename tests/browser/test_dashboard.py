@@ -171,6 +171,14 @@ def test_a_study_launched_from_the_form_fills_in_its_table(page: Page, site: Sit
     study_id = page.url.rsplit("/", 1)[1]
     table = httpx.get(f"{site.url}/studies/{study_id}/results.csv").text
     assert len(table.splitlines()) == 1 + 12
+    # the comparisons' own table, linked; each n says what difference its seeds resolve
+    link = page.locator("a[href$='/comparisons.csv']")
+    expect(link).to_have_count(1)
+    compared = httpx.get(f"{site.url}{link.get_attribute('href')}").text.splitlines()
+    assert compared[0].endswith("p_value,p_holm,holm_comparisons,resolvable")
+    assert len(compared) > 2  # two obstacle counts, each metric a row
+    resolves = page.locator("#comparisons-table span.n[title]").first.get_attribute("title")
+    assert resolves is not None and "seeds find a mean difference of" in resolves, resolves
     screenshot(page, "study")
 
 

@@ -176,12 +176,16 @@ def test_study_wait_prints_intervals_paired_differences_and_failures(
     assert pair[4] == "2"
     assert difference.mean_difference is not None
     assert float(pair[5]) == pytest.approx(difference.mean_difference, 1e-3, abs=1e-9)
-    assert difference.p_value is not None and float(pair[-2]) == round(difference.p_value, 3)
+    assert difference.p_value is not None and float(pair[-3]) == round(difference.p_value, 3)
     # one comparison of each metric: Holm's adjustment leaves it as it is
     assert difference.p_holm == difference.p_value and difference.holm_comparisons == 1
-    assert float(pair[-1]) == round(difference.p_value, 3)
+    assert float(pair[-2]) == round(difference.p_value, 3)
+    # the smallest difference its two seeds resolve, from their spread
+    assert difference.resolvable is not None
+    assert float(pair[-1].replace(",", "")) == pytest.approx(difference.resolvable, 1e-3)
     assert lines[lines.index("Paired differences, seed by seed (robots.policy):") + 1].split()[
-        -2:] == ["p", "Holm"]  # fmt: skip
+        -3:] == ["p", "Holm", "resolves"]  # fmt: skip
+    assert any(line.startswith("resolves: the smallest mean difference") for line in lines)
 
     assert main(["study", "--id", str(study.id), "--url", live_api.url]) == 0
     shown = capsys.readouterr().out
@@ -295,11 +299,13 @@ def test_fetch_writes_a_studys_table_and_pictures(
     assert (code, err) == (0, "")
     pictures = [f"{name}.png" for name in study.links["plots"]]
     assert "learning.png" in pictures and "total_steps.png" in pictures
-    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
-        ["results.csv", "results.parquet", "study.json", *pictures]
-    )
-    assert out.startswith(f"Wrote {3 + len(pictures)} files to {tmp_path}:\n")
+    tables = ["results.csv", "results.parquet", "comparisons.csv", "comparisons.parquet"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([*tables, "study.json", *pictures])
+    assert out.startswith(f"Wrote {5 + len(pictures)} files to {tmp_path}:\n")
     assert (tmp_path / "results.csv").read_bytes() == api.study_csv(study.id)
+    assert (tmp_path / "comparisons.csv").read_bytes() == api.study_comparisons_csv(study.id)
+    compared = pq.read_table(tmp_path / "comparisons.parquet").to_pylist()
+    assert len(compared) == len(study.metrics)  # one method against the baseline, per metric
     table = pq.read_table(tmp_path / "results.parquet").to_pylist()
     assert [row["job_id"] for row in table] == [row["job_id"] for row in api.study_table(study.id)]
     assert json.loads((tmp_path / "study.json").read_text())["points"] == study.raw["points"]

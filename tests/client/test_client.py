@@ -198,6 +198,20 @@ def test_a_study_of_two_policies_by_two_seeds(api: Client, tmp_path: Path) -> No
     assert [row["job_id"] for row in parquet] == [row["job_id"] for row in table]
     assert [row["total_steps"] for row in parquet] == [row["total_steps"] for row in table]
 
+    # the paired comparisons, a row per metric of gradient against q_learning
+    compared = api.study_comparisons(study.id)
+    assert [row["metric"] for row in compared] == list(study.metrics)
+    for row in compared:
+        difference = study.comparisons[0].metrics[str(row["metric"])]
+        assert (row["robots.policy"], row["baseline"]) == ("gradient", "q_learning")
+        assert row["n"] == difference.n == 2
+        assert row["p_value"] == difference.p_value and row["p_holm"] == difference.p_holm
+        assert row["resolvable"] == difference.resolvable
+    in_parquet = pq.read_table(io.BytesIO(api.study_comparisons_parquet(study.id))).to_pylist()
+    assert [(r["metric"], r["mean_difference"]) for r in in_parquet] == [
+        (r["metric"], r["mean_difference"]) for r in compared
+    ]
+
     image = decode_png(api.study_picture(study.id, "total_steps"))
     assert image[..., :3].std() > 0.05
 

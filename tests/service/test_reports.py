@@ -74,7 +74,15 @@ def fresh_report(polled: Polled) -> dict[str, Any]:
 def statistics(answer: dict[str, Any]) -> dict[str, Any]:
     return {
         key: answer[key]
-        for key in ("metrics", "interval", "test", "adjustment", "points", "comparisons")
+        for key in (
+            "metrics",
+            "interval",
+            "test",
+            "adjustment",
+            "resolution",
+            "points",
+            "comparisons",
+        )
     }
 
 

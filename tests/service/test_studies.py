@@ -3,6 +3,7 @@ value at fault, the job cap, idempotency, listing, cancelling, and what a job kn
 
 from __future__ import annotations
 
+import csv
 import io
 import threading
 from typing import Any
@@ -184,6 +185,59 @@ def test_a_new_study_table_lists_its_jobs_with_empty_metrics(api: Api) -> None:
     assert lines[0].startswith("job_id,seed,robots.policy,obstacles.count,status,total_steps")
     assert len(lines) == 13
     assert lines[1].split(",")[4] == "queued"
+
+
+def test_the_comparisons_table_gives_each_difference_with_its_holm_p_beside_its_own(
+    api: Api, api_settings: Settings
+) -> None:
+    """Two policies against q_learning at two obstacle counts: four comparisons of each metric,
+    each a row of the table with the report's numbers, in CSV and in Parquet."""
+    body = {
+        **GRID,
+        "base": {"robots": {"count": 1}, "learning": {"episodes": 1, "max_steps": 40},
+                 "evaluation": {"worlds": 1}},
+        "grid": {"robots.policy": ["q_learning", "gradient", "random"], "obstacles.count": [0, 5]},
+    }  # fmt: skip
+    study = create(api, body)
+    path = f"/studies/{study['id']}/comparisons.csv"
+    assert study["links"]["comparisons_csv"] == path
+    while (claim := api.store.claim("test", lease_s=30)) is not None:
+        record = run_job(api.store, claim, api_settings, threading.Event())
+        assert record is not None and record.status is JobStatus.SUCCEEDED
+    found = api.client.get(f"/studies/{study['id']}").json()
+    answer = api.client.get(path)
+    assert answer.status_code == 200 and answer.headers["content-type"].startswith("text/csv")
+    rows = list(csv.DictReader(io.StringIO(answer.text)))
+    assert list(rows[0]) == [
+        "obstacles.count", "robots.policy", "baseline", "metric", "n", "mean_difference", "sd",
+        "ci_low", "ci_high", "p_value", "p_holm", "holm_comparisons", "resolvable",
+    ]  # fmt: skip
+    expected = [
+        (comparison, metric, difference)
+        for comparison in found["comparisons"]
+        for metric, difference in comparison["metrics"].items()
+    ]
+    assert len(rows) == len(expected) == 4 * len(found["metrics"])
+    for row, (comparison, metric, difference) in zip(rows, expected, strict=True):
+        assert row["obstacles.count"] == str(comparison["values"]["obstacles.count"])
+        assert (row["robots.policy"], row["baseline"]) == (comparison["method"], "q_learning")
+        assert row["metric"] == metric and int(row["n"]) == difference["n"] == 3
+        for column in ("mean_difference", "p_value", "p_holm", "resolvable"):
+            value = difference[column]
+            assert row[column] == ("" if value is None else repr(value)), column
+        if difference["p_value"] is not None:
+            assert int(row["holm_comparisons"]) == 4
+    parquet = api.client.get(path, params={"format": "parquet"})
+    table = pq.read_table(io.BytesIO(parquet.content))
+    assert str(table.schema.field("n").type) == "int64"
+    assert str(table.schema.field("p_holm").type) == "double"
+    assert table.column("metric").to_pylist() == [row["metric"] for row in rows]
+    # a study that compares nothing has a table of no rows; an unknown one is 404
+    plain = create(api, {**body, "compare": None})
+    lines = api.client.get(f"/studies/{plain['id']}/comparisons.csv").text.splitlines()
+    assert lines == ["robots.policy,obstacles.count,metric,n,mean_difference,sd,ci_low,"
+                     "ci_high,p_value,p_holm,holm_comparisons,resolvable"]  # fmt: skip
+    assert_problem(api.client.get("/studies/999/comparisons.csv"), 404)
 
 
 def test_a_study_sweeps_a_field_through_null_and_says_null_everywhere(

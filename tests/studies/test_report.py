@@ -96,6 +96,7 @@ def test_each_metrics_p_values_are_adjusted_by_holm_over_its_comparisons() -> No
     assert all(d["p_holm"] >= d["p_value"] for d in family)
     assert min(d["p_holm"] for d in family) == pytest.approx(min(1.0, 4 * min(raw)))
     assert "Holm" in found["adjustment"]
+    assert "80 %" in found["resolution"]
     # and the smallest difference these 8 seeds would find, from each comparison's spread
     for difference in family:
         assert difference["resolvable"] == stats.resolvable_difference(difference["sd"], 8)
