@@ -148,11 +148,13 @@ def test_another_key_gets_404_for_every_route_of_a_job_and_a_study_it_did_not_ma
     assert stored.owner == owner_of(KEY_A) and KEY_A not in stored.owner
     job_paths = [
         f"/jobs/{job}", f"/jobs/{job}/metrics", f"/jobs/{job}/trajectory",
-        f"/jobs/{job}/trajectory?format=npz", f"/jobs/{job}/qtable", f"/jobs/{job}/callback",
+        f"/jobs/{job}/trajectory?format=npz", f"/jobs/{job}/trajectory?format=xyz",
+        f"/jobs/{job}/qtable", f"/jobs/{job}/callback",
         f"/jobs/{job}/heatmap.png", f"/jobs/{job}/plots/learning.png", f"/jobs/{job}/events",
     ]  # fmt: skip
     study_paths = [
-        f"/studies/{study}", f"/studies/{study}/results.csv", f"/studies/{study}/callback",
+        f"/studies/{study}", f"/studies/{study}/results.csv",
+        f"/studies/{study}/comparisons.csv", f"/studies/{study}/callback",
         f"/studies/{study}/plots/learning.png", f"/studies/{study}/events",
         f"/jobs?study={study}",
     ]  # fmt: skip
