@@ -38,10 +38,13 @@ ENV_STEPS = 20
 STARTS = {
     "nanonav run": "from nanonav.cli import main; raise SystemExit(main(['run', '--preset', "
     "'paper-single', '--out', {out!r}]))",
-    "NanoNavEnv": "import numpy as np; from nanonav.env import NanoNavEnv; "
-    "env = NanoNavEnv({{'preset': 'tumour-microswimmers'}}); env.reset(seed=0); "
-    "rng = np.random.default_rng(0); "
-    f"[env.step(env.action_space.sample()) for _ in range({ENV_STEPS})]",
+    # random actions, drawn from a seeded space; an episode that ends is begun again
+    "NanoNavEnv": "from nanonav.env import NanoNavEnv\n"
+    "env = NanoNavEnv({{'preset': 'tumour-microswimmers'}}); env.reset(seed=0)\n"
+    "env.action_space.seed(0)\n"
+    f"for _ in range({ENV_STEPS}):\n"
+    "    _, _, ended, cut, _ = env.step(env.action_space.sample())\n"
+    "    if ended or cut: env.reset()",
     "network policy": "import sys; sys.path.insert(0, {benchmarks!r}); "
     "from network_policy import mlp; "
     "from nanonav.engine.worlds import action_labels, observation_of; "

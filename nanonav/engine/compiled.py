@@ -1,5 +1,5 @@
-"""How the engine's loops are compiled: ``uncounted``, numba without reference counting, and
-``inlined``, compiled once and inlined by LLVM into every caller.
+"""How the engine's loops are compiled: ``uncounted``, numba without reference counting,
+``counted``, with it, and ``inlined``, compiled once and inlined by LLVM into every caller.
 
 A counted function increments and decrements an array's reference count, an atomic call each,
 for every view it makes and every member it takes from a NamedTuple, and a counted function
@@ -17,6 +17,9 @@ engine's first compile (308 s and 3.2 GB for ``simulate``; 59 s and 0.7 GB inlin
 as fast to run, ``benchmarks/first_start.py``). An inlined function's own code is only linked
 (``_LinkedOnly``): numba would optimise it with all it calls, then make it machine code, at
 every level of the calls, where the function Python calls optimises and compiles it all once.
+What is not inlined, as what runs once an episode or only for some robots (``uncounted``,
+``counted``), is linked into its callers the same way and optimised there (``linked``), not
+inlined by force; Python's calls to it (the tests') run a copy compiled whole (``CalledWhole``).
 A numba-inlined function remains where the inlined code must take its caller's floating-point
 flags (``fields.sample`` in ``sample_many``, whose contraction the field's digests hold) or
 returns what only an inlined call may (``generators.generator_at``).
@@ -105,6 +108,53 @@ def uncounted(function: _F) -> _F:
     every array it views."""
     options: dict[str, Any] = {"cache": True, "error_model": "numpy", "_nrt": False}
     return cast(_F, njit(**options)(function))
+
+
+def episodic(function: _F) -> _F:
+    """``uncounted``, for what runs once an episode or a run, from compiled code: its compiled
+    callers link its code and optimise it once with theirs (``linked``); called from Python
+    (the tests do), a whole compiled copy of it runs."""
+    return linked(error_model="numpy", _nrt=False)(function)
+
+
+def episodic_counted(function: _F) -> _F:
+    """``episodic`` with reference counting."""
+    return linked(error_model="numpy")(function)
+
+
+def linked(**options: Any) -> Callable[[_F], _F]:
+    """A decorator: the function compiled under numba's ``options``, its code linked into its
+    compiled callers and optimised there, once, with theirs (not inlined by force: LLVM
+    decides), and compiled whole, kept on disk, for calls from Python (``CalledWhole``).
+    Numba made machine code of each such function and optimised it anew in every caller."""
+
+    def decorate(function: _F) -> _F:
+        only = {**options, "no_cpython_wrapper": True, "pipeline_class": _LinkOnlyCompiler}
+        dispatcher = njit(**only)(function)
+        dispatcher.__class__ = CalledWhole
+        dispatcher.whole_options = {**options, "cache": True}
+        return cast(_F, dispatcher)
+
+    return decorate
+
+
+class CalledWhole(CPUDispatcher):
+    """A function whose compiled callers link its code (it has no machine code of its own,
+    and no wrapper for Python); a call from Python runs a copy compiled whole, made at the
+    first such call."""
+
+    whole_options: dict[str, Any]
+
+    @property
+    def whole(self) -> CPUDispatcher:
+        """The copy compiled whole, for Python's calls."""
+        found = self.__dict__.get("_whole")
+        if found is None:
+            found = self.__dict__["_whole"] = njit(**self.whole_options)(self.py_func)
+        return cast(CPUDispatcher, found)
+
+    def __call__(self, *args: Any, **kwargs: Any) -> Any:
+        return self.whole(*args, **kwargs)
 
 
 class CompiledOnly(CPUDispatcher):

@@ -17,7 +17,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from nanonav.engine import treatment
-from nanonav.engine.compiled import inlined, uncounted
+from nanonav.engine.compiled import episodic, episodic_counted, inlined
 from nanonav.engine.contacts import rebuild
 from nanonav.engine.dynamics.lattice import nearest, redraw_emitters
 from nanonav.engine.fields import SAMPLED_GAUSSIAN, place_sources
@@ -60,7 +60,7 @@ from nanonav.engine.state import (
 from nanonav.engine.world import draw_world
 
 
-@njit(cache=True, error_model="numpy")
+@episodic_counted
 def observe(p: KernelParams, sim: Sim, t: int, final: bool, record: bool) -> None:
     """Measure the true field and distance at every robot after step ``t`` and add them to the
     per-robot sums of robots still moving at ``t``; if ``record``, store a history row every
@@ -106,7 +106,7 @@ def observe(p: KernelParams, sim: Sim, t: int, final: bool, record: bool) -> Non
         rec.step[row] = t
 
 
-@uncounted
+@episodic
 def begin_episode(
     p: KernelParams, world_rng: np.random.Generator, rng: np.random.Generator, sim: Sim,
     evaluating: bool, record: bool,
@@ -165,7 +165,7 @@ def over(p: KernelParams, tr: Treatment, s: Swarm, t: int) -> bool:
     return p.capacity > 0 and treatment.untreated(tr.treated_at) == 0
 
 
-@njit(cache=True, error_model="numpy")
+@episodic_counted
 def tally_evaluation(
     s: Swarm, so: Social, tr: Treatment, out: NDArray[np.float64], cells: NDArray[np.int64]
 ) -> None:
@@ -263,7 +263,7 @@ def run(
     counters[STEP] = t
 
 
-@uncounted
+@episodic
 def _steps(
     p: KernelParams, epsilon: float, learning: bool, evaluating: bool, record: bool,
     rng: np.random.Generator, sim: Sim, lrn: Learner, t: int, budget: int,

@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 
 from nanonav.engine import communication as radio_room
 from nanonav.engine import treatment
-from nanonav.engine.compiled import inlined, uncounted
+from nanonav.engine.compiled import episodic, inlined, uncounted
 from nanonav.engine.contacts import CellList, bumped_back, relist
 from nanonav.engine.dynamics import brownian, lattice
 from nanonav.engine.fields import SAMPLED_GAUSSIAN, place_sources, place_treated
@@ -595,7 +595,7 @@ def _heard(p: KernelParams, rng: np.random.Generator, sim: Sim, i: int) -> int:
     return radio_room.received(p, net, sim.so.prev_signal[i])
 
 
-@uncounted
+@episodic
 def learn_at_limit(p: KernelParams, rng: np.random.Generator, sim: Sim, lrn: Learner) -> None:
     """The step limit ended the episode: every robot's waiting transition is bootstrapped from
     the state it ended in (not terminal)."""

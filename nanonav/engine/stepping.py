@@ -22,7 +22,7 @@ from numba import njit
 from numba.typed import List
 from numpy.typing import NDArray
 
-from nanonav.engine.compiled import inlined, uncounted
+from nanonav.engine.compiled import episodic, inlined
 from nanonav.engine.contacts import CellList
 from nanonav.engine.generators import generator_at
 from nanonav.engine.kernel import begin_episode, observe, over
@@ -106,7 +106,7 @@ def _next_turn(p: KernelParams, rng: np.random.Generator, sim: Sim, first: int) 
         i = 0
 
 
-@uncounted
+@episodic
 def reset_world(
     p: KernelParams, world_rng: np.random.Generator, rng: np.random.Generator, sim: Sim
 ) -> int:
@@ -307,7 +307,7 @@ def step_worlds(
                      advance)  # fmt: skip
 
 
-@uncounted
+@episodic
 def _step_all(
     p: KernelParams, batch: Sim, world_handles: NDArray[np.uint64], handles: NDArray[np.uint64],
     due: NDArray[np.int64], actions: NDArray[np.int64], turns: NDArray[np.float64],

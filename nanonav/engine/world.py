@@ -12,7 +12,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from nanonav.engine.compiled import inlined, uncounted
+from nanonav.engine.compiled import episodic, inlined
 from nanonav.engine.contacts import CellList, first_within, relist
 from nanonav.engine.state import KernelParams, Swarm, World
 from nanonav.scenario import Scenario, ScenarioError
@@ -55,7 +55,7 @@ def _clear(point: NDArray[np.float64], others: NDArray[np.float64], distance: fl
     return True
 
 
-@uncounted
+@episodic
 def draw_world(
     p: KernelParams, rng: np.random.Generator, w: World, s: Swarm, near: CellList,
     everyone: NDArray[np.bool_],
