@@ -769,10 +769,10 @@ class Client:
             body["name"] = name
         return Policy.of(self._json("POST", "/policies", json=body, key=idempotency_key))
 
-    def policy(self, policy_id: int) -> PolicyDetail:
-        """A policy with its table: ``states``, ``actions``, ``values`` and ``greedy``; or a
-        network's ``observation``, ``actions``, ``model_bytes`` and cost (``raw`` is the
-        answer as it came)."""
+    def policy(self, policy_id: int | str) -> PolicyDetail:
+        """A policy, by its id or its name (``policy-3``), with its table: ``states``,
+        ``actions``, ``values`` and ``greedy``; or a network's ``observation``, ``actions``,
+        ``model_bytes`` and cost (``raw`` is the answer as it came)."""
         return PolicyDetail.of(self._json("GET", f"/policies/{policy_id}"))
 
     def network_model(self, policy_id: int) -> bytes:

@@ -29,8 +29,10 @@ from nanonav.client import (
     JOB_PICTURES,
     QTABLE_PICTURES,
     SWARM_PICTURES,
+    ApiError,
     Client,
     Job,
+    Policy,
     Status,
     Study,
 )
@@ -155,8 +157,22 @@ def _submit(args: argparse.Namespace) -> int:
         if job.status != "succeeded":
             raise Failed([f"job {job.id} {job.status}" + (f": {job.error}" if job.error else "")])
         print()
-        print(format_table(api.metrics(job.id)))
+        print(format_table(api.metrics(job.id), sent_policy(api, job.scenario)))
     return EXIT_OK
+
+
+def sent_policy(api: Client, scenario: dict[str, Any]) -> Policy | None:
+    """The policy sent to the service that ``scenario``'s ``policy_from`` names, to name it by
+    its name and kind; None for any other, or one deleted since."""
+    source = scenario.get("policy_from")
+    if not isinstance(source, str):
+        return None
+    try:
+        return api.policy(source)
+    except ApiError as error:
+        if error.status == 404:
+            return None
+        raise
 
 
 def _job_words(job: Job) -> str:

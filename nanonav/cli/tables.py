@@ -45,13 +45,17 @@ def grid_text(value: Any) -> str:
     return "null" if value is None else str(value)
 
 
-def policy_words(scenario: Mapping[str, Any]) -> str:
-    """What decides a job's robots: a policy sent to the service (``policy-3, sent``), the
-    table another job learned (``job 12's table``), else the scenario's policy, and a learner's
-    action set (``q_learning (behaviors)``)."""
+def policy_words(scenario: Mapping[str, Any], sent: Policy | None = None) -> str:
+    """What decides a job's robots: a policy sent to the service (``policy-3 "chemotaxis", a
+    network sent`` when ``sent`` is its record, else ``policy-3, sent``), the table another job
+    learned (``job 12's table``), else the scenario's policy, and a learner's action set
+    (``q_learning (behaviors)``)."""
     source = scenario.get("policy_from")
     if isinstance(source, str):
-        return f"{source}, sent"
+        if sent is None:
+            return f"{source}, sent"
+        named = f' "{sent.name}"' if sent.name else ""
+        return f"{source}{named}, a {sent.kind} sent"
     if source is not None:
         return f"job {source}'s table"
     robots = scenario.get("robots") or {}
@@ -69,10 +73,11 @@ def _decided_by(scenario: Mapping[str, Any]) -> str:
     return str((scenario.get("robots") or {}).get("policy", ""))
 
 
-def format_table(document: Mapping[str, Any]) -> str:
+def format_table(document: Mapping[str, Any], sent: Policy | None = None) -> str:
     """Table 1 of the paper as text, from a run's metrics document (``SimulationResult.to_dict``
     or ``GET /jobs/{id}/metrics``), with success rate, collisions and path efficiency, and for a
-    swarm a per-robot table (the first ``MAX_ROBOT_ROWS`` robots)."""
+    swarm a per-robot table (the first ``MAX_ROBOT_ROWS`` robots); ``sent``, the policy its
+    ``policy_from`` names, if it was sent to the service, to name it in the heading."""
     scenario = document["scenario"]
     summary = document.get("summary") or {}
     robots_rows = document.get("robots") or []
@@ -82,7 +87,7 @@ def format_table(document: Mapping[str, Any]) -> str:
     header = (
         f"Table 1: {scenario.get('preset') or 'custom scenario'}, seed {scenario['seed']}, "
         f"{plural(robots, 'robot')}, {plural(int(scenario['cells']['count']), 'cell')}, "
-        f"{policy_words(scenario)}, "
+        f"{policy_words(scenario, sent)}, "
         f"{plural(int(scenario['learning']['episodes']), 'training episode')}, then "
         + (f"the mean over {plural(int(worlds), 'evaluation world')}" if worlds else "evaluation")
     )

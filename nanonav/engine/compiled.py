@@ -1,5 +1,6 @@
-"""How the engine's loops are compiled: ``uncounted``, numba without reference counting,
-``counted``, with it, and ``inlined``, compiled once and inlined by LLVM into every caller.
+"""How the engine's loops are compiled: ``uncounted``, numba without reference counting;
+``episodic``, the same linked into its callers; and ``inlined``, compiled once and inlined by
+LLVM into every caller.
 
 A counted function increments and decrements an array's reference count, an atomic call each,
 for every view it makes and every member it takes from a NamedTuple, and a counted function
@@ -17,9 +18,11 @@ engine's first compile (308 s and 3.2 GB for ``simulate``; 59 s and 0.7 GB inlin
 as fast to run, ``benchmarks/first_start.py``). An inlined function's own code is only linked
 (``_LinkedOnly``): numba would optimise it with all it calls, then make it machine code, at
 every level of the calls, where the function Python calls optimises and compiles it all once.
-What is not inlined, as what runs once an episode or only for some robots (``uncounted``,
-``counted``), is linked into its callers the same way and optimised there (``linked``), not
-inlined by force; Python's calls to it (the tests') run a copy compiled whole (``CalledWhole``).
+What runs once an episode or once a call, from compiled code only (``episodic``), is linked
+into its callers the same way and optimised there (``linked``), not inlined by force; Python's
+calls to it (the tests') run a copy compiled whole (``CalledWhole``). What runs for each robot
+and is not inlined stays ``uncounted``, optimised alone and again in its callers: linked only,
+it ran about 5 % slower.
 A numba-inlined function remains where the inlined code must take its caller's floating-point
 flags (``fields.sample`` in ``sample_many``, whose contraction the field's digests hold) or
 returns what only an inlined call may (``generators.generator_at``).

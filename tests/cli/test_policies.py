@@ -46,11 +46,15 @@ def test_a_fetched_jobs_table_is_sent_listed_evaluated_fetched_and_deleted(
         assert sent.values == client.qtable(job.id)["values"]
         assert sent.name == "job 31"
 
-        evaluated = client.submit(
+        # evaluated through nanonav submit, whose Table 1 names it by its name and kind
+        scenario = tmp_path / "evaluate.json"
+        scenario.write_text(json.dumps(
             {**TINY, "seed": 31, "learning": {"episodes": 0, "max_steps": 60},
              "policy_from": policy_from}
-        )  # fmt: skip
-        assert client.wait(evaluated.id, poll_s=0.05, timeout_s=WAIT_S).status == "succeeded"
+        ))  # fmt: skip
+        assert main(["submit", str(scenario), "--wait", *url]) == 0
+        heading = capsys.readouterr().out.splitlines()[2]
+        assert f'{policy_from} "job 31", a table sent, 0 training episodes' in heading, heading
 
         assert main(["policies", "--limit", "5", *url]) == 0
         listed = capsys.readouterr().out.splitlines()

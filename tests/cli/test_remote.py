@@ -13,7 +13,8 @@ import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from types import SimpleNamespace
+from typing import Any, cast
 
 import ase.io
 import numpy as np
@@ -22,7 +23,7 @@ import pytest
 from matplotlib.image import imread
 
 from nanonav.cli import main
-from nanonav.client import JOB_PICTURES, SWARM_PICTURES, Client, Job, Study
+from nanonav.client import JOB_PICTURES, SWARM_PICTURES, Client, Job, Policy, Study
 from nanonav.engine import qlearning
 from tests.client.test_client import CROWDED, LONG, STUDY, TINY
 from tests.conftest import LiveApi
@@ -515,3 +516,9 @@ def test_a_job_decided_by_a_policy_from_elsewhere_is_named_by_it() -> None:
         "policy-3, sent", "job 12's table", "q_learning (directions)"
     ]  # fmt: skip
     assert [_decided_by(s) for s in (sent, learned, own)] == ["policy-3", "job-12", "q_learning"]
+    # with the sent policy's record at hand, by its name and kind too
+    record = SimpleNamespace(name="chemotaxis net", kind="network")
+    assert policy_words(sent, cast(Policy, record)) == 'policy-3 "chemotaxis net", a network sent'
+    assert policy_words(sent, cast(Policy, SimpleNamespace(name=None, kind="table"))) == (
+        "policy-3, a table sent"
+    )

@@ -64,9 +64,9 @@ def _scaled_norm(x: Any) -> float:
 
 
 def test_a_linked_function_is_optimised_in_its_callers_and_called_whole_from_python() -> None:
-    """``episodic`` and ``episodic_counted``: a compiled caller links the function's code (no machine
-    code of its own, so it is optimised once, with the caller's); Python calls a copy compiled
-    whole, which computes the same."""
+    """``episodic`` and ``episodic_counted``: a compiled caller links the function's code (no
+    machine code of its own, so it is optimised once, with the caller's); Python calls a copy
+    compiled whole, which computes the same."""
     x = np.arange(4.0)
     assert _scaled_norm(x) == pytest.approx(2.0 * np.sqrt(14.0))
     for function in (_scaled, _norm):
