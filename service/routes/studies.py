@@ -307,15 +307,18 @@ def get_results(
 def get_comparisons(
     study_id: StudyId,
     studies: StudiesDep,
+    reports: ReportsDep,
     format: Annotated[Literal["csv", "parquet"], Query()] = "csv",
 ) -> Response:
-    """The study's paired comparisons as a table, as its report gives them (no rows unless the
-    study compares): each p-value beside Holm's adjustment of it, for a paper's table."""
-    loaded = _Loaded.of(studies, studies.get(study_id))
-    rows = comparison_table(loaded.spec, loaded.report(studies))
-    columns = comparison_columns(loaded.spec)
+    """The study's paired comparisons as a table, as GET /studies/{id} reports them (no rows
+    unless the study compares): each p-value beside Holm's adjustment of it, for a paper's
+    table. The report is the kept one, or the one polls share: no job is read for it."""
+    study = study_answer(studies, reports, studies.get(study_id))
+    spec = StudySpec.model_validate(study.spec)
+    rows = comparison_table(spec, study.model_dump(include={"comparisons"}))
     name = f"nanonav-study-{study_id}-comparisons"
-    return _table_file(name, format, columns, rows, done=loaded.done)
+    done = study.status in FINISHED
+    return _table_file(name, format, comparison_columns(spec), rows, done=done)
 
 
 def _table_file(
