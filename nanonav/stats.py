@@ -18,8 +18,8 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
+import scipy  # its submodules load when first used: an API process starts without them
 from numpy.typing import NDArray
-from scipy import optimize, stats
 
 DEFAULT_CONFIDENCE = 0.95
 # Up to this many non-zero differences without ties, the exact null distribution of the
@@ -187,7 +187,7 @@ def _expit(x: float) -> float:
 def _wilson(p: float, n: float, confidence: float) -> tuple[float, float]:
     """The Wilson score interval of a proportion ``p`` of ``n`` outcomes (``n`` may be an
     effective number, not a whole one)."""
-    z = float(stats.norm.ppf(0.5 + confidence / 2))
+    z = float(scipy.stats.norm.ppf(0.5 + confidence / 2))
     centre = (p + z * z / (2 * n)) / (1 + z * z / n)
     half = z / (1 + z * z / n) * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n))
     return max(0.0, centre - half), min(1.0, centre + half)
@@ -271,7 +271,7 @@ def describe_share(
     binomial = mean * (1.0 - mean)
     effective = total
     if spread > 0.0 and binomial > 0.0:
-        z = float(stats.norm.ppf(0.5 + confidence / 2))
+        z = float(scipy.stats.norm.ppf(0.5 + confidence / 2))
         t = _t_quantile(0.5 + confidence / 2, k - 1)
         effective = min(total, binomial / spread * (z / t) ** 2)
     low, high = _wilson(mean, effective, confidence)
@@ -281,7 +281,7 @@ def describe_share(
 @lru_cache(maxsize=1024)
 def _t_quantile(p: float, df: int) -> float:
     """Student t quantile; studies ask for the same few thousands of times."""
-    return float(stats.t.ppf(p, df))
+    return float(scipy.stats.t.ppf(p, df))
 
 
 def _average_ranks(values: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -357,7 +357,7 @@ def _signed_rank_p(nonzero: NDArray[np.float64]) -> float:
             total: NDArray[np.float64] = np.sum(np.where(signed > 0, ranks, 0.0), axis=axis)
             return total
 
-        p = stats.permutation_test(
+        p = scipy.stats.permutation_test(
             (nonzero,),
             positive_rank_sum,
             permutation_type="samples",
@@ -366,7 +366,7 @@ def _signed_rank_p(nonzero: NDArray[np.float64]) -> float:
             alternative="two-sided",
         ).pvalue
     else:
-        p = stats.wilcoxon(nonzero, method="asymptotic").pvalue
+        p = scipy.stats.wilcoxon(nonzero, method="asymptotic").pvalue
     return min(float(p), 1.0)
 
 
@@ -449,10 +449,11 @@ def pairs_to_resolve(
     def achieved(n: int) -> float:
         critical = _t_quantile((1.0 + confidence) / 2.0, n - 1)
         shift = abs(mean_difference) * math.sqrt(n) / sd
-        return float(stats.nct.sf(critical, n - 1, shift) + stats.nct.cdf(-critical, n - 1, shift))
+        nct = scipy.stats.nct
+        return float(nct.sf(critical, n - 1, shift) + nct.cdf(-critical, n - 1, shift))
 
     # the normal approximation brackets the answer; bisection finds the exact n
-    z = stats.norm.ppf((1.0 + confidence) / 2.0) + stats.norm.ppf(power)
+    z = scipy.stats.norm.ppf((1.0 + confidence) / 2.0) + scipy.stats.norm.ppf(power)
     normal = (z * sd / abs(mean_difference)) ** 2  # the t test needs at least this many
     if normal > most:
         return None
@@ -495,19 +496,19 @@ def resolvable_difference(
     if not (0 < alpha < 1 and 0 < power < 1):
         raise ValueError("alpha and power must lie strictly between 0 and 1")
     df = n - 1
-    critical = float(stats.t.ppf(1 - alpha / 2, df))
+    critical = float(scipy.stats.t.ppf(1 - alpha / 2, df))
 
     def short_of_power(effect: float) -> float:
         shift = effect * math.sqrt(n)
-        upper = float(stats.nct.sf(critical, df, shift))
+        upper = float(scipy.stats.nct.sf(critical, df, shift))
         # the wrong tail: scipy gives NaN where it is far below 1e-30 (large shifts)
-        lower = float(stats.nct.cdf(-critical, df, shift))
+        lower = float(scipy.stats.nct.cdf(-critical, df, shift))
         return upper + (lower if math.isfinite(lower) else 0.0) - power
 
     high = 1.0
     while short_of_power(high) < 0:
         high *= 2.0
-    return float(optimize.brentq(short_of_power, 0.0, high, xtol=1e-10)) * sd
+    return float(scipy.optimize.brentq(short_of_power, 0.0, high, xtol=1e-10)) * sd
 
 
 def holm(p_values: Sequence[float]) -> list[float]:

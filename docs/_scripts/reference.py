@@ -358,7 +358,7 @@ def networks_page() -> str:
         f"| multiply-adds a call, whatever its observations | {graph.MAX_FIXED_MULTIPLY_ADDS:,} |",
         f"| memory live at once, whatever its observations | {graph.MAX_FIXED_BYTES:,} bytes |",
         f"| nodes | {graph.MAX_NODES:,} |",
-        f"| opset | {graph.MIN_OPSET} to {graph.MAX_OPSET} |",
+        f"| opset | {graph.MIN_OPSET} to {graph.max_opset()} |",
         "",
         f"A call of the network takes at most {graph.CALL_ROWS:,} observations, and fewer where "
         f"more would pass {graph.CALL_MULTIPLY_ADDS:,} multiply-adds or "

@@ -25,19 +25,21 @@ import json
 import math
 from collections.abc import Iterator
 from dataclasses import asdict, dataclass
-from typing import Any, Literal
+from functools import cache
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
-import onnx
 from numpy.typing import NDArray
-from onnx import AttributeProto, GraphProto, TensorProto
 
 from nanonav.rl import operators
+
+if TYPE_CHECKING:
+    import onnx
+    from onnx import GraphProto, TensorProto
 
 # The default domain's versions accepted: from the first with today's operator semantics that
 # exporters still write, to the newest this ONNX knows (ONNX Runtime refuses one it cannot run)
 MIN_OPSET = 9
-MAX_OPSET = int(onnx.defs.onnx_opset_version())
 RULE = "policy_model"
 # The model's metadata keys under which a model names what it reads and chooses (JSON lists of
 # an environment's observation_labels and action_labels): nanonav train writes them
@@ -136,11 +138,21 @@ class ModelInfo:
                    memory, cost)  # fmt: skip
 
 
+@cache
+def max_opset() -> int:
+    """The newest version of the default domain this ONNX knows (the last accepted)."""
+    import onnx
+
+    return int(onnx.defs.onnx_opset_version())
+
+
 def parsed(data: bytes, max_bytes: int) -> onnx.ModelProto:
     """The model ``data`` holds; ``InvalidModel`` if it is larger than ``max_bytes`` or is no
     ONNX model."""
     if len(data) > max_bytes:
         raise InvalidModel(f"the model takes {len(data)} bytes, over the limit of {max_bytes}")
+    import onnx  # here, not above: what imports this module's names need not load ONNX
+
     try:
         model = onnx.load_model_from_string(data)
     except Exception as error:  # protobuf's DecodeError, or worse
@@ -171,6 +183,8 @@ def model_labels(data: bytes, *, max_bytes: int) -> tuple[list[str] | None, list
 def _tensors(graph: GraphProto) -> Iterator[TensorProto]:
     """Every tensor the graph holds, in its subgraphs too: initializers (dense and sparse) and
     the tensors of node attributes."""
+    from onnx import AttributeProto
+
     yield from graph.initializer
     for sparse in graph.sparse_initializer:
         yield sparse.values
@@ -209,8 +223,10 @@ def _node_name(node: onnx.NodeProto, index: int) -> str:
 def _check_contents(model: onnx.ModelProto) -> int:
     """Refuse external data, other operator sets, model-local functions and sparse weights;
     returns the default domain's opset."""
+    import onnx
+
     for tensor in _tensors(model.graph):
-        if tensor.data_location == TensorProto.EXTERNAL or len(tensor.external_data):
+        if tensor.data_location == onnx.TensorProto.EXTERNAL or len(tensor.external_data):
             raise InvalidModel(
                 f"tensor {tensor.name!r} keeps its data outside the model: save the model "
                 "with its weights inside it (onnx.save(model, path), without "
@@ -229,9 +245,9 @@ def _check_contents(model: onnx.ModelProto) -> int:
         opset = int(entry.version)
     if opset is None:
         raise InvalidModel("the model imports no version of ONNX's operator set")
-    if not MIN_OPSET <= opset <= MAX_OPSET:
+    if not MIN_OPSET <= opset <= max_opset():
         raise InvalidModel(
-            f"the model's opset is {opset}: it must lie between {MIN_OPSET} and {MAX_OPSET}"
+            f"the model's opset is {opset}: it must lie between {MIN_OPSET} and {max_opset()}"
         )
     if len(model.graph.node) > MAX_NODES:
         raise InvalidModel(
@@ -276,7 +292,7 @@ class _Value:
 
     @property
     def itemsize(self) -> int:
-        return 8 if self.elem_type == TensorProto.INT64 else 4
+        return 8 if self.elem_type == operators.INT64 else 4
 
     @property
     def row_bytes(self) -> int:
@@ -290,7 +306,7 @@ class _Value:
 
 def _at_batch(model: onnx.ModelProto, batch: str, size: int) -> onnx.ModelProto:
     """``model`` with its inputs' batch axis ``size`` long."""
-    fixed = onnx.ModelProto()
+    fixed = type(model)()
     fixed.CopyFrom(model)
     for value in fixed.graph.input:
         for dim in value.type.tensor_type.shape.dim:
@@ -303,6 +319,8 @@ def _values(model: onnx.ModelProto, batch: str) -> dict[str, _Value]:
     """Every value of the graph, by name, its shapes inferred at each of ``BATCHES``;
     ``InvalidModel`` naming the node that makes a value whose type or size the graph does not
     fix, or whose size does not grow in proportion to the batch."""
+    import onnx
+
     makers = {name: _node_name(node, k) for k, node in enumerate(model.graph.node)
               for name in node.output}  # fmt: skip
     seen: dict[str, tuple[int, list[tuple[int, ...]]]] = {}
@@ -489,7 +507,7 @@ def _memory(
         dims = _dims(value)
         fixed = [d for d in dims if d != batch]
         if (
-            value.type.tensor_type.elem_type != TensorProto.FLOAT
+            value.type.tensor_type.elem_type != operators.FLOAT
             or dims.count(batch) != 1
             or not all(isinstance(d, int) for d in fixed)
         ):
@@ -559,7 +577,7 @@ def inspect_model(
     if not inputs:
         raise InvalidModel("the model takes no input: it must take the observation")
     given = inputs[0]
-    if given.type.tensor_type.elem_type != TensorProto.FLOAT:
+    if given.type.tensor_type.elem_type != operators.FLOAT:
         kind = operators.type_name(given.type.tensor_type.elem_type)
         raise InvalidModel(f"the model's input {given.name!r} is {kind}, not FLOAT (float32)")
     dims = _dims(given)

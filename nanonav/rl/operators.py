@@ -24,8 +24,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Literal
 
-from onnx import TensorProto
-
 Cost = Literal["gemm", "matmul", "lstm", "gru", "rnn", "elements", "transcendental", "reduce",
                "none"]  # fmt: skip
 # An element of exp, tanh, a sigmoid or an error function, in multiply-adds: ONNX Runtime's
@@ -33,8 +31,12 @@ Cost = Literal["gemm", "matmul", "lstm", "gru", "rnn", "elements", "transcendent
 TRANSCENDENTAL = 8
 # The types a value may have: float32 for what is computed, int64 and int32 for shapes, axes,
 # indices, sequence lengths and the actions an ArgMax gives
-FLOAT = TensorProto.FLOAT
-INTEGERS = frozenset({TensorProto.INT64, TensorProto.INT32})
+# (ONNX's TensorProto.DataType numbers, fixed by its specification: named here so that what
+# imports the allow-list does not import ONNX, half a second of every API process's start)
+FLOAT = 1
+INT32 = 6
+INT64 = 7
+INTEGERS = frozenset({INT64, INT32})
 TYPES = frozenset({FLOAT, *INTEGERS})
 
 
@@ -138,6 +140,8 @@ GIVES_INTEGERS = frozenset({"ArgMax", "Shape"})
 
 def type_name(elem_type: int) -> str:
     """``FLOAT``, ``INT64``, ... as ONNX names an element type."""
+    from onnx import TensorProto
+
     try:
         return str(TensorProto.DataType.Name(elem_type))
     except ValueError:
