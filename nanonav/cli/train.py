@@ -50,6 +50,12 @@ def add_train(subcommands: Subcommands) -> None:
     train.add_argument("--steps", type=positive, required=True, help="decisions, all worlds")
     train.add_argument("--envs", type=positive, default=8, help="worlds stepped together")
     train.add_argument(
+        "--rollout", type=positive, metavar="STEPS",
+        help="ppo and recurrent-ppo: decisions each world takes between two updates "
+        "(Stable-Baselines3's n_steps; default 2048, so that a run is at least 2048 x --envs "
+        "decisions)",
+    )  # fmt: skip
+    train.add_argument(
         "--checkpoint-every", type=positive, metavar="STEPS",
         help="decisions between two checkpoints (default: a quarter of --steps)",
     )  # fmt: skip
@@ -58,16 +64,19 @@ def add_train(subcommands: Subcommands) -> None:
     train.set_defaults(handler=_train)
 
 
-def _model(algo: str, env: Any, seed: int, logs: Path) -> Any:
-    """The learner, with the library's default hyperparameters (a first run to compare with the
-    rules; tune them on design seeds)."""
+def _model(algo: str, env: Any, seed: int, logs: Path, rollout: int | None) -> Any:
+    """The learner, with the library's default hyperparameters but ``rollout`` (a first run to
+    compare with the rules; tune them on design seeds)."""
     from stable_baselines3 import DQN, PPO
 
     common: dict[str, Any] = {"seed": seed, "tensorboard_log": str(logs), "device": "cpu"}
-    if algo == "ppo":
-        return PPO("MlpPolicy", env, **common)
     if algo == "dqn":
         return DQN("MlpPolicy", env, **common)
+    if rollout is not None:
+        # a minibatch of 64 (the default) or the whole rollout, if that is smaller
+        common |= {"n_steps": rollout, "batch_size": min(64, rollout * env.num_envs)}
+    if algo == "ppo":
+        return PPO("MlpPolicy", env, **common)
     from sb3_contrib import RecurrentPPO
 
     return RecurrentPPO("MlpLstmPolicy", env, **common)
@@ -80,6 +89,8 @@ def _train(args: argparse.Namespace) -> int:
             raise UsageError(["--steering continuous: dqn chooses among actions; use ppo"])
         if scenario.physics.model != "active_brownian":
             raise UsageError(["--steering continuous needs physics.model 'active_brownian'"])
+    if args.rollout is not None and args.algo == "dqn":
+        raise UsageError(["--rollout: dqn learns from a replay buffer, not from rollouts"])
     try:
         from stable_baselines3.common.callbacks import CheckpointCallback
 
@@ -90,7 +101,7 @@ def _train(args: argparse.Namespace) -> int:
     out.mkdir(parents=True, exist_ok=True)
     env = NanoNavVecEnv(args.envs, scenario, steering=args.steering)
     env.seed(scenario.seed)
-    model = _model(args.algo, env, scenario.seed, out / "tensorboard")
+    model = _model(args.algo, env, scenario.seed, out / "tensorboard", args.rollout)
     every = args.checkpoint_every or max(args.steps // 4, 1)
     checkpoints = CheckpointCallback(
         save_freq=max(every // args.envs, 1), save_path=str(out / "checkpoints"),

@@ -27,16 +27,18 @@ def test_a_learner_trains_and_leaves_what_it_learned(
     algo: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     out = tmp_path / algo
+    rollout = [] if algo == "dqn" else ["--rollout", "96"]
     args = ["train", "--preset", "paper-single", "--seed", "5000", "--algo", algo,
             "--steps", "256", "--envs", "2", "--checkpoint-every", "128", "--out", str(out),
-            "--no-progress"]  # fmt: skip
-    # PPO and its recurrent kin collect 2,048 decisions a world before their first update, so
-    # they run past --steps to the end of that rollout, and say how far (two worlds: a rollout
-    # of the recurrent learner took 91 s of the suite with four)
+            "--no-progress", *rollout]  # fmt: skip
+    # PPO and its recurrent kin collect --rollout decisions a world before each update, so
+    # they run past --steps to the end of that rollout, and say how far (two worlds of 96:
+    # 384; a default rollout of the recurrent learner, 2,048 a world, took 43 s of the suite)
     assert main(args) == 0
     report = json.loads((out / "training.json").read_text())
     assert report["algo"] == algo and report["envs"] == 2 and report["seed"] == 5000
-    assert report["decisions"] >= 256 and report["decisions_per_s"] > 0
+    assert report["decisions"] == (256 if algo == "dqn" else 384)
+    assert report["decisions_per_s"] > 0
     assert f"trained {algo}" in capsys.readouterr().out
     kept = list((out / "checkpoints").iterdir())
     assert len(kept) >= 2 and all(p.suffix == ".zip" for p in kept)
@@ -95,8 +97,8 @@ def test_a_continuous_turn_is_trained_and_exported_as_a_turn(
     swimmers = tmp_path / "swimmers.json"
     swimmers.write_text(json.dumps({"physics": {"time_limit_s": 2.0}}))
     args = ["train", "--preset", "tumour-microswimmers", "--scenario", str(swimmers),
-            "--steering", "continuous", "--steps", "64", "--envs", "2", "--out", str(out),
-            "--no-progress"]  # fmt: skip
+            "--steering", "continuous", "--steps", "64", "--envs", "2", "--rollout", "32",
+            "--out", str(out), "--no-progress"]  # fmt: skip
     assert main(args) == 0
     assert json.loads((out / "training.json").read_text())["steering"] == "continuous"
     session = ort.InferenceSession(str(out / "policy.onnx"), providers=["CPUExecutionProvider"])
@@ -116,4 +118,8 @@ def test_a_continuous_turn_is_trained_and_exported_as_a_turn(
                  str(tmp_path / "no")]  # fmt: skip
         assert main(wrong) == 2
         assert says in capsys.readouterr().err
+    dqn = ["train", "--algo", "dqn", "--rollout", "8", "--preset", "paper-single", "--steps", "8",
+           "--out", str(tmp_path / "no")]  # fmt: skip
+    assert main(dqn) == 2
+    assert "--rollout: dqn learns from a replay buffer" in capsys.readouterr().err
     assert not (tmp_path / "no").exists()

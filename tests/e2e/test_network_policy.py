@@ -1,4 +1,4 @@
-"""End to end: PPO trained for a few thousand decisions through the SB3 VecEnv (``nanonav
+"""End to end: PPO trained for a thousand decisions through the SB3 VecEnv (``nanonav
 train``), its exported ONNX model sent with ``nanonav policy``, and evaluated by a real
 ``python -m worker`` process through the API, exactly as the same model evaluated here."""
 
@@ -38,7 +38,8 @@ def test_a_trained_network_is_sent_and_evaluated_by_a_worker(
     scenario_file.write_text(json.dumps(TRAIN))
     out = tmp_path / "ppo"
     train = ["train", "--scenario", str(scenario_file), "--seed", "5000", "--algo", "ppo",
-             "--steps", "4096", "--envs", "4", "--out", str(out), "--no-progress"]  # fmt: skip
+             "--steps", "1024", "--envs", "4", "--rollout", "128", "--out", str(out),
+             "--no-progress"]  # fmt: skip
     assert main(train) == 0
     assert main(["policy", str(out / "policy.onnx"), "--url", api.url]) == 0
     said = capsys.readouterr().out
