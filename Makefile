@@ -42,7 +42,10 @@ $(VENV)/.installed-postgres: $(VENV)/.installed
 run: $(RUN_NEEDS)
 	$(BIN)/python -m nanonav.run_local
 
-test: $(VENV)/.installed-test lint typecheck docs-check pytest
+# The checks side by side (each uses one core), then the tests (which use them all).
+test: $(VENV)/.installed-test
+	$(MAKE) --no-print-directory -j3 --output-sync=target lint typecheck docs-check
+	$(MAKE) --no-print-directory pytest
 
 lint: $(VENV)/.installed-test
 	$(BIN)/ruff check .
