@@ -58,6 +58,10 @@ Policy = Literal[
 AlphaSchedule = Literal["constant", "visits"]
 ActionSet = Literal["behaviors", "directions", "steering"]
 PhysicsModel = Literal["lattice", "active_brownian"]
+Sensor = Literal["each_step", "counted"]
+# sensor 'counted': the integration time filled in, s (Alonso & Kirkegaard, PNAS Nexus 2024:
+# their receptors count molecules over a step of 0.1 s), unless r^2 / D_m is longer
+DEFAULT_INTEGRATION_TIME_S = 0.1
 CommunicationModel = Literal["none", "attractant", "attractant_repellent", "broadcast"]
 # What each physics runs: the paper's lattice moves choose a direction; an active Brownian robot
 # can only steer its own diffusing heading.
@@ -662,7 +666,20 @@ def fill_physics(data: Any) -> Any:
         and _admits(Physics, "rotational_diffusion_s", d_r)
     ):
         filled["dt_s"] = automatic_dt_s(float(d_t), float(d_r), v, r)
+    d_m = data.get("molecule_diffusion_um2_s", fields["molecule_diffusion_um2_s"].default)
+    if (
+        filled.get("sensor") == "counted"
+        and filled.get("integration_time_s") is None
+        and _admits(Physics, "molecule_diffusion_um2_s", d_m)
+    ):
+        filled["integration_time_s"] = max(DEFAULT_INTEGRATION_TIME_S, crossing_time_s(r, d_m))
     return filled
+
+
+def crossing_time_s(radius_um: float, molecule_diffusion_um2_s: float) -> float:
+    """r^2 / D_m: the time a molecule takes to diffuse across a body of radius r, s; two counts
+    closer in time than it count many of the same molecules (Berg & Purcell 1977)."""
+    return radius_um**2 / molecule_diffusion_um2_s
 
 
 def _round_down(value: float) -> str:
@@ -817,6 +834,27 @@ class Physics(_Part):
         description="Temporal sensing: a reading is compared with the mean of the robot's "
         "readings over this past time to tell whether it rises (0: with the last reading).",
     )
+    sensor: Sensor = Field(
+        "each_step",
+        description="How a robot reads the biomarker. 'each_step': every step a reading of "
+        "the whole body over dt_s at the Berg-Purcell limit (a gamma draw of mean the "
+        "concentration, never 0) and, for the gradient, one such reading at each end of each "
+        "axis. 'counted': molecules counted, Poisson, by six receptor patches (each a sixth of "
+        "the surface, facing the axes' two ways) over integration_time_s; the reading is their "
+        "sum, the gradient their differences, both held until the next count (so a reading "
+        "is 0 where molecules are scarce, and the information a robot gets does not grow as "
+        "dt_s shrinks).",
+    )
+    integration_time_s: float | None = Field(
+        None,
+        ge=1e-6,
+        le=100.0,
+        description="sensor 'counted': the time over which a count is taken, s, a whole "
+        "number of steps of dt_s (rounded to the nearest). At least r^2 / D_m, the time a "
+        "molecule takes to cross the body (Berg & Purcell 1977: counts closer in time are not "
+        "independent), and at least dt_s. null: 0.1 s (Alonso & Kirkegaard 2024's receptors "
+        "count over 0.1 s) or r^2 / D_m if that is longer, filled in in the resolved scenario.",
+    )
 
     @property
     def step_s(self) -> float:
@@ -855,7 +893,33 @@ class Physics(_Part):
                     f"dt_s {dt:g} s is too coarse: " + message.format(value=value)
                     + f"; dt_s <= {_round_down(fine)} s would do",
                 )  # fmt: skip
+        self._integration_fits(dt)
         return self._time_limit_fits()
+
+    def _integration_fits(self, dt: float) -> None:
+        """integration_time_s belongs to sensor 'counted', and is at least the time a molecule
+        takes to cross the body and at least a step."""
+        tau = self.integration_time_s
+        if tau is None:
+            return
+        if self.sensor != "counted":
+            raise _field_error(
+                "Physics", ("integration_time_s",), tau,
+                "belongs to sensor 'counted' (sensor 'each_step' reads over each step)",
+            )  # fmt: skip
+        crossing = crossing_time_s(self.robot_radius_um, self.molecule_diffusion_um2_s)
+        if tau < crossing * (1 - 1e-12):
+            raise _field_error(
+                "Physics", ("integration_time_s",), tau,
+                f"{tau:g} s is shorter than r^2 / D_m = {crossing:.3g} s, the time a molecule "
+                "takes to cross the body: counts closer in time are not independent; "
+                f"integration_time_s >= {crossing:.3g} s would do",
+            )  # fmt: skip
+        if tau < dt * (1 - 1e-12):
+            raise _field_error(
+                "Physics", ("integration_time_s",), tau,
+                f"{tau:g} s is shorter than a step (dt_s {dt:g} s): a count takes whole steps",
+            )  # fmt: skip
 
     def _time_limit_fits(self) -> Physics:
         """A time limit is at most as many steps of dt_s as learning.max_steps takes: refused

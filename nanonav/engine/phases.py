@@ -49,6 +49,7 @@ from nanonav.engine.qlearning import (
 )
 from nanonav.engine.sensing import (
     berg_purcell_reading,
+    count_molecules,
     noisy_reading,
     sense_all,
     sensed_gradient,
@@ -237,17 +238,22 @@ def body_turn(p: KernelParams, sim: Sim, i: int) -> None:
 
 @inlined
 def read_state(
-    p: KernelParams, rng: np.random.Generator, sim: Sim, i: int, cell_d: float, full: bool
-) -> int:
-    """Robot ``i`` takes its reading (and in the lattice, its gradient): its observation's
+    p: KernelParams, rng: np.random.Generator, sim: Sim, i: int, t: int, cell_d: float,
+    full: bool,
+) -> int:  # fmt: skip
+    """Robot ``i`` takes its reading in step ``t`` (and in the lattice, its gradient; with
+    sensor 'counted', a count in the steps that begin a window, held between): its observation's
     columns up to the signal's are written, and its tabular state without the signal returned.
     Unless ``full`` or the robot's policy learns, a lattice robot does not look for obstacles
     (no fixed rule needs the distance) and its state is 0."""
     s = sim.s
     obs = sim.pc.obs
     if p.physics == ACTIVE_BROWNIAN:
-        c = berg_purcell_reading(p, rng, s.reading[i])
-        s.sensed[i] = c
+        if not p.counted:
+            s.sensed[i] = berg_purcell_reading(p, rng, s.reading[i])
+        elif s.prev_conc[i] < 0.0 or t % p.window == 0:
+            count_molecules(p, rng, s, i)  # at its first reading, then every window; held
+        c = s.sensed[i]
         if s.prev_conc[i] < 0.0:
             s.prev_conc[i] = c  # the first reading starts the memory
         gap = cell_d - p.reach_distance
@@ -308,7 +314,7 @@ def perceive(
         pc.reward[i] += p.reward_reach + p.reward_step
         delivered(p, sim, i, cell, t)
         return False
-    state = read_state(p, rng, sim, i, cell_d, full)
+    state = read_state(p, rng, sim, i, t, cell_d, full)
     heard = 0
     ux = 0.0
     uy = 0.0
@@ -609,7 +615,7 @@ def learn_at_limit(p: KernelParams, rng: np.random.Generator, sim: Sim, lrn: Lea
         cell_d = treatment.nearest_target(
             w.cells, sim.tr.treated_at, s.pos[i, 0], s.pos[i, 1], s.pos[i, 2]
         )[1]  # fmt: skip
-        state = read_state(p, rng, sim, i, cell_d, True)
+        state = read_state(p, rng, sim, i, p.max_steps, cell_d, True)
         if p.signal != NO_SIGNAL:
             state = state * p.signal_states + _heard(p, rng, sim, i)
         learn_last(p, lrn, s, i, state)

@@ -23,6 +23,10 @@ from nanonav.engine.state import BEHAVIORS, KernelParams, Swarm, Treatment, Worl
 # 3 steps is 'near'.
 OBSTACLE_NEAR_STEPS = 2.0
 CELL_NEAR_STEPS = 3.0
+# sensor 'counted': receptor patches, each a sixth of the body's surface, facing each world
+# axis's two ways (to first order the estimate's noise is the same whatever way the patches
+# face, so they are not turned with the body)
+RECEPTOR_PATCHES = 6
 
 
 @inlined
@@ -104,6 +108,69 @@ def berg_purcell_reading(p: KernelParams, rng: np.random.Generator, c: float) ->
     return read_counted(rng, c, p.counting * c)
 
 
+# Below this mean a Poisson draw is found by inversion, above by transformed rejection
+INVERSION_BELOW = 10.0
+
+
+@inlined
+def poisson_count(rng: np.random.Generator, mean: float) -> float:
+    """A Poisson draw of ``mean``. Numba's own allocates (it needs reference counting, which
+    the engine is compiled without), so: by inversion, a search up the cumulative
+    distribution, for a small mean; else by Hoermann's transformed rejection with squeeze
+    (PTRS: W. Hoermann, Insurance Math. Econom. 12, 39 (1993)), as NumPy draws it."""
+    if mean <= 0.0:
+        return 0.0
+    if mean < INVERSION_BELOW:
+        u = rng.random()
+        k = 0
+        term = math.exp(-mean)
+        below = term
+        while u > below and k < 200:  # P(k > 200) < 1e-150 at a mean under 10
+            k += 1
+            term *= mean / k
+            below += term
+        return float(k)
+    root = math.sqrt(mean)
+    log_mean = math.log(mean)
+    b = 0.931 + 2.53 * root
+    a = -0.059 + 0.02483 * b
+    inverse_alpha = 1.1239 + 1.1328 / (b - 3.4)
+    v_r = 0.9277 - 3.6224 / (b - 2.0)
+    while True:
+        u = rng.random() - 0.5
+        v = rng.random()
+        u_s = 0.5 - abs(u)
+        k = math.floor((2.0 * a / u_s + b) * u + mean + 0.43)
+        if u_s >= 0.07 and v <= v_r:
+            return float(k)
+        if k < 0 or (u_s < 0.013 and v > u_s):
+            continue
+        accept = math.log(v) + math.log(inverse_alpha) - math.log(a / (u_s * u_s) + b)
+        if accept <= -mean + k * log_mean - math.lgamma(k + 1.0):
+            return float(k)
+
+
+@inlined
+def count_molecules(p: KernelParams, rng: np.random.Generator, s: Swarm, i: int) -> None:
+    """Robot ``i`` counts the molecules its six receptor patches take in over the integration
+    time (sensor 'counted'): each patch's count is Poisson, of mean ``patch_counting`` times
+    the concentration at the patch (the field taken to first order across the body). The
+    reading is the counts' sum over the whole body's counting, the gradient along an axis
+    the difference of its two patches' counts over 2 a times a patch's counting: a reading of
+    0.01 molecules is 0 99 % of the time, and turns nothing. Both are held (``sensed``,
+    ``sensed_grad``) until the next count."""
+    c = s.reading[i]
+    a = p.robot_radius
+    total = 0.0
+    for k in range(3):
+        g = s.reading_grad[i, k]
+        ahead = poisson_count(rng, p.patch_counting * max(c + a * g, 0.0))
+        behind = poisson_count(rng, p.patch_counting * max(c - a * g, 0.0))
+        total += ahead + behind
+        s.sensed_grad[i, k] = (ahead - behind) / (2.0 * a * p.patch_counting)
+    s.sensed[i] = total / (RECEPTOR_PATCHES * p.patch_counting)
+
+
 @inlined
 def _across_body(p: KernelParams, rng: np.random.Generator, c: float, g: float) -> float:
     """One component of the sensed gradient: two readings at the two ends of the body along
@@ -118,7 +185,10 @@ def _across_body(p: KernelParams, rng: np.random.Generator, c: float, g: float) 
 def sensed_gradient(
     p: KernelParams, rng: np.random.Generator, s: Swarm, i: int
 ) -> tuple[float, float, float]:
-    """Robot ``i``'s spatial gradient, each component read across its body."""
+    """Robot ``i``'s spatial gradient, each component read across its body (with sensor
+    'counted', the one its last count gave)."""
+    if p.counted:
+        return s.sensed_grad[i, 0], s.sensed_grad[i, 1], s.sensed_grad[i, 2]
     c = s.reading[i]
     return (
         _across_body(p, rng, c, s.reading_grad[i, 0]),

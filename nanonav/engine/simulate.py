@@ -15,7 +15,17 @@ from typing import Any, NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from nanonav.engine import contacts, fields, kernel, metrics, phases, qlearning, signals, state
+from nanonav.engine import (
+    contacts,
+    fields,
+    kernel,
+    metrics,
+    phases,
+    qlearning,
+    sensing,
+    signals,
+    state,
+)  # fmt: skip
 from nanonav.engine.dynamics import brownian
 from nanonav.engine.dynamics.brownian import heading_kick_scale
 from nanonav.engine.result import QTable, SimulationResult, Trajectory
@@ -178,6 +188,8 @@ def _brownian_params(scenario: Scenario, params: KernelParams, b: Biomarker) -> 
     d_t = ph.diffusion_um2_s or 0.0
     d_r = ph.rotational_diffusion_s or 0.0
     radius = ph.robot_radius_um
+    # sensor 'counted': a count over whole steps; a patch is a sixth of the sphere's counting
+    window = max(1, round((ph.integration_time_s or dt) / dt)) if dt else 1
     levels = fields.radial_profile(b, ph.cell_radius_um * np.array(qlearning.STEERING_LEVEL_RADII))
     return params._replace(
         physics=state.ACTIVE_BROWNIAN,
@@ -205,6 +217,10 @@ def _brownian_params(scenario: Scenario, params: KernelParams, b: Biomarker) -> 
         tumble=-math.expm1(-ph.tumble_rate_s * dt),
         tumble_rising=-math.expm1(-ph.tumble_rate_rising_s * dt),
         memory_weight=min(1.0, dt / ph.memory_s) if ph.memory_s > 0 else 1.0,
+        counted=ph.sensor == "counted",
+        window=window,
+        patch_counting=math.pi * ph.molecule_diffusion_um2_s * radius * window * dt
+        * MOLECULES_PER_UM3_PER_NM / sensing.RECEPTOR_PATCHES,
     )  # fmt: skip
 
 
@@ -371,6 +387,7 @@ def episode_arrays(scenario: Scenario) -> EpisodeArrays:
         swept=np.zeros(n, dtype=np.bool_),
         blocked=np.zeros(n, dtype=np.bool_),
         sensed=np.zeros(n),
+        sensed_grad=np.zeros((n, 3)),
     )
     social = Social(
         bound_to=np.full(n, -1, dtype=np.int64),

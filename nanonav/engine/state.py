@@ -100,6 +100,11 @@ class KernelParams(NamedTuple):
     tumble: float = 0.0  # run_and_tumble: chance of a tumble per step, reading not rising
     tumble_rising: float = 0.0  # and while it rises
     memory_weight: float = 1.0  # dt / memory_s: how fast the reading's memory follows it
+    # sensor 'counted': molecules are counted every ``window`` steps (the integration time), a
+    # receptor patch counting ``patch_counting`` * c of them on average at c nM
+    counted: bool = False
+    window: int = 1
+    patch_counting: float = 0.0
     # cells that can be treated, robots that take up space, and signals (issue: the swarm)
     capacity: int = 0  # payloads that treat a cell; 0: never treated
     treated_secretion: float = 0.0  # share of its field a treated cell keeps
@@ -151,6 +156,9 @@ class Swarm(NamedTuple):
     swept: NDArray[np.bool_]  # reached by a drifting cell while heading away from it
     blocked: NDArray[np.bool_]  # its last move was stopped by an obstacle
     sensed: NDArray[np.float64]  # the reading it took this step (with noise)
+    # sensor 'counted': the gradient its last count gave, (N, 3), world frame, held as
+    # ``sensed`` is until the next count
+    sensed_grad: NDArray[np.float64]
 
 
 class World(NamedTuple):

@@ -1,0 +1,174 @@
+"""Sensor 'counted': molecules counted, Poisson, by six receptor patches over an integration
+time. A reading is 0 as often as counting expects where molecules are scarce, its mean and
+spread are the counts', the gradient comes from the same counts, a count is held for its
+window, and the integration time is checked and filled in."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import pytest
+from numba import njit
+from numpy.typing import NDArray
+from pydantic import ValidationError
+
+from nanonav.engine import sensing, simulate
+from nanonav.engine.simulate import Run, kernel_params
+from nanonav.engine.state import KernelParams, Swarm
+from nanonav.scenario import Scenario, preset_scenario
+
+
+@njit(cache=True)
+def _counts(
+    p: KernelParams, rng: np.random.Generator, s: Swarm, readings: NDArray[np.float64],
+    gradients: NDArray[np.float64],
+) -> None:  # fmt: skip
+    """Robot 0 counts ``len(readings)`` times where it is."""
+    for j in range(readings.shape[0]):
+        sensing.count_molecules(p, rng, s, 0)
+        readings[j] = s.sensed[0]
+        for k in range(3):
+            gradients[j, k] = s.sensed_grad[0, k]
+
+
+@njit(cache=True)
+def _poisson(rng: np.random.Generator, mean: float, out: NDArray[np.float64]) -> None:
+    for j in range(out.shape[0]):
+        out[j] = sensing.poisson_count(rng, mean)
+
+
+@pytest.mark.parametrize("mean", [0.01, 0.7, 9.9, 10.0, 37.0, 5000.0])
+def test_a_count_is_poisson_by_inversion_and_by_rejection(mean: float) -> None:
+    # whole numbers, of Poisson's mean and variance; its chance of 0 below the switch
+    n = 40_000
+    out = np.zeros(n)
+    _poisson(np.random.default_rng(5), mean, out)
+    assert np.all(out == np.round(out)) and out.min() >= 0
+    sd = math.sqrt(mean)
+    assert abs(out.mean() - mean) < 4 * sd / math.sqrt(n)
+    # the sample variance's sd is about sqrt(2 / n) sigma^2 (plus the fourth cumulant's share)
+    assert out.var(ddof=1) == pytest.approx(mean, rel=4 * math.sqrt((2 + 1 / mean) / n))
+    zero = math.exp(-mean)
+    assert abs(np.mean(out == 0) - zero) < 4 * math.sqrt(zero * (1 - zero) / n) + 1e-9
+
+
+def counted(**physics: Any) -> Scenario:
+    return Scenario.model_validate({
+        "physics": {"model": "active_brownian", "sensor": "counted", **physics},
+        "robots": {"count": 1, "policy": "gradient"},
+        "learning": {"episodes": 0, "max_steps": 200}, "evaluation": {"worlds": 1}, "seed": 3,
+    })  # fmt: skip
+
+
+def draws(
+    scenario: Scenario, c: float, gradient: tuple[float, float, float], n: int
+) -> tuple[KernelParams, NDArray[np.float64], NDArray[np.float64]]:
+    run = Run(scenario, kernel_params(scenario))
+    run.swarm.reading[0] = c
+    run.swarm.reading_grad[0] = gradient
+    readings, gradients = np.zeros(n), np.zeros((n, 3))
+    _counts(run.params, np.random.default_rng(17), run.swarm, readings, gradients)
+    return run.params, readings, gradients
+
+
+def test_a_reading_of_a_hundredth_of_a_molecule_is_zero_as_often_as_poisson_counting() -> None:
+    s = counted(robot_radius_um=1.0)
+    per_nm = sensing.RECEPTOR_PATCHES * kernel_params(s).patch_counting  # molecules per nM
+    expected = 0.01
+    _, readings, gradients = draws(s, expected / per_nm, (0.0, 0.0, 0.0), 40_000)
+    zeros = float(np.mean(readings == 0.0))
+    poisson = math.exp(-expected)  # 0.990
+    assert zeros >= poisson - 4 * math.sqrt(poisson * (1 - poisson) / len(readings))
+    # a count of nothing points nowhere: the robot turns nothing
+    assert np.all(gradients[readings == 0.0] == 0.0)
+    # the counts themselves: a reading is a whole number of molecules over the body's counting
+    assert np.allclose(readings * per_nm, np.round(readings * per_nm))
+
+
+def test_readings_and_gradients_have_the_counts_mean_and_spread() -> None:
+    s = counted(robot_radius_um=2.0)
+    a = s.physics.robot_radius_um
+    per_patch = kernel_params(s).patch_counting
+    c = 400.0 / (sensing.RECEPTOR_PATCHES * per_patch)  # 400 molecules a count
+    g = (0.02 * c / a, -0.01 * c / a, 0.0)  # a few per cent across the body
+    n = 20_000
+    _, readings, gradients = draws(s, c, g, n)
+    # the reading: total / (6 P), Poisson of mean 400 -> relative sd 1 / sqrt(400)
+    assert abs(readings.mean() - c) < 4 * c / math.sqrt(400 * n)
+    assert readings.std() == pytest.approx(c / math.sqrt(400), rel=4 / math.sqrt(2 * n))
+    # each component: (N+ - N-) / (2 a P), unbiased, with variance (mean N+ + mean N-) / (2aP)^2
+    for k in range(3):
+        ahead, behind = per_patch * (c + a * g[k]), per_patch * (c - a * g[k])
+        sd = math.sqrt(ahead + behind) / (2 * a * per_patch)
+        assert abs(gradients[:, k].mean() - g[k]) < 4 * sd / math.sqrt(n), k
+        assert gradients[:, k].std() == pytest.approx(sd, rel=4 / math.sqrt(2 * n)), k
+
+
+def test_a_count_is_held_for_its_integration_time() -> None:
+    s = counted(robot_radius_um=1.0, dt_s=0.01, integration_time_s=0.05,
+                secretion_molecules_s=1e6)  # fmt: skip
+    assert kernel_params(s).window == 5
+    t = simulate(s).trajectory
+    assert t is not None and t.sensed is not None
+    assert np.array_equal(t.step[:12], np.arange(12))  # a row every step
+    sensed = t.sensed[1:, 0]
+    changes = np.flatnonzero(np.diff(sensed) != 0)
+    assert len(changes) >= 10  # it counted anew, window after window
+    # the reading changes only where a window ends (two windows may count alike)
+    assert np.all(np.diff(changes) % 5 == 0), changes
+
+
+@pytest.mark.parametrize(
+    ("physics", "field", "words"),
+    [
+        ({"sensor": "counted", "robot_radius_um": 5.0, "integration_time_s": 0.1},
+         "integration_time_s", "r^2 / D_m = 0.25 s"),
+        ({"sensor": "counted", "robot_radius_um": 0.5, "dt_s": 0.01, "integration_time_s": 0.005},
+         "integration_time_s", "shorter than a step"),
+        ({"integration_time_s": 0.5}, "integration_time_s", "belongs to sensor 'counted'"),
+    ],
+)  # fmt: skip
+def test_an_integration_time_that_cannot_count_is_refused_naming_it(
+    physics: dict[str, Any], field: str, words: str
+) -> None:
+    with pytest.raises(ValidationError) as raised:
+        Scenario.model_validate({"physics": {"model": "active_brownian", **physics}})
+    error = raised.value.errors()[0]
+    assert error["loc"][-1] == field
+    assert words in error["msg"]
+
+
+def test_the_integration_time_is_filled_in_and_the_lattice_has_none() -> None:
+    assert counted(robot_radius_um=1.0).physics.integration_time_s == 0.1
+    assert counted(robot_radius_um=5.0).physics.integration_time_s == pytest.approx(0.25)
+    assert Scenario.model_validate(
+        {"physics": {"model": "active_brownian"}}
+    ).physics.integration_time_s is None  # fmt: skip
+    with pytest.raises(ValidationError):
+        Scenario.model_validate({"physics": {"sensor": "counted"}})
+
+
+def reached(sensor: str, dt: float, seed: int) -> float:
+    scenario = preset_scenario(
+        "tumour-microswimmers", seed=seed,
+        physics={"model": "active_brownian", "time_limit_s": 60.0, "robot_radius_um": 2.0,
+                 "dt_s": dt, "sensor": sensor},
+        robots={"policy": "gradient"}, learning={"episodes": 0}, evaluation={"worlds": 2},
+    )  # fmt: skip
+    return float(simulate(scenario).summary["success_rate"])
+
+
+def test_counted_sensing_does_not_move_with_the_time_step_where_reading_each_step_does() -> None:
+    # 'gradient' at 2 um, dt 0.01 s and 0.0025 s, paired by seed (benchmarks/convergence.py
+    # gives the whole table: each_step moved by +0.14 [+0.10, +0.18] over 20 seeds, counted
+    # by +0.01 [-0.00, +0.02])
+    seeds = range(7000, 7004)
+    moved = {
+        sensor: float(np.mean([reached(sensor, 0.0025, s) - reached(sensor, 0.01, s)
+                               for s in seeds]))
+        for sensor in ("each_step", "counted")
+    }  # fmt: skip
+    assert moved["each_step"] > 0.08, moved
+    assert abs(moved["counted"]) < 0.03, moved
