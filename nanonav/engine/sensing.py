@@ -13,7 +13,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from nanonav.engine.compiled import inlined, inlined_callable
+from nanonav.engine.compiled import inlined, inlined_callable, uncounted
 from nanonav.engine.dynamics.brownian import read_counted
 from nanonav.engine.fields import sample_many
 from nanonav.engine.qlearning import SIGN_THRESHOLD
@@ -112,7 +112,7 @@ def berg_purcell_reading(p: KernelParams, rng: np.random.Generator, c: float) ->
 INVERSION_BELOW = 10.0
 
 
-@inlined
+@uncounted
 def poisson_count(rng: np.random.Generator, mean: float) -> float:
     """A Poisson draw of ``mean``. Numba's own allocates (it needs reference counting, which
     the engine is compiled without), so: by inversion, a search up the cumulative
