@@ -3,7 +3,7 @@ scenarios (1 to 1,000 robots, 2 to 100,000 field sources, 0 to 1,000 obstacles, 
 every policy), measured in one run.
 
     python benchmarks/cost.py            # the full table (about a minute)
-    python benchmarks/cost.py --quick    # a smoke run: a tenth of the episodes and steps
+    python benchmarks/cost.py --quick    # a smoke run: a tenth of the episodes, steps and worlds
 
 ``Scenario.work`` is a bound: every robot active for every step. Runs end early when robots reach
 their cells, so each row divides the engine's time by the work of what actually ran
@@ -23,7 +23,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from nanonav.engine import simulate
-from nanonav.scenario import Scenario
+from nanonav.scenario import Evaluation, Scenario
 
 # A job may take this long on one core; the suggested budget follows from the dearest row.
 TARGET_JOB_S = 600.0
@@ -121,11 +121,17 @@ class Row:
 
 
 def measure(fields: dict[str, Any], seed: int, shrink: int) -> Row:
-    """One run of ``fields`` with ``seed``; ``shrink`` divides its episodes and steps."""
+    """One run of ``fields`` with ``seed``; ``shrink`` divides its episodes, steps and
+    evaluation worlds."""
     learning = dict(fields.get("learning", {}))
     learning["episodes"] = learning.get("episodes", 50) // shrink
     learning["max_steps"] = max(20, learning.get("max_steps", 1000) // shrink)
-    scenario = Scenario.model_validate({**fields, "learning": learning, "seed": seed})
+    evaluation = dict(fields.get("evaluation", {}))
+    worlds = evaluation.get("worlds", Evaluation.model_fields["worlds"].default)
+    evaluation["worlds"] = max(1, worlds // shrink)
+    scenario = Scenario.model_validate(
+        {**fields, "learning": learning, "evaluation": evaluation, "seed": seed}
+    )
     result = simulate(scenario)
     evaluation_steps = int(result.summary["total_steps"])
     steps = sum(int(e["steps"]) for e in result.episodes) + evaluation_steps
@@ -138,7 +144,9 @@ def measure(fields: dict[str, Any], seed: int, shrink: int) -> Row:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(
-        "--quick", action="store_true", help="a tenth of the episodes and steps, one seed"
+        "--quick",
+        action="store_true",
+        help="a tenth of the episodes, steps and evaluation worlds, one seed",
     )
     args = parser.parse_args(argv)
     shrink, seeds = (10, 1) if args.quick else (1, 7)
