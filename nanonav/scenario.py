@@ -902,24 +902,20 @@ class Physics(_Part):
         tau = self.integration_time_s
         if tau is None:
             return
-        if self.sensor != "counted":
-            raise _field_error(
-                "Physics", ("integration_time_s",), tau,
-                "belongs to sensor 'counted' (sensor 'each_step' reads over each step)",
-            )  # fmt: skip
         crossing = crossing_time_s(self.robot_radius_um, self.molecule_diffusion_um2_s)
-        if tau < crossing * (1 - 1e-12):
-            raise _field_error(
-                "Physics", ("integration_time_s",), tau,
+        if self.sensor != "counted":
+            problem = "belongs to sensor 'counted' (sensor 'each_step' reads over each step)"
+        elif tau < crossing * (1 - 1e-12):
+            problem = (
                 f"{tau:g} s is shorter than r^2 / D_m = {crossing:.3g} s, the time a molecule "
                 "takes to cross the body: counts closer in time are not independent; "
-                f"integration_time_s >= {crossing:.3g} s would do",
-            )  # fmt: skip
-        if tau < dt * (1 - 1e-12):
-            raise _field_error(
-                "Physics", ("integration_time_s",), tau,
-                f"{tau:g} s is shorter than a step (dt_s {dt:g} s): a count takes whole steps",
-            )  # fmt: skip
+                f"integration_time_s >= {crossing:.3g} s would do"
+            )
+        elif tau < dt * (1 - 1e-12):
+            problem = f"{tau:g} s is shorter than a step (dt_s {dt:g} s): a count takes whole steps"
+        else:
+            return
+        raise _field_error("Physics", ("integration_time_s",), tau, problem)
 
     def _time_limit_fits(self) -> Physics:
         """A time limit is at most as many steps of dt_s as learning.max_steps takes: refused

@@ -188,8 +188,10 @@ def _brownian_params(scenario: Scenario, params: KernelParams, b: Biomarker) -> 
     d_t = ph.diffusion_um2_s or 0.0
     d_r = ph.rotational_diffusion_s or 0.0
     radius = ph.robot_radius_um
+    # Berg-Purcell: a reading over dt by a sensor of radius a counts pi D_m a c dt molecules
+    counting = math.pi * ph.molecule_diffusion_um2_s * radius * dt * MOLECULES_PER_UM3_PER_NM
     # sensor 'counted': a count over whole steps; a patch is a sixth of the sphere's counting
-    window = max(1, round((ph.integration_time_s or dt) / dt)) if dt else 1
+    window = max(1, round((ph.integration_time_s or dt) / dt))
     levels = fields.radial_profile(b, ph.cell_radius_um * np.array(qlearning.STEERING_LEVEL_RADII))
     return params._replace(
         physics=state.ACTIVE_BROWNIAN,
@@ -211,16 +213,13 @@ def _brownian_params(scenario: Scenario, params: KernelParams, b: Biomarker) -> 
         heading_sigma=heading_kick_scale(d_r, dt),
         turn=ph.max_turn_rate_rad_s * dt,
         robot_radius=radius,
-        # Berg-Purcell: a reading over dt by a sensor of radius a counts pi D_m a c dt molecules
-        counting=math.pi * ph.molecule_diffusion_um2_s * radius * dt
-        * MOLECULES_PER_UM3_PER_NM,
+        counting=counting,
         tumble=-math.expm1(-ph.tumble_rate_s * dt),
         tumble_rising=-math.expm1(-ph.tumble_rate_rising_s * dt),
         memory_weight=min(1.0, dt / ph.memory_s) if ph.memory_s > 0 else 1.0,
         counted=ph.sensor == "counted",
         window=window,
-        patch_counting=math.pi * ph.molecule_diffusion_um2_s * radius * window * dt
-        * MOLECULES_PER_UM3_PER_NM / sensing.RECEPTOR_PATCHES,
+        patch_counting=counting * window / sensing.RECEPTOR_PATCHES,
     )  # fmt: skip
 
 
