@@ -418,7 +418,8 @@ class Robots(_Part):
     exclusion: bool = Field(
         False,
         description="Robots take up space: no two overlap (their centres stay two radii "
-        "apart), a move into another robot is refused as one into an obstacle would be, and "
+        "apart), a move into another robot is refused as one into an obstacle would be (in "
+        "active_brownian, hard spheres: it stops at contact and slides on), and "
         "counts as a bump (neighbours are found in a cell list, O(robots) a step). Bound robots "
         "(delivered) keep their place. false: robots pass through each other (the paper's).",
     )
@@ -855,6 +856,16 @@ class Physics(_Part):
         "independent), and at least dt_s. null: 0.1 s (Alonso & Kirkegaard 2024's receptors "
         "count over 0.1 s) or r^2 / D_m if that is longer, filled in in the resolved scenario.",
     )
+    gradient_memory_s: float = Field(
+        0.0,
+        ge=0.0,
+        le=1e4,
+        description="sensor 'counted': the gradient a robot steers by is the exponential "
+        "average of its counts' gradients over this past time, s (each count weighs "
+        "integration_time_s / gradient_memory_s, at most 1), so that a rule steers by what "
+        "several counts agree on rather than by each count's noise; the reading's own memory "
+        "is memory_s. 0: the last count's gradient alone.",
+    )
 
     @property
     def step_s(self) -> float:
@@ -897,8 +908,14 @@ class Physics(_Part):
         return self._time_limit_fits()
 
     def _integration_fits(self, dt: float) -> None:
-        """integration_time_s belongs to sensor 'counted', and is at least the time a molecule
-        takes to cross the body and at least a step."""
+        """integration_time_s and gradient_memory_s belong to sensor 'counted', and the
+        integration time is at least the time a molecule takes to cross the body and a step."""
+        if self.gradient_memory_s and self.sensor != "counted":
+            raise _field_error(
+                "Physics", ("gradient_memory_s",), self.gradient_memory_s,
+                "belongs to sensor 'counted' (sensor 'each_step' reads the gradient anew each "
+                "step)",
+            )  # fmt: skip
         tau = self.integration_time_s
         if tau is None:
             return

@@ -282,6 +282,27 @@ def pairs_within(
     return found
 
 
+@inlined
+def pushed_out(
+    cx: float, cy: float, cz: float, reach: float, x: float, y: float, z: float,
+) -> tuple[float, float, float, bool]:  # fmt: skip
+    """Where a hard sphere whose centre a move took to (x, y, z), closer than ``reach`` to c,
+    comes to rest: moved out along the line of centres to contact (the potential-free
+    algorithm of Heyes & Melrose, J. Non-Newtonian Fluid Mech. 46, 1 (1993)). The part of the
+    move into the other body is undone and the rest kept, so a body pushed against another
+    slides round it by as much whatever the time step. False (and (x, y, z)) where the point
+    is not inside that reach (a move that passed through) or is its very centre."""
+    dx = x - cx
+    dy = y - cy
+    dz = z - cz
+    d = math.sqrt(dx * dx + dy * dy + dz * dz)
+    if d >= reach or d <= 0.0:
+        return x, y, z, False
+    # a hair beyond contact, so that rounding does not leave it touching
+    f = reach * (1.0 + 1e-12) / d
+    return cx + f * dx, cy + f * dy, cz + f * dz, True
+
+
 @njit(cache=True, error_model="numpy")
 def bumped_back(
     grid: CellList, pos: NDArray[np.float64], everyone: NDArray[np.bool_], i: int,

@@ -17,6 +17,7 @@ uncounted itself: nothing here allocates, and arrays are indexed element by elem
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
@@ -252,7 +253,8 @@ def read_state(
         if not p.counted:
             s.sensed[i] = berg_purcell_reading(p, rng, s.reading[i])
         elif s.prev_conc[i] < 0.0 or t % p.window == 0:
-            count_molecules(p, rng, s, i)  # at its first reading, then every window; held
+            # at its first reading, then every window; held
+            count_molecules(p, rng, s, i, s.prev_conc[i] < 0.0)
         c = s.sensed[i]
         if s.prev_conc[i] < 0.0:
             s.prev_conc[i] = c  # the first reading starts the memory
@@ -460,17 +462,29 @@ def act(
             )
         s.prev_conc[i] = c
         nx, ny, nz, blocked = lattice.move_robot(p, w, s, i, px, py, pz, dx, dy, dz, step)
-    if p.exclusion and not blocked and bumped_back(sim.near, s.pos, sim.everyone, i, px, py, pz,
-                                                   p.contact):  # fmt: skip
-        # another robot is in the way: the move is refused, a bump (a swimmer's heading has
-        # diffused all the same, as when an obstacle refuses it)
+    moved = nx != px or ny != py or nz != pz
+    if p.exclusion and p.physics == ACTIVE_BROWNIAN:
+        # another robot in the way: the swimmer stops at contact with it, sliding round it
+        bumped = False
+        if moved:
+            nx, ny, nz, bumped = brownian.make_way(p, w, sim.near, sim.everyone, s, i, px, py,
+                                                   pz)  # fmt: skip
+        if bumped:
+            so.bumps[i] += 1
+            blocked = True
+            dx = nx - px
+            dy = ny - py
+            dz = nz - pz
+            s.path_length[i] = path + math.sqrt(dx * dx + dy * dy + dz * dz)
+    elif p.exclusion and not blocked and bumped_back(sim.near, s.pos, sim.everyone, i, px, py,
+                                                     pz, p.contact):  # fmt: skip
+        # another robot is in the way: the move is refused, a bump
         so.bumps[i] += 1
         blocked = True
         s.path_length[i] = path
-        if p.physics == LATTICE:
-            s.heading[i, 0] = hx
-            s.heading[i, 1] = hy
-            s.heading[i, 2] = hz
+        s.heading[i, 0] = hx
+        s.heading[i, 1] = hy
+        s.heading[i, 2] = hz
         nx = px
         ny = py
         nz = pz

@@ -151,14 +151,17 @@ def poisson_count(rng: np.random.Generator, mean: float) -> float:
 
 
 @inlined
-def count_molecules(p: KernelParams, rng: np.random.Generator, s: Swarm, i: int) -> None:
+def count_molecules(
+    p: KernelParams, rng: np.random.Generator, s: Swarm, i: int, first: bool
+) -> None:
     """Robot ``i`` counts the molecules its six receptor patches take in over the integration
     time (sensor 'counted'): each patch's count is Poisson, of mean ``patch_counting`` times
     the concentration at the patch (the field taken to first order across the body). The
     reading is the counts' sum over the whole body's counting, the gradient along an axis
     the difference of its two patches' counts over 2 a times a patch's counting: a reading of
     0.01 molecules is 0 99 % of the time, and turns nothing. Both are held (``sensed``,
-    ``sensed_grad``) until the next count."""
+    ``sensed_grad``) until the next count; the gradient held is the counts' exponential
+    average (``gradient_weight``, from physics.gradient_memory_s) but at the ``first`` count."""
     c = s.reading[i]
     a = p.robot_radius
     total = 0.0
@@ -167,7 +170,11 @@ def count_molecules(p: KernelParams, rng: np.random.Generator, s: Swarm, i: int)
         ahead = poisson_count(rng, p.patch_counting * max(c + a * g, 0.0))
         behind = poisson_count(rng, p.patch_counting * max(c - a * g, 0.0))
         total += ahead + behind
-        s.sensed_grad[i, k] = (ahead - behind) / (2.0 * a * p.patch_counting)
+        g_count = (ahead - behind) / (2.0 * a * p.patch_counting)
+        if first or p.gradient_weight >= 1.0:
+            s.sensed_grad[i, k] = g_count
+        else:
+            s.sensed_grad[i, k] += p.gradient_weight * (g_count - s.sensed_grad[i, k])
     s.sensed[i] = total / (RECEPTOR_PATCHES * p.patch_counting)
 
 

@@ -220,6 +220,9 @@ def _brownian_params(scenario: Scenario, params: KernelParams, b: Biomarker) -> 
         counted=ph.sensor == "counted",
         window=window,
         patch_counting=counting * window / sensing.RECEPTOR_PATCHES,
+        gradient_weight=(
+            min(1.0, window * dt / ph.gradient_memory_s) if ph.gradient_memory_s > 0 else 1.0
+        ),
     )  # fmt: skip
 
 

@@ -105,6 +105,8 @@ class KernelParams(NamedTuple):
     counted: bool = False
     window: int = 1
     patch_counting: float = 0.0
+    # the weight of a new count's gradient in the held one (1: it replaces it)
+    gradient_weight: float = 1.0
     # cells that can be treated, robots that take up space, and signals (issue: the swarm)
     capacity: int = 0  # payloads that treat a cell; 0: never treated
     treated_secretion: float = 0.0  # share of its field a treated cell keeps

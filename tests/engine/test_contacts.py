@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from numba import njit
 from scipy.spatial import cKDTree
 
 from nanonav.engine import contacts
@@ -112,3 +113,51 @@ def test_a_hashed_grid_finds_what_a_k_d_tree_finds_when_far_cells_share_buckets(
     for point in pos[:50]:
         k = contacts.each_within(grid, pos, *point, 0.2, found)
         assert found[:k].tolist() == sorted(cKDTree(pos).query_ball_point(point, 0.2 - 1e-12))
+
+
+@njit
+def _pushed_out(c: np.ndarray, reach: float, point: np.ndarray) -> tuple[float, float, float, bool]:  # type: ignore[type-arg]
+    return contacts.pushed_out(c[0], c[1], c[2], reach, point[0], point[1], point[2])  # type: ignore[no-any-return]
+
+
+def test_a_point_inside_a_body_is_pushed_out_along_the_line_of_centres_to_contact() -> None:
+    centre = np.array([1.0, -2.0, 0.5])
+    x, y, z, inside = _pushed_out(centre, 3.0, centre + np.array([0.6, 0.8, 0.0]))
+    assert inside
+    assert np.hypot(x - 1.0, y + 2.0) == pytest.approx(3.0, rel=1e-9)
+    assert (x - 1.0) / (y + 2.0) == pytest.approx(0.6 / 0.8)
+    assert z == pytest.approx(0.5)
+    # a point already clear, or the very centre, is not a contact: it is left where it is
+    assert _pushed_out(centre, 3.0, centre + 3.5)[3] is False
+    assert _pushed_out(centre, 3.0, centre)[3] is False
+
+
+@njit
+def _time_to_slide(reach: float, speed: float, impact: float, dt: float, to_angle: float) -> float:
+    # a swimmer headed along +x meets a fixed sphere at the given impact parameter and is
+    # pushed out after each step; the time until its polar angle from -x reaches ``to_angle``
+    x = -np.sqrt(reach * reach - impact * impact) * (1.0 + 1e-12)
+    y = impact
+    t = 0.0
+    while np.arctan2(y, -x) < to_angle:
+        nx, ny, _, _ = contacts.pushed_out(0.0, 0.0, 0.0, reach, x + speed * dt, y, 0.0)
+        x = nx
+        y = ny
+        t += dt
+    return t
+
+
+@pytest.mark.parametrize("dt", [0.01, 0.0025])
+def test_a_swimmer_pushed_against_a_sphere_slides_round_it_as_a_hard_sphere_does(dt: float) -> None:
+    # On the surface only the tangential part of the swim survives: d(alpha)/dt = v sin(alpha)
+    # / R, alpha measured from the head-on point, so from alpha0 to alpha1 it takes
+    # (R / v) [ln tan(a / 2)] between them, whatever the step (a move refused whole would never
+    # get there: every step points into the sphere).
+    reach, speed, impact, to_angle = 10.0, 5.0, 5.0, np.radians(80.0)
+    a0 = np.arcsin(impact / reach)
+
+    def f(a: float) -> float:
+        return float(np.log(np.tan(a / 2)))
+
+    expected = reach / speed * (f(to_angle) - f(a0))
+    assert _time_to_slide(reach, speed, impact, dt, to_angle) == pytest.approx(expected, rel=0.01)

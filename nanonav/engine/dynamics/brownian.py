@@ -24,6 +24,7 @@ from scipy.optimize import brentq
 from scipy.special import dawsn
 
 from nanonav.engine.compiled import inlined, inlined_callable
+from nanonav.engine.contacts import CellList, first_within, pushed_out, relist
 from nanonav.engine.dynamics.lattice import reflect, segment_hit
 from nanonav.engine.state import KernelParams, Swarm, World
 
@@ -32,6 +33,9 @@ from nanonav.scenario import BOLTZMANN_J_K as BOLTZMANN_J_K
 from nanonav.scenario import MOLECULES_PER_UM3_PER_NM as MOLECULES_PER_UM3_PER_NM
 from nanonav.scenario import stokes_einstein_debye_s as stokes_einstein_debye_s
 from nanonav.scenario import stokes_einstein_um2_s as stokes_einstein_um2_s
+
+# A robot pushed out of one robot into another is pushed out again, this many times at most.
+CONTACT_PASSES = 4
 
 # Rayleigh(sigma) rotation angles: E[cos theta] = 1 - 2 x F(x), x = sigma / sqrt(2), F Dawson's
 # integral. It falls from 1 to 0 as x grows to about 0.9241, the largest step this allows.
@@ -284,14 +288,26 @@ def read_counted(rng: np.random.Generator, concentration: float, molecules: floa
 
 
 @inlined
+def free_at(p: KernelParams, w: World, x: float, y: float, z: float) -> bool:
+    """Whether a robot's centre may be at (x, y, z): inside the walls (if any) and clear of
+    every obstacle."""
+    if p.walls and (abs(x) > p.half or abs(y) > p.half or abs(z) > p.half):
+        return False
+    return segment_hit(w.obstacles, p.obstacle_radius, x, y, z, x, y, z) < 0
+
+
+@inlined
 def move_robot(
     p: KernelParams, rng: np.random.Generator, w: World, s: Swarm, i: int,
     px: float, py: float, pz: float,
 ) -> tuple[float, float, float, bool]:  # fmt: skip
     """One overdamped step of robot ``i`` at p: swim along its heading and jiggle, reflected by
-    the walls; a step whose segment would bring its surface into an obstacle's is refused (the
-    robot stays and a collision is counted), whatever the noise. Then its heading diffuses.
-    Returns where it ends and whether it was blocked."""
+    the walls. A step that brings its surface into an obstacle's is a contact (counted as a
+    collision): the robot stops at the surface, the part of the step into the obstacle undone
+    and the rest kept (``pushed_out``), so it slides round the obstacle at a speed that does
+    not depend on dt; a step that passes through one, or whose contact point is not free, is
+    refused (the robot stays). Then its heading diffuses. Returns where it ends and whether it
+    touched an obstacle."""
     hx = s.heading[i, 0]
     hy = s.heading[i, 1]
     hz = s.heading[i, 2]
@@ -302,17 +318,22 @@ def move_robot(
         nx = reflect(nx, p.half)
         ny = reflect(ny, p.half)
         nz = reflect(nz, p.half)
-    blocked = segment_hit(w.obstacles, p.obstacle_radius, px, py, pz, nx, ny, nz) >= 0
+    hit = segment_hit(w.obstacles, p.obstacle_radius, px, py, pz, nx, ny, nz)
+    blocked = hit >= 0
     if blocked:
         s.collisions[i] += 1
-        nx = px
-        ny = py
-        nz = pz
-    else:
-        dx = nx - px
-        dy = ny - py
-        dz = nz - pz
-        s.path_length[i] += math.sqrt(dx * dx + dy * dy + dz * dz)
+        nx, ny, nz, inside = pushed_out(
+            w.obstacles[hit, 0], w.obstacles[hit, 1], w.obstacles[hit, 2], p.obstacle_radius,
+            nx, ny, nz,
+        )  # fmt: skip
+        if not inside or not free_at(p, w, nx, ny, nz):
+            nx = px
+            ny = py
+            nz = pz
+    dx = nx - px
+    dy = ny - py
+    dz = nz - pz
+    s.path_length[i] += math.sqrt(dx * dx + dy * dy + dz * dz)
     s.pos[i, 0] = nx
     s.pos[i, 1] = ny
     s.pos[i, 2] = nz
@@ -321,3 +342,40 @@ def move_robot(
     s.heading[i, 1] = hy
     s.heading[i, 2] = hz
     return nx, ny, nz, blocked
+
+
+@inlined
+def make_way(
+    p: KernelParams, w: World, grid: CellList, everyone: NDArray[np.bool_], s: Swarm, i: int,
+    px: float, py: float, pz: float,
+) -> tuple[float, float, float, bool]:  # fmt: skip
+    """Robot ``i`` moved from p to where ``s.pos`` has it, with the other robots hard spheres
+    ``p.contact`` apart: one now closer is a bump, and the robot stops at contact with it
+    (``pushed_out``), then with the next it then overlaps, and so on (``CONTACT_PASSES`` at
+    most, so that a robot squeezed between two slides along both); or at p, where that finds
+    no free point (of robots, obstacles, the walls). Lists it where it ends. Returns where it
+    ends and whether it bumped."""
+    x = s.pos[i, 0]
+    y = s.pos[i, 1]
+    z = s.pos[i, 2]
+    bumped = False
+    free = False
+    for _ in range(CONTACT_PASSES):
+        j = first_within(grid, s.pos, everyone, x, y, z, p.contact, i)
+        if j < 0:
+            free = not bumped or free_at(p, w, x, y, z)
+            break
+        bumped = True
+        x, y, z, inside = pushed_out(s.pos[j, 0], s.pos[j, 1], s.pos[j, 2], p.contact, x, y, z)
+        if not inside:
+            break
+    if not free:
+        x = px
+        y = py
+        z = pz
+    else:
+        relist(grid, i, x, y, z)
+    s.pos[i, 0] = x
+    s.pos[i, 1] = y
+    s.pos[i, 2] = z
+    return x, y, z, bumped
