@@ -1,16 +1,25 @@
-"""The strongest fixed rule when molecules are counted: each candidate rule's success on design
-seeds, the best chosen there at each radius, then that choice against the plain rules on seeds
-the choice never saw, paired by seed, with Holm over the comparisons.
+"""The strongest rule, and the best learner, when molecules are counted: each candidate's
+success on design seeds, the best fixed rule and the best learner chosen there at each radius,
+then the rule against plain 'gradient' and the learner against the rule on seeds the choice
+never saw, twice (the second set replicates the first), paired by seed, with Holm over each
+set's comparisons.
 
-    python benchmarks/strongest_rule.py [--seeds N] [--report-seeds N] [--report-from S]
-                                        [--worlds N] [--radii R,R] [--quick]
+    python benchmarks/strongest_rule.py [--preset NAME] [--seeds N] [--report-seeds N]
+                                        [--report-from S,S] [--worlds N] [--episodes N]
+                                        [--radii R,R] [--quick]
 
-The world is 'tumour-microswimmers' (one cell among 40 tissue obstacles, 20 robots at 10 um/s,
-60 s) with sensor 'counted'. A candidate is a policy ('gradient' or 'steer_and_tumble'), how
-long the gradient a robot steers by remembers its counts (``physics.gradient_memory_s``, 0:
-the last count's alone) and how fast it may turn (``physics.max_turn_rate_rad_s``: a slower
-turn follows a noisy estimate by less). 'run_and_tumble' (temporal sensing alone), the robot
-that does not steer, and the exact gradient (an upper bound no robot has) are printed beside.
+'tumour-microswimmers' (the default; one cell among 40 tissue obstacles, 20 robots at 10 um/s,
+60 s, with sensor 'counted'): a candidate is 'gradient' or 'steer_and_tumble', with a memory of
+the counts' gradient (``physics.gradient_memory_s``, 0: the last count's alone) and a turn rate
+(``physics.max_turn_rate_rad_s``: a slower turn follows a noisy estimate by less).
+
+'alonso-kirkegaard' (one robot of 0.5-3.4 um at 5 um/s, 13 molecules a count 50 um from the
+source, 25.6 s): temporal sensing on two time scales as well, the rules that tumble and the
+Q-learner comparing the mean of the last ``physics.short_memory_s`` with that of the last
+``physics.memory_s``; the Q-learner trains ``--episodes`` episodes.
+
+'run_and_tumble' (temporal sensing alone, at its defaults), the robot that does not steer and
+the exact gradient (an upper bound no robot has) are printed beside.
 """
 
 from __future__ import annotations
@@ -19,111 +28,166 @@ import argparse
 import os
 import sys
 import time
-from typing import Any
 
-from physical_question import DESIGN_SEEDS, floats, in_parallel, paired, reached
+from physical_question import DESIGN_SEEDS, floats, in_parallel, paired
 from science import mean_ci
 
 from nanonav import stats
+from nanonav.engine import simulate
+from nanonav.scenario import preset_scenario
 
-RADII = "1,2,5"
-STEERING = ("gradient", "steer_and_tumble")
-MEMORIES_S = (0.0, 0.5, 2.0, 8.0)
-TURN_RATES_RAD_S = (1.0, 3.0, 10.0)
+PRESETS = ("tumour-microswimmers", "alonso-kirkegaard")
+RADII = {"tumour-microswimmers": "1,2,5", "alonso-kirkegaard": "0.5,1,2,3.4"}
+TIME_LIMIT_S = {"tumour-microswimmers": 60.0, "alonso-kirkegaard": 25.6}
+WORLDS = {"tumour-microswimmers": 4, "alonso-kirkegaard": 20}
 BESIDE = ("uncontrolled", "run_and_tumble", "exact_gradient")
 # seeds no document has reported on (the tables use 0-99 and 5000-5099, convergence 7000-7019)
 REPORT_SEEDS = 7100
+REPLICATE_SEEDS = 7200
 
-Rule = tuple[str, float, float]  # policy, gradient memory s, turn rate rad/s
-Job = tuple[float, Rule, int, int]
+Setting = tuple[tuple[str, float], ...]  # physics fields and their values
+Rule = tuple[str, Setting]  # a policy and its setting
+Job = tuple[str, float, Rule, int, int, int]  # preset, radius, rule, seed, worlds, episodes
 
 
 def label(rule: Rule) -> str:
-    policy, memory, turn = rule
-    if policy not in STEERING:
-        return policy
-    return f"{policy}, memory {memory:g} s, turn {turn:g} rad/s"
+    policy, setting = rule
+    names = {"gradient_memory_s": "gradient memory", "max_turn_rate_rad_s": "turn",
+             "short_memory_s": "short", "memory_s": "long", "tumble_rate_s": "tumble",
+             "tumble_rate_rising_s": "rising"}  # fmt: skip
+    return ", ".join([policy, *(f"{names[k]} {v:g}" for k, v in setting)])
 
 
 def run_one(job: Job) -> float:
-    radius, (policy, memory, turn), seed, worlds = job
-    physics: dict[str, Any] = {"sensor": "counted", "max_turn_rate_rad_s": turn}
-    if policy in STEERING:
-        physics["gradient_memory_s"] = memory
-    return reached(radius, seed, worlds, policy, physics)
+    """The share of robots that reach the cell in one run."""
+    preset, radius, (policy, setting), seed, worlds, episodes = job
+    scenario = preset_scenario(
+        preset, seed=seed,
+        physics={"model": "active_brownian", "time_limit_s": TIME_LIMIT_S[preset],
+                 "robot_radius_um": radius, "sensor": "counted", **dict(setting)},
+        robots={"policy": policy},
+        learning={"episodes": episodes if policy == "q_learning" else 0},
+        evaluation={"worlds": worlds},
+    )  # fmt: skip
+    return float(simulate(scenario).summary["success_rate"])
 
 
-def candidates(quick: bool) -> list[Rule]:
-    memories = (0.0, 2.0) if quick else MEMORIES_S
-    turns = (1.0, 10.0) if quick else TURN_RATES_RAD_S
-    return [(p, m, t) for p in STEERING for m in memories for t in turns]
+def candidates(preset: str, quick: bool) -> list[Rule]:
+    """The fixed rules and the learners tried on the design seeds."""
+    if preset == "tumour-microswimmers":
+        memories = (0.0, 2.0) if quick else (0.0, 0.5, 2.0, 8.0)
+        turns = (1.0, 10.0) if quick else (1.0, 3.0, 10.0)
+        return [
+            (p, (("gradient_memory_s", m), ("max_turn_rate_rad_s", t)))
+            for p in ("gradient", "steer_and_tumble")
+            for m in memories
+            for t in turns
+        ]
+    shorts = (0.0, 0.5) if quick else (0.0, 0.3, 1.0)
+    longs = (2.0,) if quick else (2.0, 5.0)
+    rates = ((1.0, 0.25),) if quick else ((1.0, 0.25), (0.5, 0.05))
+    rules: list[Rule] = [
+        (p, (("short_memory_s", s), ("memory_s", m), ("tumble_rate_s", tumble),
+             ("tumble_rate_rising_s", rising)))
+        for p in ("run_and_tumble", "steer_and_tumble") for s in shorts for m in longs
+        for tumble, rising in rates
+    ]  # fmt: skip
+    rules += [("gradient", (("gradient_memory_s", m),))
+              for m in ((0.0, 2.0) if quick else (0.0, 0.5, 2.0, 4.0, 8.0))]  # fmt: skip
+    # the learner's action 'up the gradient' steers by the same held gradient as the rule
+    gradients = (2.0,) if quick else (0.0, 2.0)
+    rules += [("q_learning", (("short_memory_s", s), ("memory_s", m), ("gradient_memory_s", g)))
+              for s in shorts for m in longs for g in gradients]  # fmt: skip
+    return rules
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
+    parser.add_argument("--preset", choices=PRESETS, default=PRESETS[0])
     parser.add_argument("--seeds", type=int, default=10, help="design seeds")
     parser.add_argument("--seeds-from", type=int, default=DESIGN_SEEDS)
-    parser.add_argument("--report-seeds", type=int, default=20)
-    parser.add_argument("--report-from", type=int, default=REPORT_SEEDS)
-    parser.add_argument("--worlds", type=int, default=4, help="evaluation worlds per run")
-    parser.add_argument("--radii", default=RADII, help="robot radii, um")
+    parser.add_argument("--report-seeds", type=int, default=20, help="seeds of each report")
+    parser.add_argument(
+        "--report-from", default=f"{REPORT_SEEDS},{REPLICATE_SEEDS}",
+        help="the first seed of each report (the second replicates the first)",
+    )  # fmt: skip
+    parser.add_argument("--worlds", type=int, help="evaluation worlds per run")
+    parser.add_argument("--episodes", type=int, default=400, help="q_learning's training")
+    parser.add_argument("--radii", help="robot radii, um")
     parser.add_argument("--quick", action="store_true", help="a smoke run: 2 seeds, 1 radius")
     args = parser.parse_args(argv)
+    preset = args.preset
     design = range(args.seeds_from, args.seeds_from + (2 if args.quick else args.seeds))
-    report = range(args.report_from, args.report_from + (2 if args.quick else args.report_seeds))
-    radii = (2.0,) if args.quick else tuple(floats(args.radii))
-    worlds = 1 if args.quick else args.worlds
-    rules = candidates(args.quick)
-    beside: list[Rule] = [(p, 0.0, 10.0) for p in BESIDE]
-    plain: Rule = ("gradient", 0.0, 10.0)
+    count = 2 if args.quick else args.report_seeds
+    reports = [range(int(f), int(f) + count) for f in args.report_from.split(",")]
+    radii = tuple(floats(args.radii or RADII[preset]))[: 1 if args.quick else None]
+    worlds = 1 if args.quick else (args.worlds or WORLDS[preset])
+    episodes = 2 if args.quick else args.episodes
+    tried = candidates(preset, args.quick)
+    beside: list[Rule] = [(p, ()) for p in BESIDE]
+    plain: Rule = ("gradient", ())
     started = time.perf_counter()
 
-    done = in_parallel(run_one, [(r, rule, s, worlds) for r in radii for rule in rules + beside
+    def job(radius: float, rule: Rule, seed: int) -> Job:
+        return (preset, radius, rule, seed, worlds, episodes)
+
+    done = in_parallel(run_one, [job(r, rule, s) for r in radii for rule in tried + beside
                                  for s in design])  # fmt: skip
     print(
-        f"Design seeds {design.start}-{design.stop - 1} x {worlds} worlds, sensor 'counted': "
-        "share of robots that reach the cell (mean [95 % interval])\n"
+        f"{preset}, sensor 'counted': share of robots that reach the cell (mean [95 % "
+        f"interval]); design seeds {design.start}-{design.stop - 1} x {worlds} worlds; "
+        f"q_learning trains {episodes} episodes\n"
     )
-    best: dict[float, Rule] = {}
+
+    def best_of(radius: float, rules: list[Rule]) -> Rule | None:
+        if not rules:
+            return None
+        scored = [(sum(done[job(radius, rule, s)] for s in design), -i)
+                  for i, rule in enumerate(rules)]  # fmt: skip
+        return rules[-max(scored)[1]]
+
+    chosen: dict[float, list[Rule]] = {}
     for radius in radii:
+        rule = best_of(radius, [r for r in tried if r[0] != "q_learning"])
+        learner = best_of(radius, [r for r in tried if r[0] == "q_learning"])
+        chosen[radius] = [r for r in (rule, learner) if r is not None]
         print(f"radius {radius:g} um")
-        scored = [(sum(done[(radius, rule, s, worlds)] for s in design) / len(design), rule)
-                  for rule in rules]  # fmt: skip
-        best[radius] = max(scored)[1]
-        for rule in rules + beside:
-            shares = [done[(radius, rule, s, worlds)] for s in design]
-            mark = "  <- chosen" if rule == best[radius] else ""
-            print(f"  {label(rule):48s} {mean_ci(shares)}{mark}")
+        for candidate in tried + beside:
+            shares = [done[job(radius, candidate, s)] for s in design]
+            mark = "  <- chosen" if candidate in chosen[radius] else ""
+            print(f"  {label(candidate):72s} {mean_ci(shares)}{mark}")
         print()
 
-    tumbling: Rule = ("steer_and_tumble", 0.0, 10.0)
-    jobs = {(r, rule, s, worlds) for r in radii for rule in (best[r], plain, tumbling, *beside)
-            for s in report}  # fmt: skip
-    fresh = in_parallel(run_one, sorted(jobs))
-    comparisons = len(radii) * 2
-    print(
-        f"Report seeds {report.start}-{report.stop - 1} x {worlds} worlds: the rule chosen on "
-        f"the design seeds against 'gradient' as it was (memory 0, 10 rad/s) and against "
-        f"'steer_and_tumble' (the same); Holm over {comparisons} comparisons\n"
-    )
-    rows: list[tuple[float, str, str, float]] = []
-    for radius in radii:
-        chosen = [fresh[(radius, best[radius], s, worlds)] for s in report]
-        for other in (plain, tumbling):
-            theirs = [fresh[(radius, other, s, worlds)] for s in report]
-            p_value = stats.paired(chosen, theirs).p_value
-            rows.append((radius, label(other), paired(chosen, theirs),
-                         1.0 if p_value is None else p_value))  # fmt: skip
-    adjusted = stats.holm([r[3] for r in rows])
-    for radius in radii:
-        print(f"radius {radius:g} um: chosen {label(best[radius])}")
-        for rule in dict.fromkeys((best[radius], plain, tumbling, *beside)):
-            shares = [fresh[(radius, rule, s, worlds)] for s in report]
-            print(f"  {label(rule):48s} {mean_ci(shares)}")
-        for (r, name, diff, _), holm_p in zip(rows, adjusted, strict=True):
-            if r == radius:
-                print(f"  chosen - {name:44s} {diff}  Holm p {holm_p:.3g}")
-        print()
+    for report in reports:
+        jobs = {job(r, rule, s) for r in radii for rule in (*chosen[r], plain, *beside)
+                for s in report}  # fmt: skip
+        fresh = in_parallel(run_one, sorted(jobs))
+        rows: list[tuple[float, str, str, float]] = []
+        for radius in radii:
+            rule, *learner = chosen[radius]
+            pairs = [(rule, plain)] + ([(learner[0], rule)] if learner else [])
+            for a, b in pairs:
+                ours = [fresh[job(radius, a, s)] for s in report]
+                theirs = [fresh[job(radius, b, s)] for s in report]
+                p_value = stats.paired(ours, theirs).p_value
+                name = "learner - strongest rule" if a[0] == "q_learning" else (
+                    "strongest rule - plain gradient")  # fmt: skip
+                rows.append((radius, name, paired(ours, theirs),
+                             1.0 if p_value is None else p_value))  # fmt: skip
+        adjusted = stats.holm([r[3] for r in rows])
+        print(
+            f"Report seeds {report.start}-{report.stop - 1} x {worlds} worlds, which the choice "
+            f"never saw; Holm over {len(rows)} comparisons\n"
+        )
+        for radius in radii:
+            print(f"radius {radius:g} um")
+            for rule in dict.fromkeys((*chosen[radius], plain, *beside)):
+                shares = [fresh[job(radius, rule, s)] for s in report]
+                print(f"  {label(rule):72s} {mean_ci(shares)}")
+            for (r, name, diff, _), holm_p in zip(rows, adjusted, strict=True):
+                if r == radius:
+                    print(f"  {name:40s} {diff}  Holm p {holm_p:.3g}")
+            print()
     print(f"({time.perf_counter() - started:.0f} s on {os.cpu_count()} cores)")
     return 0
 

@@ -36,6 +36,7 @@ PresetName = Literal[
     "tumour-nanorobots",
     "tumour-passive",
     "diffuse-tumour",
+    "alonso-kirkegaard",
 ]
 FieldModel = Literal["gaussian", "inverse_square", "diffusion", "sampled_gaussian"]
 Schedule = Literal["sequential", "simultaneous"]
@@ -835,6 +836,16 @@ class Physics(_Part):
         description="Temporal sensing: a reading is compared with the mean of the robot's "
         "readings over this past time to tell whether it rises (0: with the last reading).",
     )
+    short_memory_s: float = Field(
+        0.0,
+        ge=0.0,
+        le=1e4,
+        description="Temporal sensing on two time scales: what is compared with the mean over "
+        "memory_s is the mean of the robot's readings over this shorter past time (an "
+        "exponential average, as memory_s's), so that a rise is told from a few noisy counts "
+        "rather than one; the rules that tumble and the Q-learner's 'rising' use it. Less than "
+        "memory_s. 0: the reading itself.",
+    )
     sensor: Sensor = Field(
         "each_step",
         description="How a robot reads the biomarker. 'each_step': every step a reading of "
@@ -905,6 +916,12 @@ class Physics(_Part):
                     + f"; dt_s <= {_round_down(fine)} s would do",
                 )  # fmt: skip
         self._integration_fits(dt)
+        if self.short_memory_s and self.short_memory_s >= self.memory_s:
+            raise _field_error(
+                "Physics", ("short_memory_s",), self.short_memory_s,
+                f"must be shorter than memory_s ({self.memory_s:g} s), the mean it is compared "
+                "with",
+            )  # fmt: skip
         return self._time_limit_fits()
 
     def _integration_fits(self, dt: float) -> None:
@@ -1063,7 +1080,12 @@ class Scenario(_Part):
         "(5 µm) in a 150 µm cube, 20 robots of 1 µm swimming at 10 µm/s that sense a cell by "
         "touching it and take up space (hard spheres), 60 s; 'tumour-nanorobots', the same "
         "with robots of 0.2 µm; "
-        "'tumour-passive', robots of 1 µm that do not swim (uncontrolled, speed 0). The "
+        "'tumour-passive', robots of 1 µm that do not swim (uncontrolled, speed 0); "
+        "'alonso-kirkegaard', the setting of Alonso & Kirkegaard (PNAS Nexus 2024) in three "
+        "dimensions: one robot of 0.5 µm at 5 µm/s, D_R 0.025 1/s, no translational noise, "
+        "deciding and counting molecules every 0.1 s, turning up to π per decision, one still "
+        "source of field length 100 µm secreting 86,000 molecules/s (their weakest, N = 1e4, "
+        "counted alike 50 µm away), reached within 10.5 µm, 25.6 s. The "
         "swarm's: 'diffuse-tumour', 20 small cells that each need 3 payloads, scattered through "
         "a 100-unit cube, each shedding a faint, short-range marker (spread 3, a noise floor "
         "and a detection threshold), among 20 drifting obstacles; 100 robots that take up space "
@@ -1652,6 +1674,31 @@ DIFFUSE_TUMOUR: dict[str, Any] = {
     "communication": {"release_rate": 10.0},
 }
 PRESETS["diffuse-tumour"] = DIFFUSE_TUMOUR
+# Alonso & Kirkegaard, PNAS Nexus 3, pgae235 (2024), as their code sets it (kirkegaardlab/chemoxrl,
+# models/*/env_params.json): a swimmer of radius 0.5-3.4 um at 5 um/s, D_R 0.025 1/s and no
+# translational noise, a decision and a count every 0.1 s, a turn of up to pi per decision, a
+# field e^(-r/lambda) with lambda = sqrt(D / k) = sqrt(100 / 0.01) = 100 um, a source of
+# N = 1e4-1e5, an episode of 256 decisions, a start 36-69 um away and success within
+# -ln(0.9) lambda = 10.5 um. Their world is two-dimensional and their five receptors each count
+# N / 2 pi times their area times the field; here the field is a 3-D source's and six patches
+# count at the Berg-Purcell rate, so the secretion is chosen to count as many molecules as their
+# N = 1e4 does (13 in 0.1 s at 50 um, for a 0.5 um robot): Q = 86,000 molecules/s.
+ALONSO_KIRKEGAARD: dict[str, Any] = {
+    "physics": {
+        "model": "active_brownian", "robot_radius_um": 0.5, "swim_speed_um_s": 5.0,
+        "rotational_diffusion_s": 0.025, "diffusion_um2_s": 0.0, "sensor": "counted",
+        "max_turn_rate_rad_s": 31.4, "molecule_diffusion_um2_s": 100.0,
+        "decay_rate_s": 0.01, "secretion_molecules_s": 86_000.0, "cell_radius_um": 10.0,
+        "cell_diffusion_um2_s": 0.0, "time_limit_s": 25.6,
+    },
+    # the cell starts within 3 um of the centre, the robot anywhere else: 55 um away on average
+    "space": {"size": 120.0, "walls": False},
+    "cells": {"count": 1, "start_extent": 0.05},
+    "obstacles": {"count": 0},
+    "robots": {"count": 1, "cell_sensing_radius": 0.0},
+    "learning": {"decision_interval_s": 0.1},
+}  # fmt: skip
+PRESETS["alonso-kirkegaard"] = ALONSO_KIRKEGAARD
 PRESETS.update(
     {
         "tumour-microswimmers": TUMOUR,

@@ -256,11 +256,17 @@ def read_state(
             # at its first reading, then every window; held
             count_molecules(p, rng, s, i, s.prev_conc[i] < 0.0)
         c = s.sensed[i]
+        recent = c
         if s.prev_conc[i] < 0.0:
-            s.prev_conc[i] = c  # the first reading starts the memory
+            s.prev_conc[i] = c  # the first reading starts the memories
+            s.recent[i] = c
+        elif p.recent_weight < 1.0:
+            s.recent[i] += p.recent_weight * (c - s.recent[i])
+            recent = s.recent[i]
         gap = cell_d - p.reach_distance
         obs[i, OBS_READING] = c
-        obs[i, OBS_CHANGE] = c - s.prev_conc[i]
+        # temporal sensing: the recent mean (or the reading) against the longer memory's
+        obs[i, OBS_CHANGE] = recent - s.prev_conc[i]
         if p.turning:
             # a robot that turns by itself reads its gradient each step, in its body frame
             body_gradient(p, rng, sim, i)
@@ -270,7 +276,8 @@ def read_state(
             obs[i, OBS_GRADIENT + 2] = 0.0
         obs[i, OBS_OBSTACLE] = 1.0 if s.blocked[i] else 0.0
         obs[i, OBS_CELL] = min(gap, p.cell_sensing_radius)
-        return steering_state(p, c, c > s.prev_conc[i], s.blocked[i], gap <= p.cell_sensing_radius)
+        rising = obs[i, OBS_CHANGE] > 0.0
+        return steering_state(p, c, rising, s.blocked[i], gap <= p.cell_sensing_radius)
     c, gx, gy, gz = noisy_reading(p, rng, s, i)
     obs[i, OBS_READING] = c
     obs[i, OBS_CHANGE] = c - s.prev_conc[i] if s.prev_conc[i] >= 0.0 else 0.0
@@ -380,7 +387,7 @@ def decide(
         return action, code, dx, dy, dz, gx, gy, gz
     c = pc.obs[i, OBS_READING]
     if p.physics == ACTIVE_BROWNIAN:
-        code = steering_baseline(p, rng, c > s.prev_conc[i])
+        code = steering_baseline(p, rng, pc.obs[i, OBS_CHANGE] > 0.0)
         if code == STEER_UP_GRADIENT and pc.heard[i] > 0 and c <= p.level_1:
             # the written rule: where the biomarker is at trace level, follow the signal
             code = STEER_TO_SIGNAL

@@ -217,6 +217,7 @@ def _brownian_params(scenario: Scenario, params: KernelParams, b: Biomarker) -> 
         tumble=-math.expm1(-ph.tumble_rate_s * dt),
         tumble_rising=-math.expm1(-ph.tumble_rate_rising_s * dt),
         memory_weight=min(1.0, dt / ph.memory_s) if ph.memory_s > 0 else 1.0,
+        recent_weight=min(1.0, dt / ph.short_memory_s) if ph.short_memory_s > 0 else 1.0,
         counted=ph.sensor == "counted",
         window=window,
         patch_counting=counting * window / sensing.RECEPTOR_PATCHES,
@@ -390,6 +391,7 @@ def episode_arrays(scenario: Scenario) -> EpisodeArrays:
         blocked=np.zeros(n, dtype=np.bool_),
         sensed=np.zeros(n),
         sensed_grad=np.zeros((n, 3)),
+        recent=np.zeros(n),
     )
     social = Social(
         bound_to=np.full(n, -1, dtype=np.int64),

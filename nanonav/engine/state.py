@@ -107,6 +107,8 @@ class KernelParams(NamedTuple):
     patch_counting: float = 0.0
     # the weight of a new count's gradient in the held one (1: it replaces it)
     gradient_weight: float = 1.0
+    # dt / short_memory_s: how fast the recent mean follows the reading (1: it is the reading)
+    recent_weight: float = 1.0
     # cells that can be treated, robots that take up space, and signals (issue: the swarm)
     capacity: int = 0  # payloads that treat a cell; 0: never treated
     treated_secretion: float = 0.0  # share of its field a treated cell keeps
@@ -161,6 +163,8 @@ class Swarm(NamedTuple):
     # sensor 'counted': the gradient its last count gave, (N, 3), world frame, held as
     # ``sensed`` is until the next count
     sensed_grad: NDArray[np.float64]
+    # its readings' mean over physics.short_memory_s, compared with prev_conc's longer one
+    recent: NDArray[np.float64]
 
 
 class World(NamedTuple):

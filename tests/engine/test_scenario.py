@@ -38,11 +38,13 @@ def test_presets_give_the_papers_figures_and_fields_override_them() -> None:
         "tumour-nanorobots",
         "tumour-passive",
         "diffuse-tumour",
+        "alonso-kirkegaard",
     }
     # the paper's and the hard worlds keep the paper's physics; the tumour worlds are physical
     for name in PRESETS:
         physics = preset_scenario(name).physics.model
-        assert physics == ("active_brownian" if name.startswith("tumour-") else "lattice"), name
+        physical = name.startswith("tumour-") or name == "alonso-kirkegaard"
+        assert physics == ("active_brownian" if physical else "lattice"), name
 
 
 def test_a_resolved_scenario_round_trips() -> None:
