@@ -4,7 +4,7 @@ beat the strongest fixed rule, or the tabular learner, for robots of what size?
     python benchmarks/deep_rl.py [--decisions N] [--recurrent-decisions N] [--seeds N]
                                  [--seeds-from S] [--worlds N] [--radii R,...]
                                  [--steering discrete|continuous] [--decision-interval-s S]
-                                 [--quick]
+                                 [--preset NAME] [--gradient-memory-s S] [--quick]
 
 The 'tumour-microswimmers' world (one tumour cell among 40 tissue obstacles, 20 robots
 swimming at 10 um/s for 60 s), robots of radius 0.5, 1, 2 and 5 um. Every robot decides once a
@@ -25,6 +25,11 @@ written as such a turn too (``nanonav.rl.rules.TurnUpGradient``), run by the sam
   recurrent one carrying each robot's memory from decision to decision); 'gradient' (steer up the
   sensed gradient: the strongest fixed rule, docs/explanation/learning.md) and 'q_learning'
   (the tabular learner, its default 50 training episodes a seed) by ``simulate``.
+
+With ``--preset alonso-kirkegaard`` (one robot, 25.6 s, molecules counted: the setting where
+Alonso & Kirkegaard found a recurrent policy beating the rules) and ``--gradient-memory-s 2``
+(the strongest rule there, docs/explanation/sensing.md), every policy steers by the same
+remembered gradient: the learners' action up the gradient as the rule.
 
 Printed: the share of robots that reach the cell (mean over seeds, 95 % interval), each deep
 learner minus 'gradient' and minus 'q_learning' paired by seed, with Wilcoxon's p and Holm's
@@ -66,18 +71,26 @@ BASELINES = ("gradient", "q_learning")
 TURN_RULE = "turn_up_gradient"
 
 
-# the decision interval, s (None: the physics' default), set once by main
-INTERVAL: dict[str, float | None] = {"s": None}
+PRESETS = ("tumour-microswimmers", "alonso-kirkegaard")
+TIME_LIMIT_S = {"tumour-microswimmers": 60.0, "alonso-kirkegaard": 25.6}
+# What every run shares, set by main and sent with every job to the processes that run it: the
+# decision interval, s (None: the physics' default), the preset and the gradient memory, s.
+Setup = tuple[float | None, str, float]
+SETUP: dict[str, Setup] = {"now": (None, PRESET, 0.0)}
 
 
 def scenario(radius: float, seed: int, policy: str, worlds: int, episodes: int = 0) -> Scenario:
-    """The preset with robots of ``radius`` um, 60 s, deciding together."""
+    """The preset with robots of ``radius`` um, over its time limit, deciding together."""
+    interval, preset, memory = SETUP["now"]
     learning: dict[str, Any] = {"episodes": episodes}
-    if INTERVAL["s"] is not None:
-        learning["decision_interval_s"] = INTERVAL["s"]
+    if interval is not None:
+        learning["decision_interval_s"] = interval
+    physics: dict[str, Any] = {"model": "active_brownian", "time_limit_s": TIME_LIMIT_S[preset],
+                               "robot_radius_um": radius}  # fmt: skip
+    if memory:
+        physics["gradient_memory_s"] = memory
     return preset_scenario(
-        PRESET, seed=seed,
-        physics={"model": "active_brownian", "time_limit_s": 60.0, "robot_radius_um": radius},
+        preset, seed=seed, physics=physics,
         robots={"policy": policy, "schedule": "simultaneous"},
         learning=learning, evaluation={"worlds": worlds},
     )  # fmt: skip
@@ -89,12 +102,12 @@ def _quiet_torch() -> None:
     torch.set_num_threads(1)
 
 
-def train(job: tuple[str, float, int, str, bool, Steering, float | None]) -> dict[str, Any]:
+def train(job: tuple[str, float, int, str, bool, Steering, Setup]) -> dict[str, Any]:
     """Train ``algo`` at ``radius`` for ``decisions`` on the design seeds; returns its rate and
     where the trained policy is, exported to ONNX (recurrent PPO's with its memory). ``quick``:
     short rollouts (a smoke run; the figures use the library's defaults)."""
-    algo, radius, decisions, out, quick, steering, interval = job
-    INTERVAL["s"] = interval
+    algo, radius, decisions, out, quick, steering, setup = job
+    SETUP["now"] = setup
     _quiet_torch()
     from sb3_contrib import RecurrentPPO
     from stable_baselines3 import PPO
@@ -119,10 +132,10 @@ def train(job: tuple[str, float, int, str, bool, Steering, float | None]) -> dic
             "where": where}  # fmt: skip
 
 
-def run_one(job: tuple[str, float, int, int, str, Steering, float | None]) -> float:
+def run_one(job: tuple[str, float, int, int, str, Steering, Setup]) -> float:
     """The share of robots that reach the cell in one evaluation run."""
-    policy, radius, seed, worlds, where, steering, interval = job
-    INTERVAL["s"] = interval
+    policy, radius, seed, worlds, where, steering, setup = job
+    SETUP["now"] = setup
     if policy == TURN_RULE:
         s = scenario(radius, seed, "q_learning", worlds)
         rule = TurnUpGradient(s)
@@ -171,9 +184,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--radii", help="comma-separated robot radii, um (default: 0.5,1,2,5)")
     parser.add_argument("--steering", choices=STEERINGS, default="discrete")
     parser.add_argument("--decision-interval-s", type=float, help="default: the physics'")
+    parser.add_argument("--preset", choices=PRESETS, default=PRESET)
+    parser.add_argument(
+        "--gradient-memory-s", type=float, default=0.0,
+        help="physics.gradient_memory_s of every policy (sensor 'counted' only)",
+    )  # fmt: skip
     parser.add_argument("--quick", action="store_true", help="a smoke run")
     args = parser.parse_args(argv)
-    steering, interval = args.steering, args.decision_interval_s
+    steering = args.steering
+    setup: Setup = (args.decision_interval_s, args.preset, args.gradient_memory_s)
     baselines = (*BASELINES, TURN_RULE) if steering == "continuous" else BASELINES
     radii = tuple(float(r) for r in args.radii.split(",")) if args.radii else RADII
     decisions = {"ppo": args.decisions, "recurrent-ppo": args.recurrent_decisions}
@@ -185,25 +204,27 @@ def main(argv: list[str] | None = None) -> int:
     started = time.perf_counter()
     with tempfile.TemporaryDirectory() as out, ProcessPoolExecutor(os.cpu_count() or 1) as pool:
         training_jobs = [
-            (algo, r, decisions[algo], out, args.quick, steering, interval)
+            (algo, r, decisions[algo], out, args.quick, steering, setup)
             for algo in LEARNERS
             for r in radii
         ]
         trained = dict(zip(training_jobs, pool.map(train, training_jobs), strict=True))
         where = {(job[0], job[1]): found["where"] for job, found in trained.items()}
         jobs = [
-            (policy, r, seed, worlds, where.get((policy, r), ""), steering, interval)
+            (policy, r, seed, worlds, where.get((policy, r), ""), steering, setup)
             for r in radii
             for policy in (*baselines, *LEARNERS)
             for seed in seeds
         ]
         reached = dict(zip(jobs, pool.map(run_one, jobs), strict=True))
         cartpole = pool.submit(cartpole_rate, min(decisions["ppo"], 100_000), args.quick).result()
-    INTERVAL["s"] = interval
+    SETUP["now"] = setup
     shown = scenario(radii[0], 0, "gradient", 1)
     every = shown.decision_steps * shown.physics.step_s
+    memory = f", gradient memory {args.gradient_memory_s:g} s" if args.gradient_memory_s else ""
     print(
-        f"{PRESET}: 20 robots, one tumour cell, 60 s, a decision every {every:g} s (the deep "
+        f"{args.preset}: {shown.robots.count} robot(s), {shown.physics.time_limit_s:g} s"
+        f"{memory}, a decision every {every:g} s (the deep "
         f"learners steering {steering}ly); trained on design "
         f"seeds {DESIGN_SEEDS}.. ({ENVS} worlds of one robot), evaluated on seeds "
         f"{seeds.start}..{seeds.stop - 1} x {worlds} worlds; * = the 95 % interval excludes 0\n"
@@ -219,7 +240,7 @@ def main(argv: list[str] | None = None) -> int:
 
     def shares(policy: str, r: float) -> list[float]:
         return [
-            reached[(policy, r, seed, worlds, where.get((policy, r), ""), steering, interval)]
+            reached[(policy, r, seed, worlds, where.get((policy, r), ""), steering, setup)]
             for seed in seeds
         ]
 
