@@ -469,11 +469,10 @@ def act(
             )
         s.prev_conc[i] = c
         nx, ny, nz, blocked = lattice.move_robot(p, w, s, i, px, py, pz, dx, dy, dz, step)
-    moved = nx != px or ny != py or nz != pz
     if p.exclusion and p.physics == ACTIVE_BROWNIAN:
         # another robot in the way: the swimmer stops at contact with it, sliding round it
         bumped = False
-        if moved:
+        if nx != px or ny != py or nz != pz:
             nx, ny, nz, bumped = brownian.make_way(p, w, sim.near, sim.everyone, s, i, px, py,
                                                    pz)  # fmt: skip
         if bumped:
