@@ -39,7 +39,8 @@ ready = overloads()
 for name in PRESETS:
     preset = Scenario.model_validate({"preset": name})
     brownian = preset.physics.model == "active_brownian"
-    short = {"physics": {"time_limit_s": 0.05}} if brownian else {}
+    # long enough for the longest decision interval a preset sets (0.1 s)
+    short = {"physics": {"time_limit_s": 0.2}} if brownian else {}
     steps = {} if brownian else {"max_steps": 5}
     for schedule in ("sequential", "simultaneous"):
         data = {"preset": name, **short, "evaluation": {"worlds": 1},
