@@ -915,18 +915,19 @@ class Physics(_Part):
                     f"dt_s {dt:g} s is too coarse: " + message.format(value=value)
                     + f"; dt_s <= {_round_down(fine)} s would do",
                 )  # fmt: skip
-        self._integration_fits(dt)
+        self._sensing_fits(dt)
+        return self._time_limit_fits()
+
+    def _sensing_fits(self, dt: float) -> None:
+        """The short memory is shorter than the long; integration_time_s and gradient_memory_s
+        belong to sensor 'counted', and the integration time is at least the time a molecule
+        takes to cross the body and a step."""
         if self.short_memory_s and self.short_memory_s >= self.memory_s:
             raise _field_error(
                 "Physics", ("short_memory_s",), self.short_memory_s,
                 f"must be shorter than memory_s ({self.memory_s:g} s), the mean it is compared "
                 "with",
             )  # fmt: skip
-        return self._time_limit_fits()
-
-    def _integration_fits(self, dt: float) -> None:
-        """integration_time_s and gradient_memory_s belong to sensor 'counted', and the
-        integration time is at least the time a molecule takes to cross the body and a step."""
         if self.gradient_memory_s and self.sensor != "counted":
             raise _field_error(
                 "Physics", ("gradient_memory_s",), self.gradient_memory_s,

@@ -178,6 +178,12 @@ def signal_grid(scenario: Scenario) -> signals.SignalGrid:
     return signals.grid_for(half, 2, 1)
 
 
+def _following(every_s: float, memory_s: float) -> float:
+    """The weight a new value taken every ``every_s`` has in an exponential average over
+    ``memory_s`` (at most 1; a memory of 0 keeps the last value alone)."""
+    return min(1.0, every_s / memory_s) if memory_s > 0 else 1.0
+
+
 def _brownian_params(scenario: Scenario, params: KernelParams, b: Biomarker) -> KernelParams:
     """The active Brownian physics' constants per step of dt_s (um, s, nM). A robot reaches a
     cell when their surfaces touch; its centre stays an obstacle's radius plus its own from the
@@ -216,14 +222,12 @@ def _brownian_params(scenario: Scenario, params: KernelParams, b: Biomarker) -> 
         counting=counting,
         tumble=-math.expm1(-ph.tumble_rate_s * dt),
         tumble_rising=-math.expm1(-ph.tumble_rate_rising_s * dt),
-        memory_weight=min(1.0, dt / ph.memory_s) if ph.memory_s > 0 else 1.0,
-        recent_weight=min(1.0, dt / ph.short_memory_s) if ph.short_memory_s > 0 else 1.0,
+        memory_weight=_following(dt, ph.memory_s),
+        recent_weight=_following(dt, ph.short_memory_s),
         counted=ph.sensor == "counted",
         window=window,
         patch_counting=counting * window / sensing.RECEPTOR_PATCHES,
-        gradient_weight=(
-            min(1.0, window * dt / ph.gradient_memory_s) if ph.gradient_memory_s > 0 else 1.0
-        ),
+        gradient_weight=_following(window * dt, ph.gradient_memory_s),
     )  # fmt: skip
 
 
