@@ -29,8 +29,9 @@ def test_the_choice_is_made_on_design_seeds_and_reported_on_others(
     assert len(chosen) == 1 + learns and all(c in rules for c in chosen), out
     assert report.count("Report seeds") == 1  # the second report (split off above: two in all)
     for section in out.split("Report seeds")[1:]:
-        holm = re.findall(r"^  (strongest rule - plain gradient|learner - strongest rule)\s+"
+        holm = re.findall(r"^  (strongest rule - (?:plain gradient|uncontrolled)|"
+                          r"learner - strongest rule)\s+"
                           r"[+-]\d\.\d\d \[[+-]\d\.\d\d, [+-]\d\.\d\d\]\*? +Holm p ([\d.e-]+)$",
                           section, re.M)  # fmt: skip
-        assert len(holm) == 1 + learns and all(0 <= float(p) <= 1 for _, p in holm), section
-        assert f"Holm over {1 + learns} comparisons" in section
+        assert len(holm) == 2 + learns and all(0 <= float(p) <= 1 for _, p in holm), section
+        assert f"Holm over {2 + learns} comparisons" in section
