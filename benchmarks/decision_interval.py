@@ -4,6 +4,7 @@ schedule and training length, against always steering up the sensed gradient on 
 
     python benchmarks/decision_interval.py [--seeds-from S] [--seeds N] [--radii 1,2,5]
         [--intervals step,0.1,0.5,1] [--exponents 1,0.6] [--episodes 20,50] [--gammas 0.9]
+        [--sensor counted|each_step]
 
 Run on design seeds (the default, 5000 on) to choose the defaults; report on others. For every
 radius, each setting's share of robots that reach the cell (mean over seeds of each run's mean
@@ -25,8 +26,8 @@ from science import mean_ci
 from nanonav.scenario import preset_scenario
 
 # (radius, interval in s or "step" (every step of dt_s) or "gradient" (the rule), alpha exponent,
-# episodes, gamma, seed, worlds)
-Job = tuple[float, str, float, int, float, int, int]
+# episodes, gamma, seed, worlds, sensor)
+Job = tuple[float, str, float, int, float, int, int, str]
 
 
 def step_s(radius: float) -> float:
@@ -38,14 +39,15 @@ def step_s(radius: float) -> float:
 
 
 def run_one(job: Job) -> float:
-    radius, interval, exponent, episodes, gamma, seed, worlds = job
+    radius, interval, exponent, episodes, gamma, seed, worlds, sensor = job
+    physics = {"sensor": sensor}
     if interval == "gradient":
-        return reached(radius, seed, worlds, "gradient")
+        return reached(radius, seed, worlds, "gradient", physics)
     learning = {
         "episodes": episodes, "alpha_exponent": exponent, "gamma": gamma,
         "decision_interval_s": step_s(radius) if interval == "step" else float(interval),
     }  # fmt: skip
-    return reached(radius, seed, worlds, "q_learning", learning=learning)
+    return reached(radius, seed, worlds, "q_learning", physics, learning)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -66,7 +68,7 @@ def main(argv: list[str] | None = None) -> int:
     ]
     rule = ("gradient", 1.0, 0, 0.9)
     jobs = [
-        (radius, *setting, seed, args.worlds)
+        (radius, *setting, seed, args.worlds, args.sensor)
         for radius in floats(args.radii)
         for setting in [rule, *settings]
         for seed in seeds
@@ -79,12 +81,12 @@ def main(argv: list[str] | None = None) -> int:
         "(* = the 95 % interval excludes 0)\n"
     )
     for radius in floats(args.radii):
-        bar = [done[(radius, *rule, s, args.worlds)] for s in seeds]
+        bar = [done[(radius, *rule, s, args.worlds, args.sensor)] for s in seeds]
         print(f"R = {radius} um: gradient {mean_ci(bar)}")
         print("  interval_s  alpha exponent  episodes  gamma  reached             minus gradient")
         for interval, exponent, episodes, gamma in settings:
             key = (radius, interval, exponent, episodes, gamma)
-            got = [done[(*key, s, args.worlds)] for s in seeds]
+            got = [done[(*key, s, args.worlds, args.sensor)] for s in seeds]
             print(
                 f"  {interval:<10}  {exponent:<14}  {episodes:<8}  {gamma:<5}  "
                 f"{mean_ci(got):<18}  {paired(got, bar)}"

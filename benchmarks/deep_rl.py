@@ -4,7 +4,8 @@ beat the strongest fixed rule, or the tabular learner, for robots of what size?
     python benchmarks/deep_rl.py [--decisions N] [--recurrent-decisions N] [--seeds N]
                                  [--seeds-from S] [--worlds N] [--radii R,...]
                                  [--steering discrete|continuous] [--decision-interval-s S]
-                                 [--preset NAME] [--gradient-memory-s S] [--quick]
+                                 [--preset NAME] [--gradient-memory-s S]
+                                 [--sensor counted|each_step] [--quick]
 
 The 'tumour-microswimmers' world (one tumour cell among 40 tissue obstacles, 20 robots
 swimming at 10 um/s for 60 s), robots of radius 0.5, 1, 2 and 5 um. Every robot decides once a
@@ -74,14 +75,15 @@ TURN_RULE = "turn_up_gradient"
 PRESETS = ("tumour-microswimmers", "alonso-kirkegaard")
 TIME_LIMIT_S = {"tumour-microswimmers": 60.0, "alonso-kirkegaard": 25.6}
 # What every run shares, set by main and sent with every job to the processes that run it: the
-# decision interval, s (None: the physics' default), the preset and the gradient memory, s.
-Setup = tuple[float | None, str, float]
-SETUP: dict[str, Setup] = {"now": (None, PRESET, 0.0)}
+# decision interval, s (None: the physics' default), the preset, the gradient memory, s, and the
+# sensor (None: the preset's).
+Setup = tuple[float | None, str, float, str | None]
+SETUP: dict[str, Setup] = {"now": (None, PRESET, 0.0, None)}
 
 
 def scenario(radius: float, seed: int, policy: str, worlds: int, episodes: int = 0) -> Scenario:
     """The preset with robots of ``radius`` um, over its time limit, deciding together."""
-    interval, preset, memory = SETUP["now"]
+    interval, preset, memory, sensor = SETUP["now"]
     learning: dict[str, Any] = {"episodes": episodes}
     if interval is not None:
         learning["decision_interval_s"] = interval
@@ -89,6 +91,8 @@ def scenario(radius: float, seed: int, policy: str, worlds: int, episodes: int =
                                "robot_radius_um": radius}  # fmt: skip
     if memory:
         physics["gradient_memory_s"] = memory
+    if sensor is not None:
+        physics["sensor"] = sensor
     return preset_scenario(
         preset, seed=seed, physics=physics,
         robots={"policy": policy, "schedule": "simultaneous"},
@@ -189,10 +193,13 @@ def main(argv: list[str] | None = None) -> int:
         "--gradient-memory-s", type=float, default=0.0,
         help="physics.gradient_memory_s of every policy (sensor 'counted' only)",
     )  # fmt: skip
+    parser.add_argument(
+        "--sensor", choices=("counted", "each_step"), help="physics.sensor (default: the preset's)"
+    )
     parser.add_argument("--quick", action="store_true", help="a smoke run")
     args = parser.parse_args(argv)
     steering = args.steering
-    setup: Setup = (args.decision_interval_s, args.preset, args.gradient_memory_s)
+    setup: Setup = (args.decision_interval_s, args.preset, args.gradient_memory_s, args.sensor)
     baselines = (*BASELINES, TURN_RULE) if steering == "continuous" else BASELINES
     radii = tuple(float(r) for r in args.radii.split(",")) if args.radii else RADII
     decisions = {"ppo": args.decisions, "recurrent-ppo": args.recurrent_decisions}

@@ -32,7 +32,7 @@ from against import side_by_side
 from naive import naive_robot_steps_per_second
 
 from nanonav.engine import simulate
-from nanonav.scenario import Scenario
+from nanonav.scenario import Physics, Scenario
 
 MODELS = ("gaussian", "inverse_square", "diffusion")
 SWARMS = (1, 15, 100, 1000)
@@ -70,9 +70,14 @@ def brownian_scenario(policy: str, robots: int, robot_steps: int) -> Scenario:
     """The same swarm and world sizes in the active Brownian physics: 1 um robots swimming at
     10 um/s among 10 obstacles of 5 um, 2 cells, a 200 um cube, 1,000 steps of 0.01 s."""
     episodes = max(1, robot_steps // (robots * 150))
+    physics = {"model": "active_brownian"}
+    if "sensor" in Physics.model_fields:
+        # a reading each step, as in every revision measured beside this one and in the naive
+        # loop and the C program: the same work whichever the default sensor
+        physics["sensor"] = "each_step"
     return Scenario.model_validate(
         {
-            "physics": {"model": "active_brownian"},
+            "physics": physics,
             "space": {"size": 200.0},
             "cells": {"count": 2},
             "obstacles": {"count": 10, "radius": 5.0},

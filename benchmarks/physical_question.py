@@ -4,7 +4,8 @@ cell, and for robots of what size? Active Brownian robots of radius 0.2 to 5 um 
 60 s), each policy on the same seeds, paired with the robot that does not steer, with a passive
 one (speed 0) and with 'gradient', the strongest fixed rule (the bar a learner must clear).
 
-    python benchmarks/physical_question.py [--seeds N] [--seeds-from S] [--worlds N] [--quick]
+    python benchmarks/physical_question.py [--seeds N] [--seeds-from S] [--worlds N]
+                                           [--sensor counted|each_step] [--quick]
 
 For every radius: the Peclet numbers, the share of robots that reach the cell within the time
 limit and the time it takes (mean over seeds of each run's mean over its evaluation worlds, with
@@ -42,6 +43,8 @@ PRESET = "tumour-microswimmers"
 # The sweeps that choose a setting (decision_interval.py, run_and_tumble.py) choose it on seeds
 # from here on; the documentation reports it on others.
 DESIGN_SEEDS = 5000
+# physics.sensor: 'counted' is the default; 'each_step' gives the tables measured before it was
+SENSORS = ("counted", "each_step")
 
 J = TypeVar("J", bound=Hashable)
 R = TypeVar("R")
@@ -64,6 +67,12 @@ def design_arguments(parser: argparse.ArgumentParser, radii: str) -> None:
     parser.add_argument("--seeds", type=int, default=8)
     parser.add_argument("--worlds", type=int, default=5, help="evaluation worlds per run")
     parser.add_argument("--radii", default=radii, help="robot radii, um")
+    sensor_argument(parser)
+
+
+def sensor_argument(parser: argparse.ArgumentParser) -> None:
+    """How the robots read the biomarker (physics.sensor)."""
+    parser.add_argument("--sensor", choices=SENSORS, default=SENSORS[0], help="physics.sensor")
 
 
 def reached(
@@ -82,12 +91,12 @@ def reached(
     return float(simulate(scenario).summary["success_rate"])
 
 
-def run_one(job: tuple[float, str, int, int, int, float]) -> dict[str, Any]:
-    radius, policy, seed, worlds, episodes, speed = job
+def run_one(job: tuple[float, str, int, int, int, float, str]) -> dict[str, Any]:
+    radius, policy, seed, worlds, episodes, speed, sensor = job
     scenario = preset_scenario(
         PRESET, seed=seed,
         physics={"model": "active_brownian", "time_limit_s": 60.0, "robot_radius_um": radius,
-                 "swim_speed_um_s": speed},
+                 "swim_speed_um_s": speed, "sensor": sensor},
         robots={"policy": policy},
         learning={"episodes": episodes if policy == "q_learning" else 0},
         evaluation={"worlds": worlds},
@@ -116,6 +125,7 @@ def main(argv: list[str] | None = None) -> int:
         "--episodes", type=int, default=50, help="q_learning's training (the default: 50)"
     )
     parser.add_argument("--radii", help="comma-separated robot radii, um (default: all five)")
+    sensor_argument(parser)
     parser.add_argument("--quick", action="store_true", help="a smoke run: 2 seeds, 2 radii")
     args = parser.parse_args(argv)
     seeds = range(args.seeds_from, args.seeds_from + (2 if args.quick else args.seeds))
@@ -125,7 +135,7 @@ def main(argv: list[str] | None = None) -> int:
     worlds = 2 if args.quick else args.worlds
     episodes = 2 if args.quick else args.episodes
     jobs = [
-        (radius, policy, seed, worlds, episodes, speed)
+        (radius, policy, seed, worlds, episodes, speed, args.sensor)
         for radius in radii
         for policy, speed in [*((p, 10.0) for p in POLICIES), ("uncontrolled", 0.0)]
         for seed in seeds
@@ -133,13 +143,14 @@ def main(argv: list[str] | None = None) -> int:
     started = time.perf_counter()
     done = in_parallel(run_one, jobs)
     print(
-        f"{PRESET}: 20 robots, one tumour cell, 60 s; {len(seeds)} seeds x {worlds} worlds; "
+        f"{PRESET}: 20 robots, one tumour cell, 60 s, sensor {args.sensor!r}; {len(seeds)} seeds "
+        f"x {worlds} worlds; "
         f"q_learning trains {episodes} episodes; * = the 95 % interval excludes 0\n"
     )
     for radius in radii:
 
         def runs(policy: str, speed: float = 10.0, radius: float = radius) -> list[dict[str, Any]]:
-            return [done[(radius, policy, s, worlds, episodes, speed)] for s in seeds]
+            return [done[(radius, policy, s, worlds, episodes, speed, args.sensor)] for s in seeds]
 
         physics = runs("uncontrolled")[0]["physics"]
         print(

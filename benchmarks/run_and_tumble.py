@@ -7,6 +7,7 @@ seeds.
     python benchmarks/run_and_tumble.py [--policy run_and_tumble|steer_and_tumble]
         [--seeds-from S] [--seeds N] [--radii 0.5,1,2,5]
         [--tumble 0.5,1,2,4] [--rising 0.05,0.25,1] [--memory 0.3,1,3,10]
+        [--sensor counted|each_step]
 
 Run on design seeds (the default, 5000 on) to choose; report on others. For every radius, the
 best settings by the share of robots that reach the cell (mean over seeds of each run's mean over
@@ -33,15 +34,16 @@ DEFAULTS = tuple(
 )
 
 # (policy, radius, tumble_rate_s or 0 for 'gradient', tumble_rate_rising_s, memory_s, seed,
-# worlds)
-Job = tuple[str, float, float, float, float, int, int]
+# worlds, sensor)
+Job = tuple[str, float, float, float, float, int, int, str]
 
 
 def run_one(job: Job) -> float:
-    policy, radius, tumble, rising, memory, seed, worlds = job
+    policy, radius, tumble, rising, memory, seed, worlds, sensor = job
     if tumble == 0.0:
-        return reached(radius, seed, worlds, "gradient")
-    rates = {"tumble_rate_s": tumble, "tumble_rate_rising_s": rising, "memory_s": memory}
+        return reached(radius, seed, worlds, "gradient", {"sensor": sensor})
+    rates = {"tumble_rate_s": tumble, "tumble_rate_rising_s": rising, "memory_s": memory,
+             "sensor": sensor}  # fmt: skip
     return reached(radius, seed, worlds, policy, physics=rates)
 
 
@@ -68,7 +70,7 @@ def main(argv: list[str] | None = None) -> int:
     ordered = sorted(settings)
     radii = floats(args.radii)
     jobs = [
-        (args.policy, radius, *setting, seed, args.worlds)
+        (args.policy, radius, *setting, seed, args.worlds, args.sensor)
         for radius in radii
         for setting in [(0.0, 0.0, 0.0), *ordered]
         for seed in seeds
@@ -82,9 +84,13 @@ def main(argv: list[str] | None = None) -> int:
         "(* = the 95 % interval excludes 0)\n"
     )
     for radius in radii:
-        bar = [done[(args.policy, radius, 0.0, 0.0, 0.0, s, args.worlds)] for s in seeds]
+        bar = [
+            done[(args.policy, radius, 0.0, 0.0, 0.0, s, args.worlds, args.sensor)] for s in seeds
+        ]
         got = {
-            setting: [done[(args.policy, radius, *setting, s, args.worlds)] for s in seeds]
+            setting: [
+                done[(args.policy, radius, *setting, s, args.worlds, args.sensor)] for s in seeds
+            ]
             for setting in ordered
         }
         ranked = sorted(ordered, key=lambda k: -sum(got[k]))

@@ -670,7 +670,7 @@ def fill_physics(data: Any) -> Any:
         filled["dt_s"] = automatic_dt_s(float(d_t), float(d_r), v, r)
     d_m = data.get("molecule_diffusion_um2_s", fields["molecule_diffusion_um2_s"].default)
     if (
-        filled.get("sensor") == "counted"
+        filled.get("sensor", fields["sensor"].default) == "counted"
         and filled.get("integration_time_s") is None
         and _admits(Physics, "molecule_diffusion_um2_s", d_m)
     ):
@@ -847,15 +847,16 @@ class Physics(_Part):
         "memory_s. 0: the reading itself.",
     )
     sensor: Sensor = Field(
-        "each_step",
-        description="How a robot reads the biomarker. 'each_step': every step a reading of "
-        "the whole body over dt_s at the Berg-Purcell limit (a gamma draw of mean the "
-        "concentration, never 0) and, for the gradient, one such reading at each end of each "
-        "axis. 'counted': molecules counted, Poisson, by six receptor patches (each a sixth of "
-        "the surface, facing the axes' two ways) over integration_time_s; the reading is their "
-        "sum, the gradient their differences, both held until the next count (so a reading "
-        "is 0 where molecules are scarce, and the information a robot gets does not grow as "
-        "dt_s shrinks).",
+        "counted",
+        description="How a robot reads the biomarker. 'counted': molecules counted, Poisson, "
+        "by six receptor patches (each a sixth of the surface, facing the axes' two ways) over "
+        "integration_time_s; the reading is their sum, the gradient their differences, both "
+        "held until the next count (so a reading is 0 where molecules are scarce, and what a "
+        "robot learns of the field does not grow as dt_s shrinks). 'each_step', the default "
+        "before molecules were counted: every step a reading of the whole body over dt_s at "
+        "the Berg-Purcell limit (a gamma draw of mean the concentration, never 0) and, for "
+        "the gradient, one such reading at each end of each axis; what it finds moves with "
+        "dt_s.",
     )
     integration_time_s: float | None = Field(
         None,

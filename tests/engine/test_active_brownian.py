@@ -83,10 +83,12 @@ def test_the_recorded_heading_decorrelates_as_exp_minus_two_d_r_t() -> None:
 
 def test_readings_carry_the_berg_purcell_error_the_readme_states() -> None:
     # near a cell, where a reading counts a few hundred molecules: the sensed reading over the
-    # true concentration, scaled by the stated relative error, is a unit-variance residual
+    # true concentration, scaled by the stated relative error, is a unit-variance residual (a
+    # reading each step, over dt_s; counted readings have tests of their own, test_counting.py)
     s = swimmers(
         robots={"count": 300, "policy": "uncontrolled", "start": "anywhere"},
-        physics={"model": "active_brownian", "secretion_molecules_s": 1e6, "swim_speed_um_s": 0.0},
+        physics={"model": "active_brownian", "secretion_molecules_s": 1e6, "swim_speed_um_s": 0.0,
+                 "sensor": "each_step"},
         space={"size": 60.0}, learning={"episodes": 0, "max_steps": 50},
     )  # fmt: skip
     t = simulate(s).trajectory

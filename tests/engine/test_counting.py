@@ -18,7 +18,7 @@ from nanonav.engine import phases, sensing, simulate
 from nanonav.engine.phases import Sim
 from nanonav.engine.simulate import Run, kernel_params
 from nanonav.engine.state import KernelParams, Swarm
-from nanonav.scenario import Scenario, preset_scenario
+from nanonav.scenario import PRESETS, Scenario, preset_scenario
 
 
 @njit(cache=True)
@@ -134,7 +134,8 @@ def test_the_gradient_memory_averages_the_counts_gradients_exponentially() -> No
 
 def test_a_gradient_memory_belongs_to_counting() -> None:
     with pytest.raises(ValidationError) as raised:
-        Scenario.model_validate({"physics": {"model": "active_brownian", "gradient_memory_s": 1}})
+        Scenario.model_validate({"physics": {"model": "active_brownian", "sensor": "each_step",
+                                             "gradient_memory_s": 1}})  # fmt: skip
     assert raised.value.errors()[0]["loc"][-1] == "gradient_memory_s"
     assert kernel_params(counted(robot_radius_um=1.0)).gradient_weight == 1.0  # the last count
 
@@ -160,7 +161,8 @@ def test_a_count_is_held_for_its_integration_time() -> None:
          "integration_time_s", "r^2 / D_m = 0.25 s"),
         ({"sensor": "counted", "robot_radius_um": 0.5, "dt_s": 0.01, "integration_time_s": 0.005},
          "integration_time_s", "shorter than a step"),
-        ({"integration_time_s": 0.5}, "integration_time_s", "belongs to sensor 'counted'"),
+        ({"sensor": "each_step", "integration_time_s": 0.5}, "integration_time_s",
+         "belongs to sensor 'counted'"),
     ],
 )  # fmt: skip
 def test_an_integration_time_that_cannot_count_is_refused_naming_it(
@@ -173,14 +175,24 @@ def test_an_integration_time_that_cannot_count_is_refused_naming_it(
     assert words in error["msg"]
 
 
+def test_molecules_are_counted_unless_asked_otherwise() -> None:
+    physics = Scenario.model_validate({"physics": {"model": "active_brownian"}}).physics
+    assert physics.sensor == "counted" and physics.integration_time_s == 0.1
+    for name in PRESETS:
+        scenario = preset_scenario(name)
+        if scenario.physics.model == "active_brownian":
+            assert kernel_params(scenario).counted, name
+
+
 def test_the_integration_time_is_filled_in_and_the_lattice_has_none() -> None:
     assert counted(robot_radius_um=1.0).physics.integration_time_s == 0.1
     assert counted(robot_radius_um=5.0).physics.integration_time_s == pytest.approx(0.25)
     assert Scenario.model_validate(
-        {"physics": {"model": "active_brownian"}}
+        {"physics": {"model": "active_brownian", "sensor": "each_step"}}
     ).physics.integration_time_s is None  # fmt: skip
+    assert Scenario.model_validate({}).physics.integration_time_s is None
     with pytest.raises(ValidationError):
-        Scenario.model_validate({"physics": {"sensor": "counted"}})
+        Scenario.model_validate({"physics": {"sensor": "each_step"}})  # not the lattice's
 
 
 def reached(policy: str, radius: float, dt: float, seed: int, worlds: int = 2) -> float:

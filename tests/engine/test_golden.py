@@ -36,7 +36,14 @@ SHORT_SI: dict[str, Any] = {
     "evaluation": {"worlds": 2},
 }
 SWARM: dict[str, Any] = {"robots": {"count": 6}, "cells": {"count": 2}}
-MICROSWIMMERS: dict[str, Any] = {"preset": "tumour-microswimmers", "robots": {"count": 6}}
+# Reading each step, the sensor before molecules were counted: these cases' digests are older
+# than counting, and the same again after it became the default.
+MICROSWIMMERS: dict[str, Any] = {
+    "preset": "tumour-microswimmers",
+    "robots": {"count": 6},
+    "physics": {"sensor": "each_step"},
+}
+COUNTED: dict[str, Any] = {"physics": {"sensor": "counted"}}
 # Robots that reach the cell (and bind, and signal) within a short run.
 CROWDED: dict[str, Any] = {
     "space": {"size": 40.0},
@@ -80,6 +87,10 @@ def _cases() -> dict[str, dict[str, Any]]:
     for policy in sorted(BROWNIAN_POLICIES):
         cases[f"active_brownian {policy}"] = _merge(
             MICROSWIMMERS, SHORT_SI, {"robots": {"policy": policy}}
+        )
+    for policy in sorted(BROWNIAN_POLICIES):
+        cases[f"active_brownian counted {policy}"] = _merge(
+            MICROSWIMMERS, SHORT_SI, COUNTED, {"robots": {"policy": policy}}
         )
     for model in ("attractant", "attractant_repellent", "broadcast"):
         cases[f"active_brownian signal {model}"] = _merge(

@@ -187,12 +187,13 @@ def test_exclusion_capacity_and_signals_are_bit_identical_per_seed(model: str) -
 
 @pytest.mark.parametrize("model", COMMUNICATION_MODELS)
 def test_active_brownian_swarm_options_are_bit_identical_per_seed(model: str) -> None:
-    # a 60 um cube where robots reach the cells within 3 s, and the first is treated
+    # a 60 um cube where robots reach the cells within 3 s, and the first is treated (cells
+    # secreting enough for a 1 um robot's counts to steer by)
     s = swimmers(
         seed=5,
         space={"size": 60.0},
         obstacles={"count": 10},
-        physics={"time_limit_s": 3.0},
+        physics={"time_limit_s": 3.0, "secretion_molecules_s": 1e5},
         cells={"count": 2, "capacity": 3},
         robots={"count": 100, "exclusion": True},
         evaluation={"worlds": 2},

@@ -127,8 +127,12 @@ def test_turning_as_the_gradient_rule_steers_reproduces_it() -> None:
 def test_a_decision_observes_the_mean_gradient_read_since_the_last() -> None:
     """Held over an interval, a robot integrates its gradient readings: what it observes at a
     decision is the mean of the interval's readings, each in its frame as it read it (the same
-    worlds stepped one step a decision give those readings one by one)."""
-    data = deep_merge(BROWNIAN, {"learning": {"decision_interval_s": 0.05}})
+    worlds stepped one step a decision give those readings one by one). Read each step, so that
+    every reading of the interval is a new one."""
+    data = deep_merge(
+        BROWNIAN,
+        {"learning": {"decision_interval_s": 0.05}, "physics": {"sensor": "each_step"}},
+    )
     held = _worlds(data, "continuous")
     hold = held.scenario.decision_steps
     assert hold == 5

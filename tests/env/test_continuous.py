@@ -25,7 +25,8 @@ from nanonav.scenario import Scenario
 
 SWIMMERS: dict[str, Any] = {
     "preset": "tumour-microswimmers",
-    "physics": {"time_limit_s": 2.0},
+    # cells secreting enough that a robot's counts are seldom all 0
+    "physics": {"time_limit_s": 2.0, "secretion_molecules_s": 1e5},
     "learning": {"decision_interval_s": 0.1},
 }
 
