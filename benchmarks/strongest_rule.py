@@ -13,7 +13,7 @@ seed, with Holm over each set's comparisons.
 the counts' gradient (``physics.gradient_memory_s``, 0: the last count's alone) and a turn rate
 (``physics.max_turn_rate_rad_s``: a slower turn follows a noisy estimate by less); a learner is
 the default Q-learner (a decision a second, 50 episodes), with a short memory of its readings
-or not and a memory of the gradient or not.
+or not, a memory of the gradient or not, and a turn rate of 3 or 10 rad/s.
 
 'alonso-kirkegaard' (one robot of 0.5-3.4 um at 5 um/s, 13 molecules a count 50 um from the
 source, 25.6 s): temporal sensing on two time scales as well, the rules that tumble and the
@@ -89,12 +89,15 @@ def candidates(preset: str, quick: bool) -> list[Rule]:
             for t in turns
         ]
         # the default learner (a decision a second), with readings on two time scales or not,
-        # and its action up the gradient steering by the last count's or a remembered one
+        # and its action up the gradient steering by the last count's or a remembered one, at
+        # the rules' turn rates
         return fixed + [
-            ("q_learning", (("short_memory_s", s), ("gradient_memory_s", g)))
+            ("q_learning",
+             (("short_memory_s", s), ("gradient_memory_s", g), ("max_turn_rate_rad_s", t)))
             for s in ((0.0,) if quick else (0.0, 0.3))
             for g in ((0.5,) if quick else (0.0, 0.5))
-        ]
+            for t in ((3.0,) if quick else (3.0, 10.0))
+        ]  # fmt: skip
     shorts = (0.0, 0.5) if quick else (0.0, 0.3, 1.0)
     longs = (2.0,) if quick else (2.0, 5.0)
     rates = ((1.0, 0.25),) if quick else ((1.0, 0.25), (0.5, 0.05))
