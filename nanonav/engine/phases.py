@@ -494,7 +494,8 @@ def act(
         nx = px
         ny = py
         nz = pz
-    if p.signal == BROADCAST and not blocked:
+    if p.signal == BROADCAST and (nx != px or ny != py or nz != pz):
+        # a blocked swimmer may still have moved: it slid on at the contact
         relist(sim.radio, i, nx, ny, nz)
     if p.physics == ACTIVE_BROWNIAN:
         s.blocked[i] = blocked

@@ -18,8 +18,10 @@ from pydantic import ValidationError
 from scipy.spatial import cKDTree
 
 from nanonav.engine import fields, metrics, qlearning
+from nanonav.engine.contacts import grid_for, rebuild
 from nanonav.engine.result import SimulationResult, Trajectory, without_timings
 from nanonav.engine.simulate import simulate
+from nanonav.engine.worlds import Worlds
 from nanonav.scenario import Scenario, ScenarioError
 
 COMMUNICATION_MODELS = ("none", "attractant", "attractant_repellent", "broadcast")
@@ -503,3 +505,32 @@ def test_each_swarm_field_out_of_bounds_is_refused_by_name(
 )  # fmt: skip
 def test_the_swarm_fields_within_bounds_are_accepted(data: dict[str, Any]) -> None:
     Scenario.model_validate(data)
+
+
+def test_a_swimmer_that_slides_on_a_contact_is_listed_where_it_ends_for_the_radio() -> None:
+    # robots crowded among obstacles slide at contacts; the broadcast's cell list (no slack)
+    # must list each robot in the bucket it is in after every step, or a search misses it
+    s = swimmers(
+        seed=3,
+        space={"size": 40.0},
+        obstacles={"count": 30},
+        physics={"time_limit_s": 30.0},
+        robots={"count": 40, "exclusion": True},
+        learning={"decision_interval_s": 0.01},  # a step an env step: each one is checked
+        communication={"model": "broadcast", "range": 2.0},
+    )
+    worlds = Worlds(s, 1, "simultaneous")
+    worlds.seed([3])
+    worlds.step(None, np.ones(1, dtype=np.bool_))
+    b = worlds.batch
+    fresh = grid_for(s.space.size / 2, s.communication.range, 0.0, s.robots.count)
+    assert fresh.dims > 2 and fresh.dims == b.radio.dims  # a robot can change cells
+    slid = 0
+    for _ in range(2000):
+        before = b.s.pos[0].copy()
+        worlds.step(np.zeros((1, s.robots.count), dtype=np.int64), np.zeros(1, dtype=np.bool_))
+        slid += int(np.sum(np.any(b.s.pos[0] != before, axis=1) & b.s.blocked[0]))
+        rebuild(fresh, b.s.pos[0], b.s.active[0])
+        active = b.s.active[0]
+        np.testing.assert_array_equal(b.radio.cell[0][active], fresh.cell[active])
+    assert slid > 0  # contacts that moved the robot were exercised
