@@ -23,12 +23,10 @@ import sys
 import time
 from typing import Any
 
-from physical_question import in_parallel
+from physical_question import in_parallel, reached
 from science import mean_ci
 
 from nanonav import stats
-from nanonav.engine import simulate
-from nanonav.scenario import preset_scenario
 
 PRESET = "tumour-microswimmers"
 SENSORS = ("each_step", "counted")
@@ -44,13 +42,7 @@ Job = tuple[str, float, str, float, int, int]
 def run_one(job: Job) -> float:
     """The share of robots that reach the cell in one run."""
     sensor, radius, policy, dt, seed, worlds = job
-    scenario = preset_scenario(
-        PRESET, seed=seed,
-        physics={"model": "active_brownian", "time_limit_s": 60.0, "robot_radius_um": radius,
-                 "dt_s": dt, "sensor": sensor},
-        robots={"policy": policy}, learning={"episodes": 0}, evaluation={"worlds": worlds},
-    )  # fmt: skip
-    return float(simulate(scenario).summary["success_rate"])
+    return reached(radius, seed, worlds, policy, {"dt_s": dt, "sensor": sensor})
 
 
 def main(argv: list[str] | None = None) -> int:

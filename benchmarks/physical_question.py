@@ -77,14 +77,14 @@ def sensor_argument(parser: argparse.ArgumentParser) -> None:
 
 def reached(
     radius: float, seed: int, worlds: int, policy: str, physics: dict[str, Any] | None = None,
-    learning: dict[str, Any] | None = None,
+    learning: dict[str, Any] | None = None, *, preset: str = PRESET, time_limit_s: float = 60.0,
 ) -> float:  # fmt: skip
-    """The share of robots that reach the cell in one run of the preset (60 s) with robots of
-    ``radius`` um, over ``worlds`` evaluation worlds."""
+    """The share of robots that reach the cell in one run of ``preset`` (over
+    ``time_limit_s``) with robots of ``radius`` um, over ``worlds`` evaluation worlds."""
     scenario = preset_scenario(
-        PRESET, seed=seed,
-        physics={"model": "active_brownian", "time_limit_s": 60.0, "robot_radius_um": radius,
-                 **(physics or {})},
+        preset, seed=seed,
+        physics={"model": "active_brownian", "time_limit_s": time_limit_s,
+                 "robot_radius_um": radius, **(physics or {})},
         robots={"policy": policy}, learning=learning or {"episodes": 0},
         evaluation={"worlds": worlds},
     )  # fmt: skip

@@ -31,12 +31,10 @@ import os
 import sys
 import time
 
-from physical_question import DESIGN_SEEDS, floats, in_parallel, paired
+from physical_question import DESIGN_SEEDS, floats, in_parallel, paired, reached
 from science import mean_ci
 
 from nanonav import stats
-from nanonav.engine import simulate
-from nanonav.scenario import preset_scenario
 
 PRESETS = ("tumour-microswimmers", "alonso-kirkegaard")
 RADII = {"tumour-microswimmers": "0.5,1,2,5", "alonso-kirkegaard": "0.5,1,2,3.4"}
@@ -66,15 +64,11 @@ def label(rule: Rule) -> str:
 def run_one(job: Job) -> float:
     """The share of robots that reach the cell in one run."""
     preset, radius, (policy, setting), seed, worlds, episodes = job
-    scenario = preset_scenario(
-        preset, seed=seed,
-        physics={"model": "active_brownian", "time_limit_s": TIME_LIMIT_S[preset],
-                 "robot_radius_um": radius, "sensor": "counted", **dict(setting)},
-        robots={"policy": policy},
-        learning={"episodes": episodes if policy == "q_learning" else 0},
-        evaluation={"worlds": worlds},
+    return reached(
+        radius, seed, worlds, policy, {"sensor": "counted", **dict(setting)},
+        {"episodes": episodes if policy == "q_learning" else 0},
+        preset=preset, time_limit_s=TIME_LIMIT_S[preset],
     )  # fmt: skip
-    return float(simulate(scenario).summary["success_rate"])
 
 
 def candidates(preset: str, quick: bool) -> list[Rule]:
