@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import os
 import shutil
-from collections.abc import Iterator
+from collections.abc import Generator, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -27,16 +27,45 @@ SCREENSHOTS = Path(
 )
 
 
+# What a failed test's report shows of the site's API and worker logs: their last lines.
+LOG_TAIL_LINES = 60
+
+
 @dataclass
 class Site:
     url: str
     database_url: str
+    directory: Path
+
+    def logs(self) -> dict[str, str]:
+        """The last lines of the API's and the worker's logs."""
+        tails = {}
+        for name in ("api.log", "worker.log"):
+            path = self.directory / name
+            lines = path.read_text(errors="replace").splitlines() if path.exists() else []
+            tails[name] = "\n".join(lines[-LOG_TAIL_LINES:])
+        return tails
 
 
 @pytest.fixture(scope="module")
 def site(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Site]:
-    with api_with_worker(tmp_path_factory.mktemp("dashboard")) as (api, url):
-        yield Site(url=api.url, database_url=url)
+    directory = tmp_path_factory.mktemp("dashboard")
+    with api_with_worker(directory) as (api, url):
+        yield Site(url=api.url, database_url=url, directory=directory)
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_makereport(
+    item: pytest.Item, call: pytest.CallInfo[None]
+) -> Generator[None, pytest.TestReport, pytest.TestReport]:
+    """A failed test's report carries what the site's processes logged last, so a job that
+    never finished says why (the processes and their logs are gone once the run ends)."""
+    report: pytest.TestReport = yield
+    site = getattr(item, "funcargs", {}).get("site")
+    if report.failed and isinstance(site, Site):
+        for name, tail in site.logs().items():
+            report.sections.append((f"{name} (last {LOG_TAIL_LINES} lines)", tail))
+    return report
 
 
 def require_chromium() -> None:

@@ -23,7 +23,7 @@ def site(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Site]:
     keys = f"{KEY_A},{KEY_B}"
     directory = tmp_path_factory.mktemp("keyed-dashboard")
     with api_with_worker(directory, NANONAV_API_KEYS=keys) as (api, url):
-        yield Site(url=api.url, database_url=url)
+        yield Site(url=api.url, database_url=url, directory=directory)
     assert KEY_A not in api.text() and KEY_B not in api.text()
 
 

@@ -220,7 +220,7 @@ def test_the_time_limit_stops_a_network_within_a_call_that_does_not_end(
 
 
 def test_a_compile_does_not_starve_the_leases_heartbeat(sqlite_store: JobStore) -> None:
-    """Numba compiling in the job's thread (one call that compiles two copies of the engine's
+    """Numba compiling in the job's thread (one call that compiles three copies of the engine's
     field, ``fields.sample_many``, from its Python source into dispatchers of their own:
     nothing loaded from a cache) holds the interpreter in bursts only: the heartbeat renews
     the lease all along, never later than a lease after the last time."""
@@ -231,8 +231,9 @@ def test_a_compile_does_not_starve_the_leases_heartbeat(sqlite_store: JobStore) 
     claim = claimed(sqlite_store)
     # renewed every third of a lease; the compiler holds the interpreter for up to about a
     # quarter of a second at a time (measured), so that a renewal comes late by that much, and
-    # by more on a machine busy with other tests (1.4 s seen between renewals due 0.67 s apart)
-    settings = settings_for(sqlite_store, lease_s=3.0)
+    # by more on a machine busy with other tests (1.4 s seen between renewals due 0.67 s apart,
+    # and 3.04 s between renewals due 1 s apart): a lease of 6 s leaves a renewal 4 s to come
+    settings = settings_for(sqlite_store, lease_s=6.0)
     renewed: list[float] = []
     renew = sqlite_store.renew
 
@@ -246,15 +247,17 @@ def test_a_compile_does_not_starve_the_leases_heartbeat(sqlite_store: JobStore) 
                  np.ones(3, np.bool_), np.zeros(3), np.zeros((3, 3)), *fields._NONE_TREATED,
                  0.0)  # fmt: skip
     options = {"fastmath": fields.FASTMATH, "error_model": "numpy"}
-    first, second = (njit(**options)(fields.sample_many.py_func) for _ in range(2))
+    # about 4 s each on an idle machine: together longer than a lease
+    first, second, third = (njit(**options)(fields.sample_many.py_func) for _ in range(3))
 
-    def both(*arguments: Any) -> None:
+    def all_three(*arguments: Any) -> None:
         first(*arguments)
         second(*arguments)
+        third(*arguments)
 
     started = time.monotonic()
     with heartbeat(sqlite_store, claim, settings):
-        njit(**options)(both)(*arguments)  # both compiled here, now, in one call
+        njit(**options)(all_three)(*arguments)  # all compiled here, now, in one call
         ended = time.monotonic()
     assert ended - started > settings.lease_s, "the compile was too quick to show anything"
     times = [started, *renewed, ended]
