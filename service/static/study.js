@@ -6,25 +6,36 @@
   const finished = ["succeeded", "failed", "cancelled"];
   let lastDone = -1;
   let refreshing = false;
+  let wanted = false;
 
+  // One table read at a time; one asked for meanwhile (a job ended while the last table was on
+  // its way) follows it, so the page never stays on a table read before the study ended.
   async function refresh() {
+    wanted = true;
     if (refreshing) return;
     refreshing = true;
     try {
-      const response = await fetch(`/ui/studies/${studyId}/results`);
-      if (!response.ok) return;
-      const holder = document.createElement("div");
-      holder.innerHTML = await response.text();
-      const fragment = holder.querySelector("#fragment");
-      document.getElementById("study-counts").innerHTML = fragment.querySelector("#fragment-counts").innerHTML;
-      document.getElementById("study-results").innerHTML = fragment.querySelector("#fragment-results").innerHTML;
-      document.getElementById("progress-bar").style.width = `${(100 * Number(fragment.dataset.progress)).toFixed(1)}%`;
-      const status = document.getElementById("study-status");
-      status.textContent = fragment.dataset.status;
-      status.className = `status ${fragment.dataset.status}`;
+      while (wanted) {
+        wanted = false;
+        await readTable();
+      }
     } finally {
       refreshing = false;
     }
+  }
+
+  async function readTable() {
+    const response = await fetch(`/ui/studies/${studyId}/results`);
+    if (!response.ok) return;
+    const holder = document.createElement("div");
+    holder.innerHTML = await response.text();
+    const fragment = holder.querySelector("#fragment");
+    document.getElementById("study-counts").innerHTML = fragment.querySelector("#fragment-counts").innerHTML;
+    document.getElementById("study-results").innerHTML = fragment.querySelector("#fragment-results").innerHTML;
+    document.getElementById("progress-bar").style.width = `${(100 * Number(fragment.dataset.progress)).toFixed(1)}%`;
+    const status = document.getElementById("study-status");
+    status.textContent = fragment.dataset.status;
+    status.className = `status ${fragment.dataset.status}`;
   }
 
   function onState(state) {

@@ -182,6 +182,40 @@ def test_a_study_launched_from_the_form_fills_in_its_table(page: Page, site: Sit
     screenshot(page, "study")
 
 
+def test_a_study_that_ends_while_its_table_is_on_the_way_shows_its_end(
+    page: Page, site: Site
+) -> None:
+    """The page asks for its table each time a job ends. When the last one ends while the table
+    asked for before is still on its way (a slow server), that ask is not dropped: it follows,
+    and the page says the study succeeded rather than 'running' for good."""
+    held: list[tuple[Route, Any]] = []
+
+    def hold_the_first(route: Route) -> None:
+        if held:
+            route.continue_()
+        else:  # read now, while the study runs; handed to the page once it has ended
+            held.append((route, route.fetch()))
+
+    page.route(re.compile(r"/ui/studies/\d+/results$"), hold_the_first)
+    # four jobs of most of a second each: the page reads its first table while they run
+    base = {"robots": {"policy": "random"}, "learning": {"episodes": 100, "max_steps": 2000},
+            "evaluation": {"worlds": 1}}  # fmt: skip
+    study = {"name": "slow table", "base": base, "grid": {"robots.count": [20, 21]},
+             "replicates": 2}  # fmt: skip
+    study_id = httpx.post(f"{site.url}/studies", json=study).json()["id"]
+    page.goto(f"{site.url}/ui/studies/{study_id}")
+    deadline = time.monotonic() + 120
+    while not held or httpx.get(f"{site.url}/studies/{study_id}").json()["status"] != "succeeded":
+        assert time.monotonic() < deadline, "the study did not succeed"
+        page.wait_for_timeout(100)
+    expect(page.locator("#delete-row")).to_be_visible()  # the page heard that it ended
+    route, table = held[0]
+    assert 'data-status="succeeded"' not in table.text(), "the table was read after the end"
+    route.fulfill(response=table)
+    expect(page.locator("#study-status")).to_have_text("succeeded", timeout=10_000)
+    expect(page.locator("#points-table tbody tr")).to_have_count(2)
+
+
 def test_jobs_are_browsed_and_filtered(page: Page, site: Site) -> None:
     for policy in ("gradient", "rule"):
         httpx.post(f"{site.url}/jobs", json={"robots": {"policy": policy},
