@@ -52,8 +52,20 @@ from nanonav.engine.state import (
     World,
 )
 
+# What runs once a world's move (not for each robot) is linked, not inlined by force
+# (``compiled.episodic``): each phase is then compiled into ``step_worlds`` once, where inlined
+# at every place it is called, the drawing of a fresh world and the move each held their own
+# copies of the step (perceive four times, advance four, act twice), and the compiler optimised
+# them all at the environment's first start.
 
-@inlined
+
+@episodic
+def _advance(p: KernelParams, rng: np.random.Generator, sim: Sim, t: int) -> None:
+    """``phases.advance``, compiled once for every place a world's step begins."""
+    advance(p, rng, sim, t)
+
+
+@episodic
 def _perceive_all(p: KernelParams, rng: np.random.Generator, sim: Sim, t: int) -> None:
     """Every active robot perceives, in index order (the simultaneous schedule)."""
     s = sim.s
@@ -79,7 +91,7 @@ def _ended(p: KernelParams, sim: Sim, t: int) -> bool:
     return True
 
 
-@inlined
+@episodic
 def _next_turn(p: KernelParams, rng: np.random.Generator, sim: Sim, first: int) -> None:
     """The sequential schedule: the first active robot from ``first`` on that perceives (one a
     drifting cell reaches spends its turn so) gets the turn; when a step's robots have all had
@@ -102,7 +114,7 @@ def _next_turn(p: KernelParams, rng: np.random.Generator, sim: Sim, first: int) 
         if _ended(p, sim, t):
             clock[CLOCK_NEXT] = -1
             return
-        advance(p, rng, sim, t)
+        _advance(p, rng, sim, t)
         i = 0
 
 
@@ -128,7 +140,7 @@ def reset_world(
         clock[CLOCK_OVER] = 1
         return status
     t = clock[CLOCK_STEP]  # step 0, a variable: a constant would compile the phases again
-    advance(p, rng, sim, t)
+    _advance(p, rng, sim, t)
     if p.schedule == SEQUENTIAL:
         _next_turn(p, rng, sim, t)
         return 0
@@ -177,20 +189,22 @@ def step_world(
     t = clock[CLOCK_STEP]
     for i in range(s.pos.shape[0]):
         pc.reward[i] = 0.0
-    if p.schedule == SEQUENTIAL:
-        i = clock[CLOCK_NEXT]
-        _act_on(p, rng, sim, i, t, actions[i], turns, directions)
-        _next_turn(p, rng, sim, i + 1)
-        return
-    for i in range(s.pos.shape[0]):
+    # the robot whose turn it is (sequential), or every robot (simultaneous): one place acts
+    sequential = p.schedule == SEQUENTIAL
+    first = clock[CLOCK_NEXT] if sequential else 0
+    last = first + 1 if sequential else s.pos.shape[0]
+    for i in range(first, last):
         if s.active[i]:
             _act_on(p, rng, sim, i, t, actions[i], turns, directions)
+    if sequential:
+        _next_turn(p, rng, sim, first + 1)
+        return
     while True:
         t += 1
         clock[CLOCK_STEP] = t
         if _ended(p, sim, t):
             return
-        advance(p, rng, sim, t)
+        _advance(p, rng, sim, t)
         _perceive_all(p, rng, sim, t)
         if not s.active.any():
             # the last robots spent step t receiving cells that drifted onto them: it counts
