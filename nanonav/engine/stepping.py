@@ -52,20 +52,8 @@ from nanonav.engine.state import (
     World,
 )
 
-# What runs once a world's move (not for each robot) is linked, not inlined by force
-# (``compiled.episodic``): each phase is then compiled into ``step_worlds`` once, where inlined
-# at every place it is called, the drawing of a fresh world and the move each held their own
-# copies of the step (perceive four times, advance four, act twice), and the compiler optimised
-# them all at the environment's first start.
 
-
-@episodic
-def _advance(p: KernelParams, rng: np.random.Generator, sim: Sim, t: int) -> None:
-    """``phases.advance``, compiled once for every place a world's step begins."""
-    advance(p, rng, sim, t)
-
-
-@episodic
+@inlined
 def _perceive_all(p: KernelParams, rng: np.random.Generator, sim: Sim, t: int) -> None:
     """Every active robot perceives, in index order (the simultaneous schedule)."""
     s = sim.s
@@ -92,38 +80,11 @@ def _ended(p: KernelParams, sim: Sim, t: int) -> bool:
 
 
 @episodic
-def _next_turn(p: KernelParams, rng: np.random.Generator, sim: Sim, first: int) -> None:
-    """The sequential schedule: the first active robot from ``first`` on that perceives (one a
-    drifting cell reaches spends its turn so) gets the turn; when a step's robots have all had
-    theirs the step ends, and unless the episode is over the next begins."""
-    s = sim.s
-    clock = sim.pc.clock
-    n = s.pos.shape[0]
-    t = clock[CLOCK_STEP]
-    i = first
-    while True:
-        while i < n:
-            if s.active[i] and perceive(p, rng, sim, i, t, True):
-                if decides(p, t):
-                    clock[CLOCK_NEXT] = i
-                    return
-                keep(p, rng, sim, i, t)
-            i += 1
-        t += 1
-        clock[CLOCK_STEP] = t
-        if _ended(p, sim, t):
-            clock[CLOCK_NEXT] = -1
-            return
-        _advance(p, rng, sim, t)
-        i = 0
-
-
-@episodic
-def reset_world(
+def draw_fresh(
     p: KernelParams, world_rng: np.random.Generator, rng: np.random.Generator, sim: Sim
 ) -> int:
-    """Draw a fresh world and perceive its step 0 (under the sequential schedule, up to the
-    first robot's turn); returns ``world.draw_world``'s status."""
+    """Draw a fresh world at step 0, not yet begun (``on_to_decision`` begins it); returns
+    ``world.draw_world``'s status."""
     clock = sim.pc.clock
     clock[CLOCK_STEP] = 0
     clock[CLOCK_OVER] = 0
@@ -138,18 +99,7 @@ def reset_world(
     status = begin_episode(p, world_rng, rng, sim, measure != 0, measure == RECORDED)
     if status != 0:
         clock[CLOCK_OVER] = 1
-        return status
-    t = clock[CLOCK_STEP]  # step 0, a variable: a constant would compile the phases again
-    _advance(p, rng, sim, t)
-    if p.schedule == SEQUENTIAL:
-        _next_turn(p, rng, sim, t)
-        return 0
-    _perceive_all(p, rng, sim, t)
-    if not sim.s.active.any():
-        # every robot spent step 0 receiving a cell that drifted onto it
-        clock[CLOCK_STEP] = t + 1
-        _ended(p, sim, t + 1)
-    return 0
+    return status
 
 
 @inlined
@@ -166,9 +116,99 @@ def _act_on(
         code, dx, dy, dz, gx, gy, gz = TURN, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     else:
         code, dx, dy, dz, gx, gy, gz = command(p, sim, i, action, directions)
-    # one call of act, which is inlined wherever it is called: a second would double the
-    # compiled schedule, and its compilation's time and memory
     act(p, rng, sim, i, t, code, dx, dy, dz, gx, gy, gz)
+
+
+# ``step_worlds`` calls each half once, for fresh worlds and moves alike: each phase is then
+# compiled into it once (a fresh world and a move with halves of their own held four copies
+# of perceive and advance and two of act, and the compiler optimised them all at the
+# environments' first start), and all of it inlined (a call per world that passes the world's
+# arrays one by one halved the vector env's speed).
+
+
+@inlined
+def act_on_actions(
+    p: KernelParams, rng: np.random.Generator, sim: Sim, actions: NDArray[np.int64],
+    turns: NDArray[np.float64], directions: NDArray[np.float64],
+) -> int:  # fmt: skip
+    """The acting half of a move: the robot whose turn it is (sequential) or every active
+    robot (simultaneous) acts on its action, each robot's reward of the move starting at 0;
+    returns the robot the perceiving goes on from (``on_to_decision``'s ``first``)."""
+    pc = sim.pc
+    s = sim.s
+    clock = pc.clock
+    t = clock[CLOCK_STEP]
+    for i in range(s.pos.shape[0]):
+        pc.reward[i] = 0.0
+    sequential = p.schedule == SEQUENTIAL
+    first = clock[CLOCK_NEXT] if sequential else 0
+    last = first + 1 if sequential else s.pos.shape[0]
+    for i in range(first, last):
+        if s.active[i]:
+            _act_on(p, rng, sim, i, t, actions[i], turns, directions)
+    return last
+
+
+@inlined
+def on_to_decision(
+    p: KernelParams, rng: np.random.Generator, sim: Sim, first: int, fresh: bool
+) -> None:
+    """The perceiving half of a move, or of a fresh world (``fresh``: its step begins first):
+    on to the next decision or the episode's end. Sequential: robots from ``first`` on
+    perceive (one a drifting cell reaches spends its turn so) until one gets the turn
+    (``clock[CLOCK_NEXT]``); when a step's robots have all had theirs the next step begins.
+    Simultaneous: the next step begins and every robot perceives. With a decision interval
+    (``KernelParams.hold``) the robots keep to their actions through the steps between."""
+    s = sim.s
+    clock = sim.pc.clock
+    n = s.pos.shape[0]
+    t = clock[CLOCK_STEP]
+    sequential = p.schedule == SEQUENTIAL
+    i = first
+    begins = fresh
+    while True:
+        if begins:
+            advance(p, rng, sim, t)
+            i = 0
+            if not sequential:
+                _perceive_all(p, rng, sim, t)
+                if not s.active.any():
+                    # the robots spent step t receiving cells that drifted onto them: it counts
+                    clock[CLOCK_STEP] = t + 1
+                    _ended(p, sim, t + 1)
+                    return
+                if decides(p, t):
+                    return
+                for j in range(n):
+                    if s.active[j]:
+                        keep(p, rng, sim, j, t)
+        begins = True
+        if sequential:
+            while i < n:
+                if s.active[i] and perceive(p, rng, sim, i, t, True):
+                    if decides(p, t):
+                        clock[CLOCK_NEXT] = i
+                        return
+                    keep(p, rng, sim, i, t)
+                i += 1
+        t += 1
+        clock[CLOCK_STEP] = t
+        if _ended(p, sim, t):
+            clock[CLOCK_NEXT] = -1
+            return
+
+
+@episodic
+def reset_world(
+    p: KernelParams, world_rng: np.random.Generator, rng: np.random.Generator, sim: Sim
+) -> int:
+    """Draw a fresh world and perceive its step 0 (under the sequential schedule, up to the
+    first robot's turn); returns ``world.draw_world``'s status."""
+    status = draw_fresh(p, world_rng, rng, sim)
+    if status == 0:
+        first = sim.pc.clock[CLOCK_STEP]  # 0, as a variable: a constant would compile anew
+        on_to_decision(p, rng, sim, first, status == 0)
+    return status
 
 
 @inlined
@@ -183,39 +223,9 @@ def step_world(
     (``KernelParams.turning``), ``turns`` (robots x 2) are their actions instead. With a decision
     interval (``KernelParams.hold``) a move runs on to the next decision, the robots keeping to
     their actions, and the reward is summed over it."""
-    pc = sim.pc
-    s = sim.s
-    clock = pc.clock
-    t = clock[CLOCK_STEP]
-    for i in range(s.pos.shape[0]):
-        pc.reward[i] = 0.0
-    # the robot whose turn it is (sequential), or every robot (simultaneous): one place acts
-    sequential = p.schedule == SEQUENTIAL
-    first = clock[CLOCK_NEXT] if sequential else 0
-    last = first + 1 if sequential else s.pos.shape[0]
-    for i in range(first, last):
-        if s.active[i]:
-            _act_on(p, rng, sim, i, t, actions[i], turns, directions)
-    if sequential:
-        _next_turn(p, rng, sim, first + 1)
-        return
-    while True:
-        t += 1
-        clock[CLOCK_STEP] = t
-        if _ended(p, sim, t):
-            return
-        _advance(p, rng, sim, t)
-        _perceive_all(p, rng, sim, t)
-        if not s.active.any():
-            # the last robots spent step t receiving cells that drifted onto them: it counts
-            clock[CLOCK_STEP] = t + 1
-            _ended(p, sim, t + 1)
-            return
-        if decides(p, t):
-            return
-        for i in range(s.pos.shape[0]):
-            if s.active[i]:
-                keep(p, rng, sim, i, t)
+    first = act_on_actions(p, rng, sim, actions, turns, directions)
+    fresh = first < 0  # False, as a variable: a constant would compile on_to_decision again
+    on_to_decision(p, rng, sim, first, fresh)
 
 
 @inlined
@@ -338,27 +348,28 @@ def _step_all(
     moved for every world, drawn or stepped or not (measured: 34 ns a world in a call that
     stepped none)."""
     worlds = batch.pc.clock.shape[0]
-    count = 0
+    drawn = 0
     for k in range(worlds):
         if fresh[k]:
-            due[count] = k
-            count += 1
-    for i in range(count):
-        k = due[i]
-        status = reset_world(p, generator_at(world_handles, k), generator_at(handles, k),
-                             sim_at(batch, k))  # fmt: skip
-        if status != 0:
-            return status
-    if not advance:
-        return 0
-    clock = batch.pc.clock
-    count = 0
-    for k in range(worlds):
-        if not fresh[k] and clock[k, CLOCK_OVER] == 0:
-            due[count] = k
-            count += 1
-    for i in range(count):
-        k = due[i]
-        step_world(p, generator_at(handles, k), sim_at(batch, k), actions[k], turns[k],
-                   directions)  # fmt: skip
+            due[drawn] = k
+            drawn += 1
+    count = drawn
+    if advance:
+        clock = batch.pc.clock
+        for k in range(worlds):
+            if not fresh[k] and clock[k, CLOCK_OVER] == 0:
+                due[count] = k
+                count += 1
+    for j in range(count):
+        k = due[j]
+        rng = generator_at(handles, k)
+        sim = sim_at(batch, k)
+        if j < drawn:
+            status = draw_fresh(p, generator_at(world_handles, k), rng, sim)
+            if status != 0:
+                return status
+            first = 0
+        else:
+            first = act_on_actions(p, rng, sim, actions[k], turns[k], directions)
+        on_to_decision(p, rng, sim, first, j < drawn)
     return 0
