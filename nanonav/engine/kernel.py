@@ -276,6 +276,7 @@ def _steps(
     measured (and recorded). Compiled without reference counting (``compiled.uncounted``)."""
     s = sim.s
     n = s.pos.shape[0]
+    sequential = p.schedule == SEQUENTIAL
     stop_at = counters[ROBOT_STEPS] + budget
     while t < p.max_steps and counters[ROBOT_STEPS] < stop_at:
         n_active = 0
@@ -286,17 +287,20 @@ def _steps(
             break
         counters[ROBOT_STEPS] += n_active
         advance(p, rng, sim, t)
-        if p.schedule == SEQUENTIAL:
-            for i in range(n):
-                if s.active[i] and sense(p, rng, sim, lrn, i, t, learning):
-                    respond(p, rng, sim, lrn, i, t, epsilon, learning)
-        else:
-            for i in range(n):
-                if s.active[i]:
-                    sense(p, rng, sim, lrn, i, t, learning)
-            for i in range(n):
-                if s.active[i]:
-                    respond(p, rng, sim, lrn, i, t, epsilon, learning)
+        # 2n turns, each a robot's sense or its response, in the schedule's order: sequential,
+        # each robot senses and responds (if it sensed) before the next; simultaneous, every
+        # robot senses, then every robot still active responds. One place senses and one
+        # responds, so that each is compiled into the step once.
+        sensed = False
+        for j in range(2 * n):
+            if sequential:
+                i, responds = j >> 1, (j & 1) == 1
+            else:
+                i, responds = j % n, j >= n
+            if not responds:
+                sensed = s.active[i] and sense(p, rng, sim, lrn, i, t, learning)
+            elif sensed if sequential else s.active[i]:
+                respond(p, rng, sim, lrn, i, t, epsilon, learning)
         t += 1
         if evaluating:
             observe(p, sim, t, False, record)
