@@ -287,19 +287,17 @@ def _steps(
             break
         counters[ROBOT_STEPS] += n_active
         advance(p, rng, sim, t)
-        # 2n turns, each a robot's sense or its response, in the schedule's order: sequential,
-        # each robot senses and responds (if it sensed) before the next; simultaneous, every
-        # robot senses, then every robot still active responds. One place senses and one
-        # responds, so that each is compiled into the step once.
-        sensed = False
-        for j in range(2 * n):
-            if sequential:
-                i, responds = j >> 1, (j & 1) == 1
-            else:
-                i, responds = j % n, j >= n
-            if not responds:
-                sensed = s.active[i] and sense(p, rng, sim, lrn, i, t, learning)
-            elif sensed if sequential else s.active[i]:
+        # sequential, one pass: each robot senses and, if it did, responds before the next;
+        # simultaneous, two: every robot senses, then every robot still active responds. One
+        # place senses and one responds, so that each is compiled into the step once.
+        for second in range(1 if sequential else 2):
+            for i in range(n):
+                if not s.active[i]:
+                    continue
+                if second == 0:
+                    sensed = sense(p, rng, sim, lrn, i, t, learning)
+                    if not (sequential and sensed):
+                        continue
                 respond(p, rng, sim, lrn, i, t, epsilon, learning)
         t += 1
         if evaluating:
