@@ -54,15 +54,6 @@ from nanonav.engine.state import (
 
 
 @inlined
-def _perceive_all(p: KernelParams, rng: np.random.Generator, sim: Sim, t: int) -> None:
-    """Every active robot perceives, in index order (the simultaneous schedule)."""
-    s = sim.s
-    for i in range(s.pos.shape[0]):
-        if s.active[i]:
-            perceive(p, rng, sim, i, t, True)
-
-
-@inlined
 def _ended(p: KernelParams, sim: Sim, t: int) -> bool:
     """Step ``t`` has been reached: measure it if the world is measured (as ``simulate``'s
     evaluation does after each step, the last one recorded), and end the episode if it is
@@ -164,33 +155,37 @@ def on_to_decision(
     n = s.pos.shape[0]
     t = clock[CLOCK_STEP]
     sequential = p.schedule == SEQUENTIAL
-    i = first
+    start = first
     begins = fresh
     while True:
         if begins:
             advance(p, rng, sim, t)
-            i = 0
-            if not sequential:
-                _perceive_all(p, rng, sim, t)
-                if not s.active.any():
-                    # the robots spent step t receiving cells that drifted onto them: it counts
-                    clock[CLOCK_STEP] = t + 1
-                    _ended(p, sim, t + 1)
-                    return
-                if decides(p, t):
-                    return
-                for j in range(n):
-                    if s.active[j]:
-                        keep(p, rng, sim, j, t)
-        begins = True
-        if sequential:
-            while i < n:
-                if s.active[i] and perceive(p, rng, sim, i, t, True):
-                    if decides(p, t):
-                        clock[CLOCK_NEXT] = i
+            start = 0
+        if begins or sequential:
+            # sequential, one pass: each robot perceives and, unless it gets the turn, keeps
+            # to its action; simultaneous, two: every robot perceives, then, unless the step
+            # decides, every robot keeps to its action. One place perceives and one keeps.
+            for second in range(1 if sequential else 2):
+                if second == 1:
+                    if not s.active.any():
+                        # the robots spent step t receiving cells that drifted onto them
+                        clock[CLOCK_STEP] = t + 1
+                        _ended(p, sim, t + 1)
                         return
+                    if decides(p, t):
+                        return
+                for i in range(start, n):
+                    if not s.active[i]:
+                        continue
+                    if second == 0:
+                        perceived = perceive(p, rng, sim, i, t, True)
+                        if not (sequential and perceived):
+                            continue
+                        if decides(p, t):
+                            clock[CLOCK_NEXT] = i
+                            return
                     keep(p, rng, sim, i, t)
-                i += 1
+        begins = True
         t += 1
         clock[CLOCK_STEP] = t
         if _ended(p, sim, t):
