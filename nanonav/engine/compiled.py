@@ -27,8 +27,9 @@ A numba-inlined function remains where the inlined code must take its caller's f
 flags (``fields.sample`` in ``sample_many``, whose contraction the field's digests hold) or
 returns what only an inlined call may (``generators.generator_at``).
 
-A constant argument (``f(p, sim, 0)``) would compile the callee again for that constant (numba
-specialises on literals); callers pass variables.
+A constant argument (``f(p, sim, 0)``, ``f(p, sim, True)``) would compile the callee again for
+that constant (numba specialises on literals); callers pass variables, or ``int(0)`` and
+``bool(True)``, which numba types as plain numbers.
 
 What numba compiles is kept on disk (``cache=True``) under a folder named by a digest of
 everything it was compiled from (``compiled_from``): every source of the engine and the

@@ -152,7 +152,7 @@ def begin_episode(
                     sim.rec.offsets[k, axis] = w.offsets[k, axis]
         if evaluating:
             # step 0 as a number, not a constant: a constant would compile observe once more
-            observe(p, sim, int(0), False, record)  # noqa: UP018, RUF046
+            observe(p, sim, int(0), bool(False), record)  # noqa: UP018, RUF046
     return status
 
 
@@ -301,12 +301,12 @@ def _steps(
                 respond(p, rng, sim, lrn, i, t, epsilon, learning)
         t += 1
         if evaluating:
-            observe(p, sim, t, False, record)
+            observe(p, sim, t, bool(False), record)  # noqa: UP018
         if p.capacity > 0 and treatment.untreated(sim.tr.treated_at) == 0:
             break  # every cell is treated: the episode is over
     if over(p, sim.tr, s, t):
         if learning:
             learn_at_limit(p, rng, sim, lrn)
         if record and t % p.record_stride:
-            observe(p, sim, t, True, record)
+            observe(p, sim, t, bool(True), record)  # noqa: UP018
     return t

@@ -578,7 +578,7 @@ def sense(
 ) -> bool:  # fmt: skip
     """Robot ``i`` perceives in step ``t`` when the engine decides; a cell that drifted onto
     it ends its episode, and its waiting transition with it (returns False)."""
-    if perceive(p, rng, sim, i, t, False):
+    if perceive(p, rng, sim, i, t, bool(False)):  # noqa: UP018
         return True
     if learning:
         learn_arrival(p, lrn, sim.s, i)
@@ -636,7 +636,7 @@ def learn_at_limit(p: KernelParams, rng: np.random.Generator, sim: Sim, lrn: Lea
         cell_d = treatment.nearest_target(
             w.cells, sim.tr.treated_at, s.pos[i, 0], s.pos[i, 1], s.pos[i, 2]
         )[1]  # fmt: skip
-        state = read_state(p, rng, sim, i, p.max_steps, cell_d, True)
+        state = read_state(p, rng, sim, i, p.max_steps, cell_d, bool(True))  # noqa: UP018
         if p.signal != NO_SIGNAL:
             state = state * p.signal_states + _heard(p, rng, sim, i)
         learn_last(p, lrn, s, i, state)

@@ -61,11 +61,11 @@ def _ended(p: KernelParams, sim: Sim, t: int) -> bool:
     clock = sim.pc.clock
     measure = clock[CLOCK_MEASURE]
     if measure:
-        observe(p, sim, t, False, measure == RECORDED)
+        observe(p, sim, t, bool(False), measure == RECORDED)  # noqa: UP018
     if not over(p, sim.tr, sim.s, t):
         return False
     if measure == RECORDED and t % p.record_stride:
-        observe(p, sim, t, True, True)
+        observe(p, sim, t, bool(True), bool(True))  # noqa: UP018
     clock[CLOCK_OVER] = 1
     return True
 
@@ -178,7 +178,7 @@ def on_to_decision(
                     if not s.active[i]:
                         continue
                     if second == 0:
-                        perceived = perceive(p, rng, sim, i, t, True)
+                        perceived = perceive(p, rng, sim, i, t, bool(True))  # noqa: UP018
                         if not (sequential and perceived):
                             continue
                         if decides(p, t):
