@@ -201,8 +201,7 @@ def reset_world(
     first robot's turn); returns ``world.draw_world``'s status."""
     status = draw_fresh(p, world_rng, rng, sim)
     if status == 0:
-        first = sim.pc.clock[CLOCK_STEP]  # 0, as a variable: a constant would compile anew
-        on_to_decision(p, rng, sim, first, status == 0)
+        on_to_decision(p, rng, sim, int(0), bool(True))  # noqa: UP018, RUF046
     return status
 
 
@@ -219,8 +218,7 @@ def step_world(
     interval (``KernelParams.hold``) a move runs on to the next decision, the robots keeping to
     their actions, and the reward is summed over it."""
     first = act_on_actions(p, rng, sim, actions, turns, directions)
-    fresh = first < 0  # False, as a variable: a constant would compile on_to_decision again
-    on_to_decision(p, rng, sim, first, fresh)
+    on_to_decision(p, rng, sim, first, bool(False))  # noqa: UP018
 
 
 @inlined
