@@ -6,7 +6,7 @@ import argparse
 import logging
 
 from nanonav.settings import Settings
-from worker.loop import LOG_FORMAT, supervise
+from worker.loop import LOG_FORMAT, exit_at_once, supervise
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -23,6 +23,7 @@ def main(argv: list[str] | None = None) -> None:
         parser.error("--concurrency must be at least 1")
     logging.basicConfig(level=logging.INFO, format=LOG_FORMAT)
     supervise(settings, args.concurrency)
+    exit_at_once()
 
 
 if __name__ == "__main__":
