@@ -10,7 +10,9 @@ PORT ?= 8000
 TEST_PROCESSES ?= 3
 export HOST PORT
 
-.PHONY: run test lint typecheck pytest docs docs-check bench clean clean-compiled
+.PHONY: run test compile-ahead lint typecheck pytest docs docs-check bench clean clean-compiled
+
+PIP := $(BIN)/python -m pip install --quiet
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -18,17 +20,17 @@ $(BIN)/python:
 
 # What running needs, and on top of it what testing needs (pytest, ruff, mypy, psycopg).
 $(VENV)/.installed: pyproject.toml | $(BIN)/python
-	$(BIN)/python -m pip install --quiet -e .
+	$(PIP) -e .
 	touch $@
 
 # The `rl` extra's learners need torch: this exact version is a CPU build on these machines'
 # disk, where a looser spec would download a CUDA one of several GB, so it goes in first.
 $(VENV)/.installed-torch: | $(BIN)/python
-	$(BIN)/python -m pip install --quiet torch==2.13.0
+	$(PIP) torch==2.13.0
 	touch $@
 
 $(VENV)/.installed-test: $(VENV)/.installed $(VENV)/.installed-torch
-	$(BIN)/python -m pip install --quiet -e '.[test,rl]'
+	$(PIP) -e '.[test,rl]'
 	touch $@
 
 # A PostgreSQL DATABASE_URL needs the driver of the `postgres` extra.
@@ -36,16 +38,26 @@ RUN_DATABASE_URL := $(or $(NANONAV_DATABASE_URL),$(DATABASE_URL))
 RUN_NEEDS := $(VENV)/.installed $(if $(filter postgres%,$(RUN_DATABASE_URL)),$(VENV)/.installed-postgres)
 
 $(VENV)/.installed-postgres: $(VENV)/.installed
-	$(BIN)/python -m pip install --quiet -e '.[postgres]'
+	$(PIP) -e '.[postgres]'
 	touch $@
 
 run: $(RUN_NEEDS)
 	$(BIN)/python -m nanonav.run_local
 
-# The checks side by side (each uses one core), then the tests (which use them all).
-test: $(VENV)/.installed-test
-	$(MAKE) --no-print-directory -j3 --output-sync=target lint typecheck docs-check
+# The checks side by side (each uses one core), then the tests (which use them all). The
+# engine's kernels compile meanwhile, from as soon as NanoNav itself is installed: pip, which
+# installs the test tools after it, and the checks leave a core idle most of that time.
+# NanoNav's own modules are byte-compiled first: pip compiles what it installs, but not an
+# editable project's sources, and where Python writes no bytecode (PYTHONDONTWRITEBYTECODE, as
+# on these machines) each of the test's few hundred processes compiled them anew (0.3 s each).
+test: $(VENV)/.installed
+	$(MAKE) --no-print-directory -j4 --output-sync=target compile-ahead lint typecheck docs-check
+	$(BIN)/python -m compileall -q nanonav service worker tests benchmarks >/dev/null
 	$(MAKE) --no-print-directory pytest
+
+# numba's cache of the kernels the tests use (tests/compile_ahead.py); quick once it is full.
+compile-ahead: $(VENV)/.installed
+	$(BIN)/python -m tests.compile_ahead
 
 lint: $(VENV)/.installed-test
 	$(BIN)/ruff check .
@@ -59,7 +71,7 @@ pytest: $(VENV)/.installed-test
 
 # The documentation site: the reference pages are written from the code, then built into site/.
 $(VENV)/.installed-docs: $(VENV)/.installed
-	$(BIN)/python -m pip install --quiet -e '.[docs]'
+	$(PIP) -e '.[docs]'
 	touch $@
 
 docs: $(VENV)/.installed-docs
