@@ -6,10 +6,11 @@ Each compiles for a minute or so from a cold cache (``benchmarks/first_start.py`
 of them the second, while the other waits or works alone. Compiled here side by side, one
 process each, the test processes then load both from the cache. Neither part needs more than
 NanoNav's own dependencies, so that ``make test`` compiles them while pip installs the test
-tools and the checks run, on the core those leave idle.
+tools and the checks run, on the core those leave idle. Then a worker's preparation
+(``worker.loop.prepare``) makes the cache ready for the workers the tests start.
 
-    python -m tests.compile_ahead              # both parts, side by side
-    python -m tests.compile_ahead kernel|env   # one part, in this process
+    python -m tests.compile_ahead                     # every part
+    python -m tests.compile_ahead kernel|env|worker   # one part, in this process
 """
 
 from __future__ import annotations
@@ -18,7 +19,11 @@ import subprocess
 import sys
 import time
 
-PARTS = ("kernel", "env")
+# Two rounds: the kernels side by side, then a worker's preparation, which loads them and
+# compiles what else a job can take (a network's evaluation) once, and says the cache is ready
+# for workers; left to the tests, the first workers to start prepared it at once, three over.
+ROUNDS = (("kernel", "env"), ("worker",))
+PARTS = tuple(part for parts in ROUNDS for part in parts)
 SMALL = {"preset": "paper-single", "learning": {"episodes": 1, "max_steps": 5},
          "evaluation": {"worlds": 1}}  # fmt: skip
 
@@ -40,41 +45,49 @@ def compile_part(part: str) -> None:
         worlds = Worlds(Scenario.model_validate(SMALL), 1, "simultaneous")
         worlds.step(None, np.ones(1, dtype=np.bool_))
         worlds.step(worlds.blank_actions(), np.zeros(1, dtype=np.bool_), checked=True)
+    elif part == "worker":
+        import threading
+
+        from worker.loop import prepare
+
+        if not prepare(threading.Event()):
+            raise RuntimeError("the worker's preparation stopped")
     else:
         raise ValueError(f"no part {part!r}: one of {', '.join(PARTS)}")
 
 
 def compile_all(timeout_s: float = 1200.0) -> list[str]:
-    """Compile every part, each in a process of its own, all at once; returns a line per part
-    (how long it took, or how it failed: the tests that use it will then fail in their own
-    words)."""
+    """Compile every part, each in a process of its own, a round's parts at once; returns a
+    line per part (how long it took, or how it failed: the tests that use it will then fail,
+    or compile it, in their own words)."""
     started = time.perf_counter()
-    running = {
-        part: subprocess.Popen(
-            [sys.executable, "-m", "tests.compile_ahead", part],
-            stdout=subprocess.DEVNULL,
-            stderr=subprocess.PIPE,
-            text=True,
-        )
-        for part in PARTS
-    }
     lines = []
-    for part, process in running.items():
-        try:
-            _, err = process.communicate(
-                timeout=max(1.0, timeout_s - (time.perf_counter() - started))
+    for parts in ROUNDS:
+        running = {
+            part: subprocess.Popen(
+                [sys.executable, "-m", "tests.compile_ahead", part],
+                stdout=subprocess.DEVNULL,
+                stderr=subprocess.PIPE,
+                text=True,
             )
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.communicate()
-            lines.append(f"{part}: not compiled within {timeout_s:.0f} s")
-            continue
-        took = time.perf_counter() - started
-        if process.returncode == 0:
-            lines.append(f"{part}: ready after {took:.0f} s")
-        else:
-            last = err.strip().splitlines()[-1:] or ["(no output)"]
-            lines.append(f"{part}: failed ({last[0]})")
+            for part in parts
+        }
+        for part, process in running.items():
+            try:
+                _, err = process.communicate(
+                    timeout=max(1.0, timeout_s - (time.perf_counter() - started))
+                )
+            except subprocess.TimeoutExpired:
+                process.kill()
+                process.communicate()
+                lines.append(f"{part}: not compiled within {timeout_s:.0f} s")
+                continue
+            took = time.perf_counter() - started
+            if process.returncode == 0:
+                lines.append(f"{part}: ready after {took:.0f} s")
+            else:
+                last = err.strip().splitlines()[-1:] or ["(no output)"]
+                lines.append(f"{part}: failed ({last[0]})")
     return lines
 
 
