@@ -28,6 +28,7 @@ from sqlalchemy import create_engine, text
 from sqlalchemy.engine import make_url
 from sqlalchemy.exc import OperationalError
 
+from nanonav.client import tls_context
 from nanonav.settings import Settings
 from nanonav.store import JobStore
 from nanonav.store.migrate import upgrade
@@ -205,7 +206,7 @@ def api(api_settings: Settings) -> Iterator[Api]:
     store = JobStore.from_url(api_settings.database_url)
     with (
         serve(create_app(api_settings)) as url,
-        httpx.Client(base_url=url, timeout=30, headers=SCRIPTED) as client,
+        httpx.Client(base_url=url, timeout=30, headers=SCRIPTED, verify=tls_context()) as client,
     ):
         yield Api(url=url, client=client, database_url=api_settings.database_url, store=store)
     store.close()
