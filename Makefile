@@ -9,6 +9,11 @@ PORT ?= 8000
 # `make test TEST_PROCESSES=0` runs them all in one.
 TEST_PROCESSES ?= 3
 export HOST PORT
+# Python keeps the bytecode of what it imports here even where the environment says not to:
+# pip compiles what it installs, but not this project's own sources or pytest's rewritten
+# tests, which each of the tests' few hundred processes compiled anew (0.3 s a process, 6 s
+# a test process's collection).
+unexport PYTHONDONTWRITEBYTECODE
 
 .PHONY: run test compile-ahead lint typecheck pytest docs docs-check bench clean clean-compiled
 
@@ -47,12 +52,8 @@ run: $(RUN_NEEDS)
 # The checks side by side (each uses one core), then the tests (which use them all). The
 # engine's kernels compile meanwhile, from as soon as NanoNav itself is installed: pip, which
 # installs the test tools after it, and the checks leave a core idle most of that time.
-# NanoNav's own modules are byte-compiled first: pip compiles what it installs, but not an
-# editable project's sources, and where Python writes no bytecode (PYTHONDONTWRITEBYTECODE, as
-# on these machines) each of the test's few hundred processes compiled them anew (0.3 s each).
 test: $(VENV)/.installed
 	$(MAKE) --no-print-directory -j4 --output-sync=target compile-ahead lint typecheck docs-check
-	$(BIN)/python -m compileall -q nanonav service worker tests benchmarks >/dev/null
 	$(MAKE) --no-print-directory pytest
 
 # numba's cache of the kernels the tests use (tests/compile_ahead.py); quick once it is full.
