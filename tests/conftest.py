@@ -127,6 +127,7 @@ def migrate(url: str) -> None:
     if not _MIGRATED:
         _MIGRATED.append(tempfile.TemporaryDirectory(prefix="nanonav-migrated-"))
         upgrade(sqlite_url_in(Path(_MIGRATED[0].name)))
+    target.parent.mkdir(parents=True, exist_ok=True)  # as upgrade makes a file's folder
     shutil.copyfile(Path(_MIGRATED[0].name) / "nanonav.db", target)
 
 
