@@ -116,9 +116,8 @@ _MIGRATED: list[tempfile.TemporaryDirectory[str]] = []  # removed when the proce
 
 def migrate(url: str) -> None:
     """``upgrade`` ``url`` to the newest migration; a SQLite file that does not exist yet is a
-    copy of one this test process migrated once (alembic took 0.1 s a test, about a quarter of
-    the CPU of a test of the API; tests/store/test_migrations.py runs the migrations
-    themselves)."""
+    copy of one this test process migrated once (alembic took 0.1 s a test;
+    tests/store/test_migrations.py runs the migrations themselves)."""
     parsed = make_url(url)
     target = Path(parsed.database or "")
     if parsed.get_backend_name() != "sqlite" or not parsed.database or target.exists():
