@@ -24,10 +24,16 @@
     }
   }
 
+  // A page being left (a link followed) is not reloaded: the reload would cancel the navigation
+  // under way and take the user back here.
+  let leaving = false;
+  window.addEventListener("beforeunload", () => { leaving = true; });
+  window.addEventListener("pageshow", () => { leaving = false; });
+
   function whenFinished(job) {
     showProgress(job);
     // the results are rendered by the server: show them
-    window.setTimeout(() => window.location.reload(), 300);
+    window.setTimeout(() => { if (!leaving) window.location.reload(); }, 300);
   }
 
   if (!finished.includes(root.dataset.status)) {

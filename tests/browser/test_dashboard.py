@@ -23,6 +23,19 @@ pytestmark = pytest.mark.timeout(180)
 LONG = {"space": {"size": 1000}, "robots": {"count": 50, "policy": "random"},
         "learning": {"episodes": 900, "max_steps": 20_000}}  # fmt: skip
 
+# Logs every state a page's event stream hears, before the page's own handlers run.
+HEARD = """
+const Heard = window.EventSource;
+window.EventSource = class extends Heard {
+  constructor(...args) {
+    super(...args);
+    for (const name of ["progress", "status", "message"]) {
+      this.addEventListener(name, (event) => console.log(`heard ${event.data}`));
+    }
+  }
+};
+"""
+
 
 def wait_for_images(page: Page) -> list[dict[str, object]]:
     """Load every picture on the page (they load lazily) and report each one's size."""
@@ -116,6 +129,28 @@ def test_a_running_job_is_cancelled_from_its_page(page: Page, site: Site) -> Non
     page.click("#cancel")
     expect(page.locator("#job-status")).to_have_text("cancelled", timeout=30_000)
     assert httpx.get(f"{site.url}/jobs/{job['id']}").json()["status"] == "cancelled"
+
+
+def test_a_link_followed_as_the_job_ends_is_not_undone_by_the_page(page: Page, site: Site) -> None:
+    # A job's page reloads itself when the job ends, to show the results. A user who has just
+    # followed a link (here "Run again") must not be taken back: the reload would cancel the
+    # navigation still under way (a slow server; once 90 s in CI). The new page's answer is held
+    # until the job has ended and the old page has heard it; the old page is not readable while
+    # a navigation is under way, so what it hears is logged to the console.
+    page.add_init_script(HEARD)
+    job = httpx.post(f"{site.url}/jobs", json=LONG).json()
+    page.goto(f"{site.url}/ui/jobs/{job['id']}")
+    expect(page.locator("#job-status")).to_have_text(re.compile("queued|running"))
+    held: list[Route] = []
+    page.route(re.compile(rf"/\?from={job['id']}$"), lambda route: held.append(route))
+    page.click("#run-again", no_wait_after=True)  # its navigation waits for the held answer
+    with page.expect_console_message(lambda m: '"cancelled"' in m.text, timeout=30_000):
+        assert httpx.post(f"{site.url}/jobs/{job['id']}/cancel", json={}).status_code == 200
+    page.wait_for_timeout(1_000)  # more than the page waits before it reloads
+    assert len(held) == 1
+    held[0].continue_()
+    page.wait_for_url(re.compile(rf"/\?from={job['id']}$"), wait_until="domcontentloaded")
+    expect(page.locator("#from-job")).to_contain_text(f"job #{job['id']}")
 
 
 QUICK = {"robots": {"count": 1}, "learning": {"episodes": 1, "max_steps": 40},
