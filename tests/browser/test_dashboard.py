@@ -300,8 +300,7 @@ def test_run_again_repeats_a_job_with_its_seed(page: Page, site: Site) -> None:
     page.goto(f"{site.url}/ui/jobs/{job_id}")
     page.click("#run-again")
     # the form's page, not its last resource: the server may still be drawing the job's
-    # pictures the page before asked for, when the whole suite shares the two cores (once
-    # more than 30 s, while other tests compiled)
+    # pictures the page before asked for, when the whole suite shares the two cores
     page.wait_for_url(re.compile(rf"/\?from={job_id}$"), wait_until="domcontentloaded",
                       timeout=90_000)  # fmt: skip
     expect(page.locator("#from-job")).to_contain_text("seed 11")
