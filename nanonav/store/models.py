@@ -53,6 +53,12 @@ class Base(DeclarativeBase):
     metadata = MetaData(naming_convention=NAMING_CONVENTION)
 
 
+# A row's id, and every column naming one: BIGINT on PostgreSQL, as the routes take ids up to
+# MAX_EXACT_INT (migration 0013); on SQLite INTEGER, 64 bits there already and the only type
+# whose primary key is the rowid that AUTOINCREMENT counts.
+RowId = BigInteger().with_variant(Integer(), "sqlite")
+
+
 class UTCDateTime(TypeDecorator[datetime]):
     """A timestamp stored as naive UTC and read back timezone-aware, on SQLite and PostgreSQL."""
 
@@ -89,7 +95,7 @@ class Study(Base):
     # On SQLite, an id is never handed out again after its row is deleted (migration 0006).
     __table_args__ = (UniqueConstraint("owner", "idempotency_key"), {"sqlite_autoincrement": True})
 
-    id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
+    id: Mapped[int] = mapped_column(RowId, primary_key=True, autoincrement=True)
     name: Mapped[str] = mapped_column(String(200))
     spec: Mapped[dict[str, Any]] = mapped_column(JSON)
     jobs: Mapped[int] = mapped_column(Integer)
@@ -117,7 +123,7 @@ class Job(Base):
         {"sqlite_autoincrement": True},  # no id is handed out twice (migration 0006)
     )
 
-    id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
+    id: Mapped[int] = mapped_column(RowId, primary_key=True, autoincrement=True)
     status: Mapped[JobStatus] = mapped_column(
         Enum(
             JobStatus,
@@ -149,7 +155,9 @@ class Job(Base):
     lease_token: Mapped[str | None] = mapped_column(String(64))
     lease_owner: Mapped[str | None] = mapped_column(String(200))
     lease_expires_at: Mapped[datetime | None] = mapped_column(UTCDateTime())
-    study_id: Mapped[int | None] = mapped_column(ForeignKey("studies.id", ondelete="CASCADE"))
+    study_id: Mapped[int | None] = mapped_column(
+        RowId, ForeignKey("studies.id", ondelete="CASCADE")
+    )
     study_point: Mapped[int | None] = mapped_column(Integer)  # index of its grid point
     study_seed: Mapped[int | None] = mapped_column(BigInteger)
 
@@ -157,7 +165,9 @@ class Job(Base):
 class JobResult(Base):
     __tablename__ = "job_results"
 
-    job_id: Mapped[int] = mapped_column(ForeignKey("jobs.id", ondelete="CASCADE"), primary_key=True)
+    job_id: Mapped[int] = mapped_column(
+        RowId, ForeignKey("jobs.id", ondelete="CASCADE"), primary_key=True
+    )
     completed: Mapped[bool] = mapped_column(Boolean)
     metrics: Mapped[dict[str, Any]] = mapped_column(JSON)
     trajectory: Mapped[bytes | None] = mapped_column(LargeBinary)
@@ -169,7 +179,9 @@ class JobResult(Base):
 class JobPlot(Base):
     __tablename__ = "job_plots"
 
-    job_id: Mapped[int] = mapped_column(ForeignKey("jobs.id", ondelete="CASCADE"), primary_key=True)
+    job_id: Mapped[int] = mapped_column(
+        RowId, ForeignKey("jobs.id", ondelete="CASCADE"), primary_key=True
+    )
     name: Mapped[str] = mapped_column(String(32), primary_key=True)
     png: Mapped[bytes] = mapped_column(LargeBinary)
 
@@ -178,7 +190,7 @@ class StudyPlot(Base):
     __tablename__ = "study_plots"
 
     study_id: Mapped[int] = mapped_column(
-        ForeignKey("studies.id", ondelete="CASCADE"), primary_key=True
+        RowId, ForeignKey("studies.id", ondelete="CASCADE"), primary_key=True
     )
     name: Mapped[str] = mapped_column(String(64), primary_key=True)
     png: Mapped[bytes] = mapped_column(LargeBinary)
@@ -213,12 +225,12 @@ class Delivery(Base):
     __tablename__ = "deliveries"
     __table_args__ = (Index(None, "state", "next_attempt_at"),)
 
-    id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
+    id: Mapped[int] = mapped_column(RowId, primary_key=True, autoincrement=True)
     job_id: Mapped[int | None] = mapped_column(
-        ForeignKey("jobs.id", ondelete="SET NULL"), unique=True
+        RowId, ForeignKey("jobs.id", ondelete="SET NULL"), unique=True
     )
     study_id: Mapped[int | None] = mapped_column(
-        ForeignKey("studies.id", ondelete="SET NULL"), unique=True
+        RowId, ForeignKey("studies.id", ondelete="SET NULL"), unique=True
     )
     url: Mapped[str] = mapped_column(String(2048))
     state: Mapped[DeliveryState] = mapped_column(
@@ -257,7 +269,7 @@ class Policy(Base):
         {"sqlite_autoincrement": True},
     )
 
-    id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
+    id: Mapped[int] = mapped_column(RowId, primary_key=True, autoincrement=True)
     name: Mapped[str | None] = mapped_column(String(200))
     # The SHA-256 of the API key that sent it; '' when the API has no keys.
     owner: Mapped[str] = mapped_column(String(64), default="", server_default="")

@@ -4,16 +4,20 @@ a study that is not there is a 404; a JSON body that gives a key twice is a 400 
 
 from __future__ import annotations
 
+import itertools
+from collections.abc import Iterator
 from typing import Any
 
 import httpx
 import pytest
 
 from nanonav.engine import qlearning
+from nanonav.scenario import MAX_EXACT_INT
+from nanonav.settings import Settings
 from service.json_keys import repeated_key
 from tests.conftest import Api
 from tests.service.test_api import assert_problem
-from tests.service.test_security import STUDY
+from tests.service.test_security import KEY_A, STUDY, Served, bearer, served
 
 # Spellings int() or pydantic read as the plain id: a sign, a leading zero, spaces and a line
 # break around it, a fraction of zero.
@@ -186,3 +190,98 @@ def test_a_body_nested_past_the_parsers_depth_is_no_duplicate_and_no_error() -> 
     deep = b"[" * 100_000 + b"]" * 100_000
     assert repeated_key(deep) is None
     assert repeated_key(b'{"a": [{"b": 1, "b": 2}]}') == ("a", 0, "b")
+
+
+# ---------------------------------------------------------------- ids past 32 bits
+
+
+@pytest.fixture
+def wide(database_url: str) -> Iterator[Served]:
+    """The API with a key, over a SQLite file and over PostgreSQL, holding the key's job, study
+    and policy."""
+    with served(Settings(database_url=database_url, api_keys=KEY_A)) as api:
+        api.client.headers.update(bearer(KEY_A))
+        for path, body in (("/jobs", {}), ("/studies", STUDY)):
+            assert api.client.post(path, json=body).status_code == 202
+        states, actions = qlearning.labels("directions")
+        sent = {"states": states, "actions": actions, "greedy": []}
+        assert api.client.post("/policies", json=sent).status_code == 201
+        yield api
+
+
+@pytest.mark.parametrize("missing", [2**31, 2**32, MAX_EXACT_INT])
+def test_an_id_past_32_bits_is_a_404_on_every_route_naming_one(wide: Served, missing: int) -> None:
+    document: dict[str, Any] = wide.client.get("/openapi.json").json()
+    asked = 0
+    for template, operations in document["paths"].items():
+        for parameter, kind in KIND.items():
+            if "{" + parameter + "}" not in template:
+                continue
+            spellings = [str(missing)] + (["policy-" + str(missing)] if kind == "policy" else [])
+            for spelled, method in itertools.product(spellings, operations):
+                path = template.replace("{" + parameter + "}", spelled).replace(
+                    "{name}", "learning"
+                )
+                response = wide.client.request(method, path, headers={"Accept": "*/*"})
+                problem = assert_problem(response, 404)
+                assert problem["type"].endswith(f"{kind}-not-found"), (method, path)
+                assert problem["detail"] == f"there is no {kind} {missing}", (method, path)
+                asked += 1
+    assert asked == 24
+
+
+@pytest.mark.parametrize("cursor", ["80000000", "1fffffffffffff"])
+def test_a_cursor_past_32_bits_lists_every_row_below_it(wide: Served, cursor: str) -> None:
+    for path, key, count in (("/jobs", "jobs", 5), ("/studies", "studies", 1),
+                             ("/policies", "policies", 1)):  # fmt: skip
+        response = wide.client.get(path, params={"cursor": cursor, "limit": 100})
+        assert response.status_code == 200, (path, response.text)
+        assert len(response.json()[key]) == count and response.json()["next_cursor"] is None
+    study_id = wide.client.get("/studies").json()["studies"][0]["id"]
+    of_study = wide.client.get("/jobs", params={"study": study_id, "cursor": cursor})
+    assert len(of_study.json()["jobs"]) == 4
+
+
+@pytest.mark.parametrize("missing", [2**31, MAX_EXACT_INT])
+def test_jobs_of_a_study_past_32_bits_is_a_404_naming_it(wide: Served, missing: int) -> None:
+    problem = assert_problem(wide.client.get("/jobs", params={"study": missing}), 404)
+    assert problem["type"].endswith("study-not-found")
+    assert problem["detail"] == f"there is no study {missing}"
+
+
+# The largest a job's id and a policy's may be in policy_from: a policy's name has 15 digits.
+@pytest.mark.parametrize(("job_id", "policy_id"), [(2**31, 2**31), (MAX_EXACT_INT, 10**15 - 1)])
+def test_a_policy_from_past_32_bits_is_a_422_saying_there_is_none(
+    wide: Served, job_id: int, policy_id: int
+) -> None:
+    evaluate = {"robots": {"count": 2}, "learning": {"episodes": 0, "max_steps": 60}}
+    for source, detail in ((job_id, f"there is no job {job_id}"),
+                           (f"policy-{policy_id}", f"there is no policy {policy_id}")):  # fmt: skip
+        for path, body, pointer in (
+            ("/jobs", {**evaluate, "policy_from": source}, "#/policy_from"),
+            ("/studies", {"base": {**evaluate, "policy_from": source}, "seeds": [1]},
+             "#/base/policy_from"),
+        ):  # fmt: skip
+            problem = assert_problem(wide.client.post(path, json=body), 422)
+            [error] = problem["errors"]
+            assert (error["pointer"], error["type"]) == (pointer, "policy_unusable")
+            assert error["detail"] == detail
+
+
+@pytest.mark.parametrize("missing", [2**31, MAX_EXACT_INT])
+def test_a_page_naming_an_id_past_32_bits_says_it_is_missing(wide: Served, missing: int) -> None:
+    assert wide.client.post("/ui/login", json={"key": KEY_A}).status_code == 204
+    for template in itertools.chain.from_iterable(PAGES.values()):
+        page = wide.client.get(template.format(job_id=missing, study_id=missing,
+                                               policy_id=missing))  # fmt: skip
+        assert page.status_code == 404, (template, page.text)
+        assert "<h1>Not found</h1>" in page.text
+    for path, params in (
+        ("/ui/jobs", {"study": missing}),
+        ("/ui/jobs", {"cursor": "1fffffffffffff"}),
+        ("/ui/studies", {"cursor": "1fffffffffffff"}),
+        ("/ui/policies", {"cursor": "1fffffffffffff"}),
+        ("/", {"from": missing, "policy": missing}),
+    ):
+        page = wide.client.get(path, params=params)
+        assert page.status_code == 200, (path, params, page.text)

@@ -1,9 +1,19 @@
 from __future__ import annotations
 
-from sqlalchemy import inspect
+import numpy as np
+from sqlalchemy import inspect, text
 
+from nanonav.engine import qlearning
+from nanonav.store import JobStore, StudyJob, StudyStore
 from nanonav.store.db import make_engine
+from nanonav.store.deliveries import DeliveryStore
 from nanonav.store.migrate import at_head, check, downgrade, upgrade
+from tests.conftest import migrated_store
+from tests.store.test_deliveries import URL
+from tests.store.test_ids import id_columns
+from tests.store.test_queue import claim, outcome
+
+ID_COLUMNS = id_columns()
 
 
 def tables(url: str) -> set[str]:
@@ -43,5 +53,85 @@ def test_an_unmigrated_database_is_not_at_head(sqlite_url: str) -> None:
     engine = make_engine(sqlite_url)
     try:
         assert not at_head(engine)
+    finally:
+        engine.dispose()
+
+
+# What PostgreSQL hands ids out from: a sequence per table whose rows a client names by id.
+SEQUENCES = [f"{table}_id_seq" for table in ("deliveries", "jobs", "policies", "studies")]
+COLUMN_TYPES = text(
+    "SELECT table_name || '.' || column_name, data_type FROM information_schema.columns "
+    "WHERE table_schema = current_schema()"
+)
+SEQUENCE_TYPES = text(
+    "SELECT sequence_name, data_type FROM information_schema.sequences "
+    "WHERE sequence_schema = current_schema()"
+)
+
+
+def id_types(url: str) -> dict[str, str]:
+    """The type of each id column (``table.column``) and of each sequence, as PostgreSQL's
+    information_schema names it."""
+    ids = {f"{table}.{column}" for table, column in ID_COLUMNS}
+    engine = make_engine(url)
+    try:
+        with engine.connect() as connection:
+            columns = {name: kind for name, kind in connection.execute(COLUMN_TYPES)}
+            sequences = {name: kind for name, kind in connection.execute(SEQUENCE_TYPES)}
+    finally:
+        engine.dispose()
+    return {name: kind for name, kind in columns.items() if name in ids} | sequences
+
+
+def test_postgresql_ids_become_bigint_and_keep_their_rows(postgres_url: str) -> None:
+    names = [f"{table}.{column}" for table, column in ID_COLUMNS] + SEQUENCES
+    upgrade(postgres_url, "0012")
+    assert id_types(postgres_url) == dict.fromkeys(names, "integer")
+    store = JobStore.from_url(postgres_url)
+    try:
+        studies = StudyStore(store.engine)
+        study = studies.create(
+            name="s", spec={}, jobs=[StudyJob({"seed": 1}, 10, 1, 0, 1)], callback_url=URL
+        )
+        job = store.get(store.finish(claim(store), outcome()).id)
+        store.save_plot(job.id, "learning", b"job png")
+        studies.keep_plot(study.id, "metrics", b"study png")
+        states, actions = qlearning.labels("behaviors")
+        policy = store.policies.add(
+            action_set="behaviors", communication=("none",), states=states, actions=actions,
+            values=np.zeros((len(states), len(actions))),
+        )  # fmt: skip
+    finally:
+        store.close()
+
+    upgrade(postgres_url)
+    assert id_types(postgres_url) == dict.fromkeys(names, "bigint")
+    downgrade(postgres_url, "0012")
+    assert id_types(postgres_url) == dict.fromkeys(names, "integer")
+    upgrade(postgres_url)
+    with migrated_store(postgres_url) as store:
+        studies = StudyStore(store.engine)
+        assert studies.get(study.id) == study and store.get(job.id) == job
+        assert store.metrics(job.id)["summary"]["total_steps"] == 7
+        assert store.plot(job.id, "learning") == b"job png"
+        assert studies.plot(study.id, "metrics") == b"study png"
+        assert store.policies.get(policy.id) == policy
+        delivery = DeliveryStore(store.engine).for_study(study.id)
+        assert delivery is not None and delivery.url == URL
+        with store.engine.begin() as connection:
+            connection.execute(text("SELECT setval('jobs_id_seq', 2147483647)"))
+        assert store.enqueue({}, robot_steps=1, episodes=1).id == 2**31
+
+
+def test_sqlite_keeps_its_tables_as_they_were(sqlite_url: str) -> None:
+    upgrade(sqlite_url, "0012")
+    engine = make_engine(sqlite_url)
+    schema = text("SELECT name, sql FROM sqlite_master ORDER BY name")
+    try:
+        with engine.connect() as connection:
+            before = connection.execute(schema).all()
+        upgrade(sqlite_url)
+        with engine.connect() as connection:
+            assert connection.execute(schema).all() == before
     finally:
         engine.dispose()
