@@ -35,7 +35,6 @@ from nanonav.rl import operators
 
 if TYPE_CHECKING:
     import onnx
-    from onnx import GraphProto, TensorProto
 
 # The default domain's versions accepted: from the first with today's operator semantics that
 # exporters still write, to the newest this ONNX knows (ONNX Runtime refuses one it cannot run)
@@ -54,8 +53,18 @@ MAX_LIVE_BYTES = 262_144
 # What the values without a batch axis (computed once a call, whatever its rows) may cost
 MAX_FIXED_MULTIPLY_ADDS = 10_000_000
 MAX_FIXED_BYTES = 64 * 1024 * 1024
-# Nodes a graph may have: shape inference and counting take time in proportion
+# Nodes a model may have, its subgraphs' counted too: shape inference and counting take time
+# in proportion; they are counted from the model's bytes before it is parsed
 MAX_NODES = 5_000
+# Outputs one node may give (an LSTM gives 3, a Split a few), and values a graph may name in
+# all (the inputs, weights and outputs of its nodes): what its check's time grows with
+MAX_NODE_OUTPUTS = 64
+MAX_VALUES = 20_000
+# The axes a value may have (a policy's have two or three: batch, features, a sequence)
+MAX_RANK = 8
+# Field numbers of ONNX's protobuf (onnx.proto: ModelProto.graph, GraphProto.node,
+# NodeProto.attribute, AttributeProto.g and .graphs), by which nodes are counted unparsed
+MODEL_GRAPH, GRAPH_NODE, NODE_ATTRIBUTE, ATTRIBUTE_GRAPH, ATTRIBUTE_GRAPHS = 7, 1, 5, 6, 11
 # What one inference call may cost: its rows are as many as fit both (and ``CALL_ROWS``), so
 # that a call takes well under a second and a quarter of a gigabyte whatever the model
 CALL_MULTIPLY_ADDS = 2**30
@@ -151,10 +160,16 @@ def parsed(data: bytes, max_bytes: int) -> onnx.ModelProto:
     ONNX model."""
     if len(data) > max_bytes:
         raise InvalidModel(f"the model takes {len(data)} bytes, over the limit of {max_bytes}")
+    for count in _node_counts(memoryview(data)):
+        if count > MAX_NODES:
+            raise InvalidModel(
+                f"the model has over {MAX_NODES:,} nodes (its subgraphs' counted), the most a "
+                "policy may have"
+            )
     import onnx  # here, not above: what imports this module's names need not load ONNX
 
     try:
-        model = onnx.load_model_from_string(data)
+        model = onnx.load_model_from_string(bytes(data))
     except Exception as error:  # protobuf's DecodeError, or worse
         raise InvalidModel(f"this is not an ONNX model: {error}") from None
     if model.ir_version <= 0 or not model.graph.node:
@@ -180,24 +195,102 @@ def model_labels(data: bytes, *, max_bytes: int) -> tuple[list[str] | None, list
     return found[METADATA_OBSERVATION], found[METADATA_ACTIONS]
 
 
-def _tensors(graph: GraphProto) -> Iterator[TensorProto]:
-    """Every tensor the graph holds, in its subgraphs too: initializers (dense and sparse) and
-    the tensors of node attributes."""
-    from onnx import AttributeProto
+def _node_counts(data: memoryview) -> Iterator[int]:
+    """The nodes of the model's graph and of every graph in their attributes, counted one by
+    one from the protobuf's wire format without parsing it (a count of nodes costs the parse
+    of none): yields 1, 2, 3, ... as each node is met, so that a caller stops at its cap."""
+    counted = 0
+    for graph in _fields(data, MODEL_GRAPH):
+        for node_count in _graph_nodes(graph):
+            counted += node_count
+            yield counted
 
-    yield from graph.initializer
-    for sparse in graph.sparse_initializer:
-        yield sparse.values
-        yield sparse.indices
-    for node in graph.node:
-        for attribute in node.attribute:
-            if attribute.type == AttributeProto.TENSOR:
-                yield attribute.t
-            yield from attribute.tensors
-            if attribute.type == AttributeProto.GRAPH:
-                yield from _tensors(attribute.g)
-            for sub in attribute.graphs:
-                yield from _tensors(sub)
+
+def _graph_nodes(graph: memoryview) -> Iterator[int]:
+    for node in _fields(graph, GRAPH_NODE):
+        yield 1
+        for attribute in _fields(node, NODE_ATTRIBUTE):
+            for number in (ATTRIBUTE_GRAPH, ATTRIBUTE_GRAPHS):
+                for sub in _fields(attribute, number):
+                    yield from _graph_nodes(sub)
+
+
+def _fields(data: memoryview, wanted: int) -> Iterator[memoryview]:
+    """The length-delimited fields numbered ``wanted`` of one protobuf message's bytes;
+    ``InvalidModel`` for bytes that are no message."""
+    at, end = 0, len(data)
+    while at < end:
+        key, at = _varint(data, at)
+        number, wire = key >> 3, key & 7
+        if wire == 0:
+            _, at = _varint(data, at)
+        elif wire == 1:
+            at += 8
+        elif wire == 5:
+            at += 4
+        elif wire == 2:
+            length, at = _varint(data, at)
+            if at + length > end:
+                raise InvalidModel("this is not an ONNX model: its bytes are no protobuf message")
+            if number == wanted:
+                yield data[at : at + length]
+            at += length
+        else:
+            raise InvalidModel("this is not an ONNX model: its bytes are no protobuf message")
+    if at != end:
+        raise InvalidModel("this is not an ONNX model: its bytes are no protobuf message")
+
+
+def _varint(data: memoryview, at: int) -> tuple[int, int]:
+    value = shift = 0
+    while True:
+        if at >= len(data) or shift > 63:
+            raise InvalidModel("this is not an ONNX model: its bytes are no protobuf message")
+        byte = data[at]
+        at += 1
+        value |= (byte & 0x7F) << shift
+        shift += 7
+        if byte < 0x80:
+            return value, at
+
+
+def _outside(message: Any, where: str) -> str | None:
+    """Where in ``message``, at any depth, a tensor keeps its data outside the model (an
+    ``external_data`` entry, or a ``data_location`` other than the default), said as a
+    message names it; None where none does. Every field of every message is walked, whatever
+    its name, so that a place ONNX adds for a tensor later is walked too."""
+    for field, value in message.ListFields():
+        if field.name == "external_data" or (field.name == "data_location" and value != 0):
+            return where
+        if field.type != field.TYPE_MESSAGE:
+            continue
+        if hasattr(value, "ListFields"):
+            items = [value]
+        elif field.message_type.GetOptions().map_entry:
+            items = list(value.values())
+        else:
+            items = list(value)
+        for k, item in enumerate(items):
+            inner = _place(item, field.name, k, where)
+            found = _outside(item, inner)
+            if found is not None:
+                return found
+    return None
+
+
+def _place(item: Any, field: str, k: int, where: str) -> str:
+    """How a message names ``item``, met in ``field`` (at its ``k``-th place) inside
+    ``where``: a node by its name and operator, a tensor by its name."""
+    descriptor = item.DESCRIPTOR.name
+    if descriptor == "NodeProto":
+        return _node_name(item, k) + (f" in {where}" if where else "")
+    if descriptor == "TensorProto":
+        name = getattr(item, "name", "")
+        tensor = f"its tensor {name!r}" if name else f"a tensor of its {field}"
+        return f"{where}: {tensor}" if where else f"the model's {field} {name!r}"
+    if where or descriptor == "GraphProto":
+        return where
+    return f"the model's {field}"
 
 
 def _dims(value: onnx.ValueInfoProto) -> list[int | str | None]:
@@ -225,13 +318,13 @@ def _check_contents(model: onnx.ModelProto) -> int:
     returns the default domain's opset."""
     import onnx
 
-    for tensor in _tensors(model.graph):
-        if tensor.data_location == onnx.TensorProto.EXTERNAL or len(tensor.external_data):
-            raise InvalidModel(
-                f"tensor {tensor.name!r} keeps its data outside the model: save the model "
-                "with its weights inside it (onnx.save(model, path), without "
-                "save_as_external_data)"
-            )
+    outside = _outside(model, "")
+    if outside is not None:
+        raise InvalidModel(
+            f"{outside} keeps its data outside the model (external data could name any file "
+            "of the machine that runs it): save the model with its weights inside it "
+            "(onnx.save(model, path), without save_as_external_data)"
+        )
     if model.functions:
         raise InvalidModel("the model defines functions of its own: only standard operators")
     if model.graph.sparse_initializer:
@@ -249,14 +342,20 @@ def _check_contents(model: onnx.ModelProto) -> int:
         raise InvalidModel(
             f"the model's opset is {opset}: it must lie between {MIN_OPSET} and {max_opset()}"
         )
-    if len(model.graph.node) > MAX_NODES:
-        raise InvalidModel(
-            f"the model has {len(model.graph.node)} nodes, over the {MAX_NODES} a policy may have"
-        )
+    named = len(model.graph.input) + len(model.graph.initializer)
     for index, node in enumerate(model.graph.node):
         problem = operators.refusal(node.op_type, node.domain, [])
+        if problem is None and len(node.output) > MAX_NODE_OUTPUTS:
+            outputs = len(node.output)
+            problem = f"it gives {outputs:,} outputs, over the {MAX_NODE_OUTPUTS} a node may"
         if problem is not None:
             raise InvalidModel(f"{_node_name(node, index)}: {problem}")
+        named += len(node.input) + len(node.output)
+        if named > MAX_VALUES:
+            raise InvalidModel(
+                f"{_node_name(node, index)}: the graph names over {MAX_VALUES:,} values (its "
+                "nodes' inputs and outputs) by here, the most a policy's may"
+            )
     try:
         onnx.checker.check_model(model)
     except onnx.checker.ValidationError as error:
@@ -305,9 +404,17 @@ class _Value:
 
 
 def _at_batch(model: onnx.ModelProto, batch: str, size: int) -> onnx.ModelProto:
-    """``model`` with its inputs' batch axis ``size`` long."""
+    """``model`` with its inputs' batch axis ``size`` long, and without the shapes it declares
+    of anything else (its ``value_info``, its outputs'): shape inference keeps a declared shape
+    where it cannot infer one, and a model may declare what it does not compute (a Reshape to
+    a shape computed from the observation, declared small, is large at run time). So every
+    shape counted is inferred from the inputs and weights alone, and a value whose shape they
+    do not fix is refused."""
     fixed = type(model)()
     fixed.CopyFrom(model)
+    fixed.graph.ClearField("value_info")
+    for output in fixed.graph.output:
+        output.type.tensor_type.ClearField("shape")
     for value in fixed.graph.input:
         for dim in value.type.tensor_type.shape.dim:
             if dim.HasField("dim_param") and dim.dim_param == batch:
@@ -342,6 +449,11 @@ def _values(model: onnx.ModelProto, batch: str) -> dict[str, _Value]:
             if not value.type.HasField("tensor_type"):
                 raise InvalidModel(f"{where}: it gives {value.name!r}, which is not a tensor")
             dims = _dims(value) if value.type.tensor_type.HasField("shape") else [None]
+            if len(dims) > MAX_RANK:
+                raise InvalidModel(
+                    f"{where}: it gives {value.name!r} of {len(dims)} axes, over the "
+                    f"{MAX_RANK} a policy's values may have"
+                )
             known = all(isinstance(d, int) for d in dims)
             found[value.name] = (
                 value.type.tensor_type.elem_type,
@@ -391,6 +503,8 @@ def _counted(model: onnx.ModelProto, values: dict[str, _Value]) -> Cost:
     alive: dict[str, _Value] = {
         v.name: values[v.name] for v in model.graph.input if v.name not in weights
     }
+    live_rows = sum(v.row_bytes for v in alive.values())
+    held_fixed = sum(v.fixed_bytes for v in alive.values())
     total = fixed = 0
     peak = fixed_peak = 0
     for index, node in enumerate(nodes):
@@ -436,10 +550,12 @@ def _counted(model: onnx.ModelProto, values: dict[str, _Value]) -> Cost:
                 "a call whatever its observations by here (the cap on a policy's cost)"
             )
         for name, value in zip(node.output, made, strict=True):
-            if value is not None:
+            if value is not None and name not in alive:
                 alive[name] = value
-        live = sum(v.row_bytes for v in alive.values()) + _scratch(node, given)
-        held = sum(v.fixed_bytes for v in alive.values())
+                live_rows += value.row_bytes
+                held_fixed += value.fixed_bytes
+        live = live_rows + _scratch(node, given)
+        held = held_fixed
         peak, fixed_peak = max(peak, live), max(fixed_peak, held)
         if live > MAX_LIVE_BYTES:
             raise InvalidModel(
@@ -453,7 +569,9 @@ def _counted(model: onnx.ModelProto, values: dict[str, _Value]) -> Cost:
             )
         for name in [*node.input, *node.output]:
             if name in alive and last_use.get(name, -1) <= index:
-                del alive[name]
+                gone = alive.pop(name)
+                live_rows -= gone.row_bytes
+                held_fixed -= gone.fixed_bytes
     return Cost(total, peak, fixed, fixed_peak, sum(values[w].fixed_bytes for w in weights))
 
 

@@ -373,3 +373,143 @@ def counter(width: int, actions: int) -> bytes:
     model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", OPSET)])
     model.ir_version = 8
     return bytes(model.SerializeToString())
+
+
+def _external(tensor: onnx.TensorProto, location: str, length: int = 8) -> None:
+    """Make ``tensor`` keep its data at ``location`` (a path relative to where the model is
+    run), ``length`` bytes from its start."""
+    tensor.ClearField("raw_data")
+    tensor.ClearField("int64_data")
+    tensor.data_location = TensorProto.EXTERNAL
+    for key, value in (("location", location), ("offset", "0"), ("length", str(length))):
+        entry = tensor.external_data.add()
+        entry.key, entry.value = key, value
+
+
+def file_reader(width: int, actions: int, location: str, *, form: str = "sparse") -> bytes:
+    """The audit's model that read a file beside the API: a Gemm on the observation, ArgMax,
+    then a Gather from a constant whose 8 bytes are the file's first (``location``, relative),
+    answered as the action, so that a refusal quoting the action would quote the file.
+    ``form``: ``sparse`` (a Constant's ``sparse_value``, its values external), ``dense`` (a
+    Constant's ``value``), ``sparse_list`` (an attribute's ``sparse_tensors``), ``nested``
+    (the sparse Constant inside an If's branch), ``initializer`` (a sparse initializer)."""
+    values = numpy_helper.from_array(np.zeros(1, dtype=np.int64), "secret_values")
+    _external(values, location)
+    indices = numpy_helper.from_array(np.array([1], dtype=np.int64), "secret_indices")
+    sparse = helper.make_sparse_tensor(values, indices, [2])
+    # the second column wins for any observation with a positive sum (a trial row of ones)
+    choose = np.zeros((width, 2), dtype=np.float32)
+    choose[:, 1] = 1.0
+    weights = [numpy_helper.from_array(choose, "w")]
+    scores = helper.make_node("Gemm", ["observation", "w"], ["scores"])
+    argmax = helper.make_node("ArgMax", ["scores"], ["which"], axis=1, keepdims=0)
+    gather = helper.make_node("Gather", ["secret", "which"], ["action"], axis=0)
+    if form == "dense":
+        dense = numpy_helper.from_array(np.zeros(2, dtype=np.int64), "secret_dense")
+        _external(dense, location, 16)
+        made = [helper.make_node("Constant", [], ["secret"], name="reader", value=dense)]
+    elif form == "sparse_list":
+        attribute = helper.make_attribute("sparse_tensors", [sparse])
+        node = helper.make_node("Constant", [], ["secret"], name="reader", sparse_value=sparse)
+        node.attribute.append(attribute)
+        made = [node]
+    elif form == "nested":
+        inner = helper.make_node("Constant", [], ["inside"], name="reader", sparse_value=sparse)
+        branch = helper.make_graph(
+            [inner], "branch", [],
+            [helper.make_tensor_value_info("inside", TensorProto.INT64, [2])],
+        )  # fmt: skip
+        condition = numpy_helper.from_array(np.array(True), "condition")
+        weights.append(condition)
+        made = [helper.make_node("If", ["condition"], ["secret"], name="choose",
+                                 then_branch=branch, else_branch=branch)]  # fmt: skip
+    elif form == "initializer":
+        graph_inputs = [observation(width)]
+        out = helper.make_tensor_value_info("action", TensorProto.INT64, ["batch"])
+        values.name = "secret"
+        graph = helper.make_graph([scores, argmax, gather], "policy", graph_inputs, [out],
+                                  initializer=weights, sparse_initializer=[sparse])  # fmt: skip
+        sparse.values.name = "secret"
+        model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", OPSET)])
+        model.ir_version = 8
+        return bytes(model.SerializeToString())
+    else:
+        made = [helper.make_node("Constant", [], ["secret"], name="reader", sparse_value=sparse)]
+    out = helper.make_tensor_value_info("action", TensorProto.INT64, ["batch"])
+    return _model([*made, scores, argmax, gather], weights, [observation(width)], out)
+
+
+def shape_liar(width: int, actions: int, *, wide: int = 64, declared: bool = True) -> bytes:
+    """The audit's model that lied about its cost: the features' largest values over the batch,
+    (``wide``,), reshaped to a shape taken from the observation (``[1, -1]`` when no
+    observation is positive, as the trial's zero rows; ``[-1, 1]`` else) and declared ``(1,
+    wide)`` in ``value_info``; added to their ``(1, wide)`` self they make ``wide`` squared
+    numbers at run time where the declared shapes count ``wide``."""
+    pick = np.zeros((width, 2), dtype=np.float32)
+    pick[:, 1] = 1.0
+    weights = [
+        numpy_helper.from_array(np.ones((width, wide), dtype=np.float32), "wide"),
+        numpy_helper.from_array(pick, "pick"),
+        numpy_helper.from_array(np.zeros((width, actions), dtype=np.float32), "w"),
+        numpy_helper.from_array(np.array([[1, -1], [-1, 1]], dtype=np.int64), "table"),
+        numpy_helper.from_array(np.array([1, -1], dtype=np.int64), "as_row"),
+    ]
+    nodes = [
+        helper.make_node("MatMul", ["observation", "wide"], ["features"]),
+        helper.make_node("ReduceMax", ["features"], ["largest"], keepdims=0, axes=[0]),
+        helper.make_node("MatMul", ["observation", "pick"], ["votes"]),
+        helper.make_node("ReduceMax", ["votes"], ["total"], keepdims=0, axes=[0]),
+        helper.make_node("ArgMax", ["total"], ["which"], axis=0, keepdims=0),
+        helper.make_node("Gather", ["table", "which"], ["shape"], axis=0),
+        helper.make_node("Reshape", ["largest", "as_row"], ["row"]),
+        helper.make_node("Reshape", ["largest", "shape"], ["column"], name="lying"),
+        helper.make_node("Add", ["row", "column"], ["square"]),
+        helper.make_node("ReduceMax", ["square"], ["top"], keepdims=0, axes=[0, 1]),
+        helper.make_node("Gemm", ["observation", "w"], ["plain"]),
+        helper.make_node("Add", ["plain", "top"], ["logits"]),
+    ]
+    graph = helper.make_graph(nodes, "policy", [observation(width)], [logits(actions)],
+                              initializer=weights)  # fmt: skip
+    if declared:
+        graph.value_info.extend(
+            helper.make_tensor_value_info(name, TensorProto.FLOAT, [1, wide])
+            for name in ("column", "square")
+        )
+    model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 13)])
+    model.ir_version = 8
+    return bytes(model.SerializeToString())
+
+
+def empty_nodes(width: int, actions: int, count: int) -> bytes:
+    """An MLP followed by ``count`` empty nodes, written straight into its bytes (two bytes
+    a node: 690,000 of them take 1.38 MB and cost ONNX 100 MB to parse)."""
+    model = onnx.load_model_from_string(always(width, actions, 0))
+    graph = bytearray(model.graph.SerializeToString())
+    graph += b"\x0a\x00" * count  # GraphProto.node (field 1, length-delimited), empty
+    model.ClearField("graph")
+    return bytes(model.SerializeToString()) + b"\x3a" + _varint(len(graph)) + bytes(graph)
+
+
+def _varint(value: int) -> bytes:
+    out = bytearray()
+    while True:
+        low, value = value & 0x7F, value >> 7
+        out.append(low | (0x80 if value else 0))
+        if not value:
+            return bytes(out)
+
+
+def split_into(width: int, actions: int, outputs: int) -> bytes:
+    """An MLP whose logits are also split into ``outputs`` pieces no one reads: the audit's
+    15 s check was a Split into 50,000."""
+    weights = [
+        numpy_helper.from_array(np.zeros((width, actions), dtype=np.float32), "w"),
+        numpy_helper.from_array(np.zeros(outputs, dtype=np.float32), "long"),
+        numpy_helper.from_array(np.ones(outputs, dtype=np.int64), "sizes"),
+    ]
+    pieces = [f"piece{k}" for k in range(outputs)]
+    nodes = [
+        helper.make_node("Gemm", ["observation", "w"], ["logits"]),
+        helper.make_node("Split", ["long", "sizes"], pieces, name="splitter", axis=0),
+    ]
+    return _model(nodes, weights, [observation(width)], logits(actions))

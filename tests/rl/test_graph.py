@@ -151,3 +151,104 @@ def test_a_value_that_grows_with_the_batch_squared_is_refused() -> None:
     grows = r"^node 'pairs' \(MatMul\): its output 'pairs' grows with the batch otherwise than"
     with pytest.raises(InvalidModel, match=grows + r" in proportion to it \(1, 4, 9 "):
         inspect_model(model, 4, 4)
+
+
+@pytest.mark.parametrize(
+    ("form", "where"),
+    [
+        ("sparse", r"^node 'reader' \(Constant\): its tensor 'secret_values'"),
+        ("dense", r"^node 'reader' \(Constant\): its tensor 'secret_dense'"),
+        ("sparse_list", r"^node 'reader' \(Constant\): its tensor 'secret_values'"),
+        ("nested", r"^node 'reader' \(Constant\) in node 'choose' \(If\): its tensor"),
+        ("initializer", r"^the model's sparse_initializer: its tensor 'secret_values'"),
+    ],
+)
+def test_data_kept_outside_the_model_is_refused_wherever_it_hides(form: str, where: str) -> None:
+    """The audit read a file beside the API through a Constant's sparse value; any tensor
+    anywhere in the proto that names data outside the model is refused, naming its node."""
+    data = models.file_reader(7, 4, "var/nanonav.db", form=form)
+    with pytest.raises(InvalidModel, match=where + ".* keeps its data outside the model"):
+        inspected(data)
+
+
+def test_the_walk_finds_external_data_in_a_field_it_was_not_told_of() -> None:
+    """The walk reads every field of every message, so a tensor in a place named by no rule
+    (here the model's training_info, which ONNX Runtime ignores) is found all the same."""
+    model = onnx.load_model_from_string(models.mlp(7, 4))
+    hidden = onnx.TensorProto(name="elsewhere", data_type=TensorProto.INT64, dims=[1])
+    hidden.data_location = TensorProto.EXTERNAL
+    info = model.training_info.add()
+    info.initialization.initializer.append(hidden)
+    with pytest.raises(InvalidModel, match="the model's training_info: its tensor 'elsewhere'"):
+        inspect_model(model, 7, 4)
+
+
+def test_nodes_are_counted_from_the_bytes_before_the_model_is_parsed() -> None:
+    """690,000 empty nodes (1.38 MB) cost ONNX 100 MB to parse: they are counted unparsed, and
+    refused at the cap's first node past it, in a small part of a parse's time."""
+    data = models.empty_nodes(7, 4, 690_000)
+    assert len(data) > 1_380_000
+    with pytest.raises(InvalidModel, match=r"has over 5,000 nodes \(its subgraphs' counted\)"):
+        graph.parsed(data, 2_000_000)
+    at_the_cap = models.empty_nodes(7, 4, graph.MAX_NODES - 1)  # and the MLP's one
+    assert len(graph.parsed(at_the_cap, 2_000_000).graph.node) == graph.MAX_NODES
+
+
+def test_the_wire_format_field_numbers_are_onnxs() -> None:
+    """The unparsed count reads fields by number: they are those of ONNX's own proto."""
+    numbers = [
+        onnx.ModelProto.DESCRIPTOR.fields_by_name["graph"].number,
+        onnx.GraphProto.DESCRIPTOR.fields_by_name["node"].number,
+        onnx.NodeProto.DESCRIPTOR.fields_by_name["attribute"].number,
+        onnx.AttributeProto.DESCRIPTOR.fields_by_name["g"].number,
+        onnx.AttributeProto.DESCRIPTOR.fields_by_name["graphs"].number,
+    ]
+    assert numbers == [graph.MODEL_GRAPH, graph.GRAPH_NODE, graph.NODE_ATTRIBUTE,
+                       graph.ATTRIBUTE_GRAPH, graph.ATTRIBUTE_GRAPHS]  # fmt: skip
+
+
+@pytest.mark.parametrize("data", [b"\xff" * 40, b"\x3a\xff\xff\xff\xff\x0f", b"\x3a\x05ab"])
+def test_bytes_that_are_no_protobuf_are_refused_by_the_count(data: bytes) -> None:
+    with pytest.raises(InvalidModel, match="this is not an ONNX model"):
+        graph.parsed(data, 2_000_000)
+
+
+def test_a_node_with_thousands_of_outputs_is_refused_before_its_shapes_are_inferred() -> None:
+    """The audit's Split into 50,000 outputs took 15 s to check and was accepted."""
+    with pytest.raises(InvalidModel, match=r"^node 'splitter' \(Split\): it gives 50,000 "
+                       r"outputs, over the 64 a node may"):  # fmt: skip
+        inspected(models.split_into(7, 4, 50_000))
+    inspected(models.split_into(7, 4, 64))
+
+
+def test_a_graph_naming_too_many_values_is_refused_at_the_node_past_the_cap() -> None:
+    nodes = [helper.make_node("Gemm", ["observation", "w"], ["logits"])]
+    nodes += [helper.make_node("Split", ["long", "sizes"], [f"p{j}_{i}" for i in range(64)],
+                               axis=0) for j in range(320)]  # fmt: skip
+    weights = [
+        numpy_helper.from_array(np.zeros((7, 4), dtype=np.float32), "w"),
+        numpy_helper.from_array(np.zeros(64, dtype=np.float32), "long"),
+        numpy_helper.from_array(np.ones(64, dtype=np.int64), "sizes"),
+    ]
+    g = helper.make_graph(nodes, "p", [models.observation(7)], [models.logits(4)], weights)
+    model = helper.make_model(g, opset_imports=[helper.make_opsetid("", models.OPSET)])
+    with pytest.raises(InvalidModel, match=r"^node '#\d+' \(Split\): the graph names over "
+                       "20,000 values"):  # fmt: skip
+        inspect_model(model, 7, 4)
+
+
+def test_a_shape_the_model_declares_but_does_not_compute_is_not_counted() -> None:
+    """The audit's lie: a Reshape to a shape read from the observation, declared (1, K) in
+    value_info; shape inference kept the declaration, and the count was K where a call made
+    K^2. Declared shapes are dropped before inference, so the Reshape has no size."""
+    lying = r"^node 'lying' \(Reshape\): it gives 'column', whose size the graph does not fix"
+    for declared in (True, False):
+        with pytest.raises(InvalidModel, match=lying):
+            inspected(models.shape_liar(7, 4, declared=declared))
+
+
+def test_a_wrong_declared_output_shape_does_not_change_what_is_inferred() -> None:
+    """An output declared (batch, 9) where the graph computes (batch, 4) is what it computes."""
+    model = onnx.load_model_from_string(models.mlp(7, 4))
+    model.graph.output[0].type.tensor_type.shape.dim[1].dim_value = 9
+    assert inspect_model(model, 7, 4).output == "logits"
