@@ -391,7 +391,18 @@ class Settings(BaseSettings):
         le=64,
         validation_alias=_aliases("network_checks_at_once"),
         description="Networks an API process checks at once, each in a process of its own; "
-        "more wait, and one that has waited 30 s is answered 503 with Retry-After.",
+        "up to network_checks_waiting more wait (without holding a thread), and one that has "
+        "waited 30 s is answered 503 with Retry-After.",
+    )
+    network_checks_waiting: int = Field(
+        8,
+        ge=0,
+        le=256,
+        validation_alias=_aliases("network_checks_waiting"),
+        description="POST /policies requests an API process takes in while its checks are "
+        "busy, besides those being checked; past them a request is answered 503 checks-busy "
+        "with Retry-After at once, before its body is read. With network_checks_at_once they "
+        "bound what uploads hold of the API's memory: each at most a few times max_body_bytes.",
     )
     quota_policies: int = Field(
         1000,

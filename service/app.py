@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import asyncio
 import gc
-import threading
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 from functools import cache, partial
@@ -37,6 +36,7 @@ from service.security import (
     refuse_cross_site,
 )
 from service.sessions import Sessions
+from service.uploads import NetworkChecks, UploadLine
 
 STATIC = Path(__file__).resolve().parent / "static"
 DESCRIPTION = """Submit nanorobot scenarios, watch them run, and fetch their results.
@@ -105,7 +105,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.state.studies = study_store
     app.state.reports = Reports()
     # networks sent as policies are checked each in a process of its own, this many at once
-    app.state.network_checks = threading.BoundedSemaphore(settings.network_checks_at_once)
+    app.state.network_checks = NetworkChecks(
+        settings.network_checks_at_once, settings.network_checks_waiting
+    )
     app.state.deliveries = DeliveryStore(store.engine)
     app.state.sessions = sessions
     app.state.poller = poller
@@ -118,6 +120,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.add_middleware(BodySizeLimit, max_bytes=settings.max_body_bytes)
     app.add_middleware(ETags)
     app.add_middleware(HeadAsGet)
+    app.add_middleware(UploadLine, checks=app.state.network_checks)
     app.add_middleware(Guard, settings=settings, sessions=sessions)
     if settings.allowed_origins:
         # Pages of the allowed origins may call the API from a browser: their preflights are

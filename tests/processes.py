@@ -37,11 +37,13 @@ def clean_environment(**extra: str) -> dict[str, str]:
 class _Process:
     """A child process whose output goes to ``log``."""
 
-    def __init__(self, command: list[str], log: Path, env: dict[str, str]) -> None:
+    def __init__(
+        self, command: list[str], log: Path, env: dict[str, str], cwd: Path | None = None
+    ) -> None:
         self.log = log
         self._log_file = log.open("wb")
         self.process = subprocess.Popen(
-            command, env=env, stdout=self._log_file, stderr=subprocess.STDOUT
+            command, env=env, stdout=self._log_file, stderr=subprocess.STDOUT, cwd=cwd
         )
 
     def terminate(self, timeout: float = 20.0) -> int:
@@ -81,12 +83,14 @@ class Worker(_Process):
 class ApiServer(_Process):
     """The API as ``make run`` serves it: ``nanonav api``, with its limits and shutdown grace."""
 
-    def __init__(self, database_url: str, log: Path, **env: str) -> None:
+    def __init__(
+        self, database_url: str, log: Path, *, cwd: Path | None = None, **env: str
+    ) -> None:
         self.url = f"http://127.0.0.1:{free_port()}"
         command = [sys.executable, "-m", "nanonav.cli", "api", "--host", "127.0.0.1",
                    "--port", self.url.rsplit(":", 1)[1]]  # fmt: skip
         environment = clean_environment(NANONAV_DATABASE_URL=database_url, **env)
-        super().__init__(command, log, environment)
+        super().__init__(command, log, environment, cwd)
 
     def wait_ready(self, timeout: float = 60.0) -> None:
         """Until ``/healthz`` answers 200."""

@@ -324,6 +324,13 @@ def networks_page() -> str:
     """What a network sent as a policy may be: its operators, each with why, and the caps on
     its cost, from ``nanonav.rl``."""
     from nanonav.rl import graph, operators
+    from nanonav.settings import Settings
+    from service import uploads
+
+    fields = Settings.model_fields
+    at_once = fields["network_checks_at_once"].default
+    waiting = fields["network_checks_waiting"].default
+    bound = uploads.memory_bound_bytes(at_once, waiting, fields["max_body_bytes"].default)
 
     kinds = {
         "gemm": "its output's numbers x (its inner dimension + 1)",
@@ -357,7 +364,6 @@ def networks_page() -> str:
         f"| memory live at once, an observation | {graph.MAX_LIVE_BYTES:,} bytes |",
         f"| multiply-adds a call, whatever its observations | {graph.MAX_FIXED_MULTIPLY_ADDS:,} |",
         f"| memory live at once, whatever its observations | {graph.MAX_FIXED_BYTES:,} bytes |",
-        f"| nodes | {graph.MAX_NODES:,} |",
         f"| opset | {graph.MIN_OPSET} to {graph.max_opset()} |",
         "",
         f"A call of the network takes at most {graph.CALL_ROWS:,} observations, and fewer where "
@@ -366,6 +372,75 @@ def networks_page() -> str:
         "`NANONAV_NETWORK_MEMORY_BYTES`, `NANONAV_NETWORK_CHECK_CPU_S`, "
         "`NANONAV_NETWORK_CALL_LIMIT_S` and `NANONAV_NETWORK_CHECKS_AT_ONCE` "
         "([Settings](settings.md)).",
+        "",
+        "### Shapes are inferred, never taken on trust",
+        "",
+        "ONNX's shape inference keeps the shape a model *declares* (in its `value_info` or its "
+        "outputs) wherever it cannot infer one, and a model may declare what it does not "
+        "compute: a `Reshape` to a shape read from the observation, declared `(1, K)`, is "
+        "`(K, K)` once added to its transpose at run time. So the check drops every declared "
+        "shape but the inputs' before it infers, at batches of 1, 2 and 3: each value's size "
+        "comes from the inputs and the weights alone, and a value whose size they do not fix "
+        "is refused, naming the node that makes it. What is counted is then what runs; the "
+        "trial run also checks the outputs' real shapes.",
+        "",
+        "## The check's own cost",
+        "",
+        "Caps on what the check itself reads, so that no model takes more than a couple of "
+        "seconds to check (the largest accepted, 5,000 nodes or 19,000 values, took 1.5-1.9 s "
+        "on one idle core, its process's start included):",
+        "",
+        "| What | Cap |",
+        "| --- | ---: |",
+        f"| nodes, its subgraphs' counted, before the model is parsed | {graph.MAX_NODES:,} |",
+        f"| outputs of one node | {graph.MAX_NODE_OUTPUTS:,} |",
+        f"| values the graph names (its nodes' inputs and outputs) | {graph.MAX_VALUES:,} |",
+        f"| axes of a value | {graph.MAX_RANK} |",
+        "",
+        "The nodes are counted from the model's bytes (protobuf's wire format), without parsing "
+        "it, and the count stops at the first node past the cap: 690,000 empty nodes in 1.38 MB "
+        "would cost ONNX 100 MB to parse.",
+        "",
+        "## What is refused, and why",
+        "",
+        "- **Data outside the model.** A tensor may name a file for its data (`data_location: "
+        "EXTERNAL`, `external_data`); a relative path resolves where the model is run, and a "
+        "model that gathered 8 bytes of the API's SQLite file as its action once had them "
+        "quoted back in a refusal. Every tensor anywhere in the model is refused that does: "
+        "initializers and sparse ones, node attributes (`t`, `tensors`, `sparse_tensor`, "
+        "`sparse_tensors`), graphs in attributes at any depth, and any other field, since the "
+        "check walks every field of every message of the proto rather than a list of them. "
+        "The 422 names the node (and the node it is nested in).",
+        "- **Operators off the allow-list**, other operator sets, functions of the model's own, "
+        "sparse weights: named by node.",
+        "- **What no policy computes:** integers from arithmetic, a type besides float32 and "
+        "the integers, a value whose size the graph does not fix or that does not grow in "
+        "proportion to the batch.",
+        "- **A trial run that does not answer as a policy:** its answers must be finite logits "
+        "or turns, or actions of the action set. A refusal says which observation and that "
+        "an action lies outside the set; it never quotes what the model computed.",
+        "",
+        "## Where a network runs",
+        "",
+        "Each network is checked, and later run by a worker, in a process of its own: it starts "
+        "in an empty folder (so a relative path names nothing), with an environment made from "
+        "nothing but `PATH`, the locale and OpenBLAS's processor settings (so none of the API's "
+        "or the worker's keys and secrets), and with limits on its address space, its CPU "
+        "seconds, its files (none written) and its life (it dies with its parent). The model "
+        "reaches it as bytes; it alone parses it, the API reading only its size.",
+        "",
+        "## Uploads wait in a line",
+        "",
+        f"An API process checks `NANONAV_NETWORK_CHECKS_AT_ONCE` networks at once (default "
+        f"{at_once}); up to `NANONAV_NETWORK_CHECKS_WAITING` more (default {waiting}) wait for "
+        "their turn without holding a thread, and one that has waited "
+        f"{uploads.CHECK_WAIT_S:g} s is answered 503. A `POST /policies` past them is answered "
+        "`503 checks-busy` with `Retry-After` at once, before its body is read. So every other "
+        "route answers as it would while a hundred uploads arrive, and what uploads hold of "
+        f"the API's memory is bounded: at most {uploads.BODIES_A_PLACE} times "
+        "`NANONAV_MAX_BODY_BYTES` for each place in the line, "
+        f"{bound / 1e6:,.0f} MB with the defaults (a hundred uploads of a 1.38 MB model at "
+        "once grew it by 67 MB; `tests/e2e/test_upload_line.py` holds it to the bound).",
         "",
         "## The allowed operators",
         "",

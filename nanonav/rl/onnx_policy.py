@@ -93,9 +93,10 @@ def checked_answer(
     chosen = answer.reshape(-1).astype(np.int64)
     bad = np.flatnonzero((chosen < 0) | (chosen >= actions))
     if bad.size:
+        # the action itself is not quoted: what a model computes is not echoed back to the
+        # person who sent it, beyond what names the fault
         raise ValueError(
-            f"the model answers action {int(chosen[bad[0]])} for {_described(rows[bad[0]])}: "
-            f"actions are 0..{actions - 1}"
+            f"the model answers an action outside 0..{actions - 1} for {_described(rows[bad[0]])}"
         )
     return chosen
 
@@ -140,9 +141,42 @@ def check_model(
     among ``actions`` actions, or ``continuous``ly a turn of ``actions`` parts, within the
     caps on its cost (``InvalidModel`` saying what is wrong if not), by reading its graph and
     running it on the trial observations, in a sandboxed process within ``limits``."""
-    limits = limits or Limits()
-    with Sandbox(memory_bytes=limits.memory_bytes, cpu_s=limits.check_cpu_s) as box:
-        return _loaded(box, data, width, actions, max_bytes=max_bytes, continuous=continuous)
+    with ModelCheck(data, max_bytes=max_bytes, limits=limits) as check:
+        return check.check(width, actions, continuous=continuous)
+
+
+class ModelCheck:
+    """A sent model's check, in one sandboxed process: first the labels its metadata names
+    (``labels``), then, once the caller knows what it must decide among, the model itself
+    (``check``). Nothing of the model is parsed in the caller's process."""
+
+    def __init__(self, data: bytes, *, max_bytes: int, limits: Limits | None = None) -> None:
+        if len(data) > max_bytes:
+            raise InvalidModel(f"the model takes {len(data)} bytes, over the limit of {max_bytes}")
+        self.data = data
+        self.max_bytes = max_bytes
+        limits = limits or Limits()
+        self._box = Sandbox(memory_bytes=limits.memory_bytes, cpu_s=limits.check_cpu_s)
+
+    def __enter__(self) -> ModelCheck:
+        return self
+
+    def __exit__(self, *_: object) -> None:
+        self._box.close()
+
+    def labels(self) -> tuple[list[str] | None, list[str] | None]:
+        """The observation and action labels the model's metadata names (None where none);
+        ``InvalidModel`` for a model that is none, or names labels that are not."""
+        try:
+            return self._box.labels(self.data, max_bytes=self.max_bytes, limit_s=LOAD_LIMIT_S)
+        except SandboxFailed as error:
+            raise InvalidModel(str(error)) from None
+
+    def check(self, width: int, actions: int, *, continuous: bool = False) -> ModelInfo:
+        """As ``check_model``, in this check's process."""
+        return _loaded(
+            self._box, self.data, width, actions, max_bytes=self.max_bytes, continuous=continuous
+        )
 
 
 def _along(memory: Any, part: slice) -> tuple[slice, ...]:

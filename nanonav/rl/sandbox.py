@@ -9,6 +9,12 @@ cancelled or past its time limit stops within a call. A process that dies, overr
 or answers what it was not asked is killed and reported (``SandboxFailed``); a model that the
 checks refuse is ``InvalidModel``, as it would be anywhere.
 
+The process starts in an empty folder of its own (removed when it ends; its home, where ONNX
+Runtime writes a device id as it is imported, is another), with an environment
+made from nothing but ``CARRIED`` of its parent's: a file a model names resolves to nothing
+there, and no key or secret of the API's or the worker's is there to be read. The model
+reaches it as bytes, and it alone parses it (the API reads only its size).
+
 The process sets its own limits, after its imports and before it reads a byte of the model:
 its address space (``RLIMIT_AS``), its CPU seconds (``RLIMIT_CPU``: SIGXCPU, then SIGKILL), no
 core dump, no file written; it dies with the thread that started it (``PR_SET_PDEATHSIG``, on
@@ -25,10 +31,12 @@ import json
 import math
 import os
 import select
+import shutil
 import signal
 import struct
 import subprocess
 import sys
+import tempfile
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -63,9 +71,33 @@ MAX_RANK = 8
 # The largest text, and the largest arrays, the parent reads from the process
 MAX_TEXT_BYTES = 1 << 16
 MAX_ANSWER_BYTES = 1 << 30
-# Kinds: asked (load a model, run it) and answered (its info, arrays, a refusal, an error)
-LOAD, RUN = b"L", b"R"
+# Kinds: asked (read a model's labels, load a model, run it) and answered (its info or
+# labels, arrays, a refusal, an error)
+LABELS, LOAD, RUN = b"M", b"L", b"R"
 INFO, ARRAYS, REFUSED, ERROR = b"I", b"A", b"X", b"E"
+
+
+# What the process is given of its parent's environment: where programs are, the locale, and
+# OpenBLAS's processor settings (numpy computes wrongly on some processors without them).
+# Nothing else: the API's and the worker's keys and secrets live in theirs.
+CARRIED = ("PATH", "LANG", "LC_ALL", "OPENBLAS_CORETYPE", "OPENBLAS_L2_SIZE")
+# Where ``nanonav`` is imported from, for the process's ``-m nanonav.rl.sandbox``
+SOURCE_ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+
+def bare_environment(home: str) -> dict[str, str]:
+    """The whole environment of a network's process: ``CARRIED`` of this one's, one thread for
+    ONNX Runtime, and ``home`` (a folder of its own, where ONNX Runtime writes its device id
+    as it is imported) as its home and temporary folder."""
+    env = {name: os.environ[name] for name in CARRIED if name in os.environ}
+    env.update(
+        HOME=home,
+        TMPDIR=home,
+        OMP_NUM_THREADS="1",
+        PYTHONDONTWRITEBYTECODE="1",
+        PYTHONPATH=SOURCE_ROOT,
+    )
+    return env
 
 
 class SandboxFailed(RuntimeError):
@@ -156,16 +188,26 @@ class Sandbox:
     def __init__(self, *, memory_bytes: int, cpu_s: float) -> None:
         self.memory_bytes = memory_bytes
         self.cpu_s = cpu_s
-        env = {**os.environ, "OMP_NUM_THREADS": "1", "PYTHONDONTWRITEBYTECODE": "1"}
         limits = (str(memory_bytes), str(math.ceil(cpu_s)), str(os.getpid()))
-        self._process = subprocess.Popen(
-            [sys.executable, "-m", "nanonav.rl.sandbox", *limits],
-            stdin=subprocess.PIPE,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.DEVNULL,
-            env=env,
-            start_new_session=True,
-        )
+        # it starts in an empty folder of its own, knowing nothing of its parent's environment:
+        # a path a model names resolves to nothing, and no secret is there to be read
+        self.folder = tempfile.mkdtemp(prefix="nanonav-network-")
+        work, home = os.path.join(self.folder, "work"), os.path.join(self.folder, "home")
+        try:
+            os.mkdir(work)
+            os.mkdir(home)
+            self._process = subprocess.Popen(
+                [sys.executable, "-s", "-m", "nanonav.rl.sandbox", *limits],
+                stdin=subprocess.PIPE,
+                stdout=subprocess.PIPE,
+                stderr=subprocess.DEVNULL,
+                cwd=work,
+                env=bare_environment(home),
+                start_new_session=True,
+            )
+        except BaseException:
+            shutil.rmtree(self.folder, ignore_errors=True)
+            raise
         assert self._process.stdin is not None and self._process.stdout is not None
         self._in = self._process.stdin.fileno()
         self._out = self._process.stdout.fileno()
@@ -196,6 +238,29 @@ class Sandbox:
             if stream is not None:
                 with contextlib.suppress(OSError):
                     stream.close()
+        shutil.rmtree(self.folder, ignore_errors=True)
+
+    def labels(
+        self, model: bytes, *, max_bytes: int, limit_s: float
+    ) -> tuple[list[str] | None, list[str] | None]:
+        """The observation and action labels ``model``'s metadata names
+        (``nanonav.rl.graph.model_labels``), read in the process: the API parses no model."""
+        asked = json.dumps({"max_bytes": max_bytes})
+        message = Message(LABELS, asked, [np.frombuffer(model, dtype=np.uint8)])
+        answer = self._ask(message, limit_s, None, "while its model's labels were read")
+        if answer.kind != INFO:
+            self._fail("it answered a question of labels with none")
+        try:
+            found = json.loads(answer.text)
+            observation, actions = found["observation"], found["actions"]
+        except (ValueError, KeyError, TypeError):
+            self._fail("it answered a question of labels with none")
+        for labels in (observation, actions):
+            if labels is not None and not (
+                isinstance(labels, list) and all(isinstance(x, str) for x in labels)
+            ):
+                self._fail("it answered a question of labels with none")
+        return observation, actions
 
     def load(
         self, model: bytes, width: int, actions: int, *, continuous: bool, max_bytes: int,
@@ -389,7 +454,18 @@ def _serve(memory_bytes: int, cpu_s: int, parent: int) -> None:
         except EOFError:
             return
         try:
-            if asked.kind == LOAD:
+            if asked.kind == LABELS:
+                given = json.loads(asked.text)
+                sent = asked.arrays[0].tobytes()
+                observation, actions = graph.model_labels(sent, max_bytes=given["max_bytes"])
+                named = json.dumps({"observation": observation, "actions": actions})
+                if len(named) > MAX_TEXT_BYTES // 2:
+                    raise graph.InvalidModel(
+                        f"the model's metadata names labels of {len(named):,} characters, over "
+                        f"the {MAX_TEXT_BYTES // 2:,} an observation's and actions' may take"
+                    )
+                _send(answers, Message(INFO, named))
+            elif asked.kind == LOAD:
                 given = json.loads(asked.text)
                 model = asked.arrays[0].tobytes()
                 info = graph.inspect_model(

@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-import threading
 from typing import Annotated, Any
 
 import numpy as np
 from fastapi import APIRouter, Body, Query, Request, Response
+from fastapi.concurrency import run_in_threadpool
 from numpy.typing import NDArray
 
 from nanonav.policy import (
@@ -14,6 +14,7 @@ from nanonav.policy import (
     TABLE_RULE,
     InvalidPolicy,
     Layout,
+    NetworkLayout,
     greedy_table,
     greedy_values,
     layout_of,
@@ -22,8 +23,8 @@ from nanonav.policy import (
     steering_of,
 )
 from nanonav.rl.graph import RULE as MODEL_RULE
-from nanonav.rl.graph import InvalidModel, model_labels
-from nanonav.rl.onnx_policy import Limits, check_model
+from nanonav.rl.graph import InvalidModel, ModelInfo
+from nanonav.rl.onnx_policy import Limits, ModelCheck
 from nanonav.store import PolicyRecord
 from service.deps import JsonBody, SettingsDep, StoreDep
 from service.idempotency import IdempotencyDep
@@ -31,7 +32,6 @@ from service.ids import PolicyId
 from service.paging import Cursor, decode_cursor, encode_cursor
 from service.problems import (
     PROBLEM_BASE,
-    ChecksBusy,
     InvalidInput,
     Problem,
     field_error,
@@ -47,10 +47,9 @@ from service.schemas import (
     PolicySummary,
 )
 from service.security import SCRIPTED_ONLY, CallerDep
+from service.uploads import NetworkChecks
 
 router = APIRouter(prefix="/policies", tags=["policies"])
-# Seconds a network waits for a check while others run, before 503
-CHECK_WAIT_S = 30.0
 # The rule a body breaks that mixes a table's fields and a network's
 KIND = "policy_kind"
 
@@ -62,7 +61,7 @@ KIND = "policy_kind"
     dependencies=[JsonBody],
     responses=problems(400, 403, 409, 413, 415, 422, 503),
 )
-def send_policy(
+async def send_policy(
     policy: Annotated[NewPolicy, Body(openapi_examples=NEW_POLICY_EXAMPLES)],
     request: Request,
     store: StoreDep,
@@ -87,12 +86,42 @@ def send_policy(
     have, or a state given twice), ``idempotency_key``, ``idempotency_key_reused`` and
     ``nul_character`` (U+0000 in any string of the body, key or value, or in the key: the
     store cannot keep it). A key that keeps ``NANONAV_QUOTA_POLICIES`` policies already gets
-    409 ``policy-limit``."""
+    409 ``policy-limit``. Networks are checked a few at a time in each API process, a few
+    more wait their turn, and past them a request gets 503 ``checks-busy`` with Retry-After
+    at once (``NANONAV_NETWORK_CHECKS_AT_ONCE``, ``NANONAV_NETWORK_CHECKS_WAITING``)."""
     if policy.onnx is not None:
-        checks: threading.BoundedSemaphore = request.app.state.network_checks
-        record = _keep_network(policy, policy.onnx, store, settings, caller, idempotency, checks)
-        response.headers["Location"] = f"/policies/{record.id}"
-        return PolicySummary.of(record)
+        model = policy.onnx
+        checks: NetworkChecks = request.app.state.network_checks
+        _network_fields(policy)
+        async with checks.turn():
+            layout, info = await run_in_threadpool(_checked_network, policy, model, settings)
+        record = await run_in_threadpool(
+            store.policies.add_network,
+            action_set=layout.actions,
+            communication=layout.communication,
+            observation=list(layout.observation),
+            actions=list(layout.action_labels),
+            model=model,
+            memory=len(info.memory),
+            cost=info.cost.to_dict(),
+            name=policy.name,
+            owner=caller.owner,
+            idempotency=idempotency,
+            limit=settings.quota_policies,
+        )
+    else:
+        record = await run_in_threadpool(_keep_table, policy, store, settings, caller, idempotency)
+    response.headers["Location"] = f"/policies/{record.id}"
+    return PolicySummary.of(record)
+
+
+def _keep_table(
+    policy: NewPolicy,
+    store: StoreDep,
+    settings: SettingsDep,
+    caller: CallerDep,
+    idempotency: IdempotencyDep,
+) -> PolicyRecord:
     try:
         layout = layout_of(_given(policy.states, "states"), _given(policy.actions, "actions"))
         if policy.observation is not None:
@@ -100,7 +129,7 @@ def send_policy(
         values = _values(policy, layout)
     except InvalidPolicy as error:
         raise _refused(error) from None
-    record = store.policies.add(
+    return store.policies.add(
         action_set=layout.actions,
         communication=layout.communication,
         states=list(layout.state_labels),
@@ -111,8 +140,6 @@ def send_policy(
         idempotency=idempotency,
         limit=settings.quota_policies,
     )
-    response.headers["Location"] = f"/policies/{record.id}"
-    return PolicySummary.of(record)
 
 
 def _refused(error: InvalidPolicy | InvalidModel, loc: tuple[str, ...] = ()) -> InvalidInput:
@@ -130,61 +157,39 @@ def _given(labels: list[str] | None, field: str) -> list[str]:
     return labels
 
 
-def _keep_network(
-    policy: NewPolicy,
-    model: bytes,
-    store: StoreDep,
-    settings: SettingsDep,
-    caller: CallerDep,
-    idempotency: IdempotencyDep,
-    checks: threading.BoundedSemaphore,
-) -> PolicyRecord:
-    """Check and keep a network: its labels (given, or its metadata's), then the model, in a
-    sandboxed process (at most ``checks`` at once in this API process)."""
+def _network_fields(policy: NewPolicy) -> None:
+    """Refuse a table's fields beside a network's model."""
+    for field in ("states", "values", "greedy"):
+        if getattr(policy, field) is not None:
+            detail = f"a network is sent as onnx, observation and actions; {field} is a table's"
+            raise _refused(InvalidPolicy((field,), detail, KIND))
+
+
+def _checked_network(
+    policy: NewPolicy, model: bytes, settings: SettingsDep
+) -> tuple[NetworkLayout, ModelInfo]:
+    """A network's layout (its labels, given or its metadata's) and what its check found, both
+    read in one sandboxed process: the API never parses a model."""
     limit = settings.policy_model_max_bytes
     try:
-        for field in ("states", "values", "greedy"):
-            if getattr(policy, field) is not None:
-                detail = f"a network is sent as onnx, observation and actions; {field} is a table's"
-                raise InvalidPolicy((field,), detail, KIND)
-        observation, actions = model_labels(model, max_bytes=limit)
-        observation = policy.observation or observation
-        actions = policy.actions or actions
-        for labels, field in ((observation, "observation"), (actions, "actions")):
-            if labels is None:
-                detail = f"a network needs {field}: the model's metadata names none"
-                raise InvalidPolicy((field,), detail, LAYOUT_RULE)
-        assert observation is not None and actions is not None
-        layout = network_layout(observation, actions)
-        if not checks.acquire(timeout=CHECK_WAIT_S):
-            raise ChecksBusy(
-                f"{settings.network_checks_at_once} networks are being checked already: "
-                "send it again in a moment"
+        with ModelCheck(model, max_bytes=limit, limits=Limits.of(settings)) as check:
+            named = check.labels()
+            observation = policy.observation or named[0]
+            actions = policy.actions or named[1]
+            for labels, field in ((observation, "observation"), (actions, "actions")):
+                if labels is None:
+                    detail = f"a network needs {field}: the model's metadata names none"
+                    raise InvalidPolicy((field,), detail, LAYOUT_RULE)
+            assert observation is not None and actions is not None
+            layout = network_layout(observation, actions)
+            info = check.check(
+                len(observation), len(actions), continuous=steering_of(actions) == "continuous"
             )
-        try:
-            info = check_model(
-                model, len(observation), len(actions), max_bytes=limit,
-                continuous=steering_of(actions) == "continuous", limits=Limits.of(settings),
-            )  # fmt: skip
-        finally:
-            checks.release()
     except InvalidPolicy as error:
         raise _refused(error) from None
     except InvalidModel as error:
         raise _refused(error, ("onnx",)) from None
-    return store.policies.add_network(
-        action_set=layout.actions,
-        communication=layout.communication,
-        observation=list(layout.observation),
-        actions=list(layout.action_labels),
-        model=model,
-        memory=len(info.memory),
-        cost=info.cost.to_dict(),
-        name=policy.name,
-        owner=caller.owner,
-        idempotency=idempotency,
-        limit=settings.quota_policies,
-    )
+    return layout, info
 
 
 def _values(policy: NewPolicy, layout: Layout) -> NDArray[np.float64]:

@@ -60,12 +60,19 @@ def keyed(url: str, key: str) -> httpx.Client:
     return httpx.Client(base_url=url, timeout=60, headers=headers)
 
 
+# A file in the API's working folder, as its SQLite database is in ``make run``'s
+SECRET = b"SQLite format 3\x00 and every key's jobs"
+
+
 @pytest.fixture
 def deployment(tmp_path: Path) -> Iterator[Deployment]:
     url = sqlite_url_in(tmp_path)
     upgrade(url)
     keys = f"{ALICE},{BOB}"
-    api = ApiServer(url, tmp_path / "api.log", NANONAV_API_KEYS=keys)
+    beside = tmp_path / "api"
+    (beside / "var").mkdir(parents=True)
+    (beside / "var" / "nanonav.db").write_bytes(SECRET)
+    api = ApiServer(url, tmp_path / "api.log", cwd=beside, NANONAV_API_KEYS=keys)
     worker = Worker(url, tmp_path / "worker.log", NANONAV_NETWORK_CALL_LIMIT_S=str(CALL_LIMIT_S))
     try:
         api.wait_ready()
@@ -100,11 +107,40 @@ HOSTILE: list[tuple[str, bytes, dict[str, Any], str, str]] = [
     ("a loop of 10^12", models.looping(WIDTH, COUNT), {}, "#/onnx",
      "(Loop): Loop is not an operator a policy needs"),
     ("actions 3,297 and -3,296", models.far_actions(WIDTH), {}, "#/onnx",
-     "answers action 3297 for a zero observation"),
+     "answers an action outside 0..3 for a zero observation"),
     ("an observation no scenario gives", models.mlp(3, COUNT),
      {"observation": ["reading", "reading_change", "gradient_x"]}, "#/observation",
      "no scenario's robots observe (reading, reading_change, gradient_x)"),
 ]  # fmt: skip
+
+
+@pytest.mark.parametrize("form", ["sparse", "dense", "nested", "initializer"])
+def test_a_model_that_reads_a_file_beside_the_api_is_refused_without_its_bytes(
+    deployment: Deployment, form: str
+) -> None:
+    """The audit's model: a constant whose data is ``var/nanonav.db``, relative to the API's
+    folder, gathered as the action. The refusal names the node and quotes no byte of it."""
+    model = models.file_reader(WIDTH, COUNT, "var/nanonav.db", form=form)
+    answer = sent(deployment.alice, model, actions=ACTIONS)
+    assert answer.status_code == 422, answer.text
+    [error] = answer.json()["errors"]
+    assert error["pointer"] == "#/onnx" and error["type"] == "policy_model", error
+    assert "keeps its data outside the model" in error["detail"], error
+    for leaked in (SECRET[:8], SECRET[:8].decode(), str(int.from_bytes(SECRET[:8], "little"))):
+        assert str(leaked) not in answer.text
+
+
+def test_a_model_that_lies_about_its_shapes_is_refused_naming_its_reshape(
+    deployment: Deployment,
+) -> None:
+    """The audit's lie: declared (1, K), (K, K) at run time. Its count would have been
+    K; it is refused, since the graph alone does not fix the Reshape's size."""
+    answer = sent(deployment.alice, models.shape_liar(WIDTH, COUNT, wide=4096))
+    assert answer.status_code == 422, answer.text
+    [error] = answer.json()["errors"]
+    assert error["detail"].startswith(
+        "node 'lying' (Reshape): it gives 'column', whose size the graph does not fix"
+    ), error
 
 
 def test_every_hostile_model_is_refused_and_the_api_answers_after_each(

@@ -11,6 +11,7 @@ import subprocess
 import sys
 import threading
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -125,3 +126,39 @@ def test_a_check_that_fails_in_its_process_is_a_refused_model() -> None:
     with pytest.raises(InvalidModel, match=r"killed by SIGSEGV while its model was checked"):
         check_model(models.mlp(7, 4), 7, 4, max_bytes=LIMIT)
     killer.join()
+
+
+def test_the_networks_process_starts_empty_handed(monkeypatch: pytest.MonkeyPatch) -> None:
+    """No variable of its parent's but PATH and the locale's, so no key or secret; an empty
+    working folder of its own, so no relative path reaches a file; removed when it ends."""
+    monkeypatch.setenv("NANONAV_API_KEYS", "secret-key-0123456789abcdef0123456789")
+    monkeypatch.setenv("NANONAV_SESSION_SECRET", "another-secret")
+    with NetworkPolicy(models.mlp(7, 4), 7, 4, max_bytes=LIMIT) as policy:
+        pid = sandbox_of(os.getpid())
+        entries = Path(f"/proc/{pid}/environ").read_text().split("\0")
+        environment = dict(entry.split("=", 1) for entry in entries if entry)
+        folder = os.readlink(f"/proc/{pid}/cwd")
+        assert os.listdir(folder) == []
+        assert policy(np.zeros((2, 7))).shape == (2,)
+    assert not any(value in ("secret-key-0123456789abcdef0123456789", "another-secret")
+                   for value in environment.values())  # fmt: skip
+    assert set(environment) <= {"PATH", "LANG", "LC_ALL", "OPENBLAS_CORETYPE",
+                                "OPENBLAS_L2_SIZE", "HOME", "TMPDIR", "OMP_NUM_THREADS",
+                                "PYTHONDONTWRITEBYTECODE", "PYTHONPATH"}  # fmt: skip
+    assert environment["HOME"] == environment["TMPDIR"] != folder
+    assert os.path.dirname(environment["HOME"]) == os.path.dirname(folder)
+    assert not os.path.exists(folder) and not os.path.exists(environment["HOME"])
+
+
+def test_a_model_naming_a_file_beside_its_caller_learns_nothing_of_it(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The file beside the caller is refused, and its bytes are not in the refusal."""
+    here = tmp_path
+    (here / "secret.txt").write_bytes(b"TOPSECRETBYTES!!")
+    monkeypatch.chdir(here)
+    data = models.file_reader(7, 4, "secret.txt", form="sparse")
+    with pytest.raises(InvalidModel) as refused:
+        check_model(data, 7, 4, max_bytes=LIMIT)
+    assert "TOPSECRE" not in str(refused.value)
+    assert str(int.from_bytes(b"TOPSECRE", "little")) not in str(refused.value)
