@@ -80,7 +80,8 @@ async def send_policy(
     detail says which would be), ``policy_model`` (a network the service cannot run: not
     ONNX, too large, external data, other operator sets, an input or output of the wrong
     shape or type, values of no fixed size, or a failing trial run; the detail says which),
-    ``policy_kind`` (a table's fields and a network's mixed),
+    ``policy_kind`` (a table's fields and a network's mixed), ``base64_decode`` (``onnx``
+    that is not base64),
     ``policy_table`` (both or neither of ``values`` and ``greedy``; values not shaped states x
     actions, or not finite numbers within +-1e30; a greedy state or action the layout does not
     have, or a state given twice), ``idempotency_key``, ``idempotency_key_reused`` and

@@ -55,7 +55,9 @@ STATED_RULES: dict[str, frozenset[str]] = {
         }
         | WRITE_RULES
     ),
-    "POST /policies": frozenset({"policy_layout", "policy_table", "policy_kind", "policy_model"})
+    "POST /policies": frozenset(
+        {"policy_layout", "policy_table", "policy_kind", "policy_model", "base64_decode"}
+    )
     | WRITE_RULES,
     "GET /jobs/{job_id}/trajectory": frozenset({"too_large"}),
     "GET /jobs/{job_id}/heatmap.png": frozenset({"out_of_range"}),
