@@ -1,8 +1,10 @@
 """The strongest rule, and the best learner, when molecules are counted: each candidate's
 success on design seeds, the best fixed rule and the best learner chosen there at each radius,
-then the rule against plain 'gradient' and against not steering, and the learner against the
-rule, on seeds the choice never saw, twice (the second set replicates the first), paired by
-seed, with Holm over each set's comparisons.
+then the rule against plain 'gradient', against not steering and against the blind tumbler
+(the searcher that uses no information, 'blind_tumble', at the tumble rate of 0.25, 0.5 or
+1 /s that did best on the design seeds: a rule that beats it steers, rather than only
+reorients), and the learner against the rule, on seeds the choice never saw, twice (the
+second set replicates the first), paired by seed, with Holm over each set's comparisons.
 
     python benchmarks/strongest_rule.py [--preset NAME] [--seeds N] [--report-seeds N]
                                         [--report-from S,S] [--worlds N] [--episodes N]
@@ -44,6 +46,7 @@ WORLDS = {"tumour-microswimmers": 4, "alonso-kirkegaard": 20}
 # sharing a table), longer for one robot's 25.6 s
 EPISODES = {"tumour-microswimmers": 50, "alonso-kirkegaard": 400}
 BESIDE = ("uncontrolled", "run_and_tumble", "exact_gradient")
+
 # seeds no document has reported on (the tables use 0-99 and 5000-5099, convergence 7000-7019)
 REPORT_SEEDS = 7100
 REPLICATE_SEEDS = 7200
@@ -51,6 +54,11 @@ REPLICATE_SEEDS = 7200
 Setting = tuple[tuple[str, float], ...]  # physics fields and their values
 Rule = tuple[str, Setting]  # a policy and its setting
 Job = tuple[str, float, Rule, int, int, int]  # preset, radius, rule, seed, worlds, episodes
+# searchers that use no information, tumbling at the rates the rules tumble at: the strongest of
+# them on the design seeds is the baseline a rule's steering is measured against
+BLIND: tuple[Rule, ...] = tuple(
+    ("blind_tumble", (("tumble_rate_s", rate),)) for rate in (0.25, 0.5, 1.0)
+)
 
 
 def label(rule: Rule) -> str:
@@ -133,7 +141,7 @@ def main(argv: list[str] | None = None) -> int:
     worlds = 1 if args.quick else (args.worlds or WORLDS[preset])
     episodes = 2 if args.quick else (args.episodes or EPISODES[preset])
     tried = candidates(preset, args.quick)
-    beside: list[Rule] = [(p, ()) for p in BESIDE]
+    beside: list[Rule] = [(p, ()) for p in BESIDE] + list(BLIND[:1] if args.quick else BLIND)
     plain: Rule = ("gradient", ())
     uncontrolled: Rule = ("uncontrolled", ())
     started = time.perf_counter()
@@ -157,10 +165,12 @@ def main(argv: list[str] | None = None) -> int:
         return rules[-max(scored)[1]]
 
     chosen: dict[float, list[Rule]] = {}
+    blind: dict[float, Rule | None] = {}
     for radius in radii:
         rule = best_of(radius, [r for r in tried if r[0] != "q_learning"])
         learner = best_of(radius, [r for r in tried if r[0] == "q_learning"])
         chosen[radius] = [r for r in (rule, learner) if r is not None]
+        blind[radius] = best_of(radius, [r for r in beside if r[0] == "blind_tumble"])
         print(f"radius {radius:g} um")
         for candidate in tried + beside:
             shares = [done[job(radius, candidate, s)] for s in design]
@@ -175,8 +185,12 @@ def main(argv: list[str] | None = None) -> int:
         rows: list[tuple[float, str, str, float]] = []
         for radius in radii:
             rule, *learner = chosen[radius]
-            pairs = [("strongest rule - plain gradient", rule, plain),
-                     ("strongest rule - uncontrolled", rule, uncontrolled)]  # fmt: skip
+            pairs: list[tuple[str, Rule, Rule]] = [
+                ("strongest rule - plain gradient", rule, plain),
+                ("strongest rule - uncontrolled", rule, uncontrolled),
+            ]
+            tumbler = blind[radius]
+            pairs += [("strongest rule - blind tumbler", rule, tumbler)] if tumbler else []
             pairs += [("learner - strongest rule", learner[0], rule)] if learner else []
             for name, a, b in pairs:
                 ours = [fresh[job(radius, a, s)] for s in report]

@@ -55,6 +55,7 @@ Policy = Literal[
     "uncontrolled",
     "exact_gradient",
     "steer_and_tumble",
+    "blind_tumble",
 ]
 AlphaSchedule = Literal["constant", "visits"]
 ActionSet = Literal["behaviors", "directions", "steering"]
@@ -69,7 +70,7 @@ CommunicationModel = Literal["none", "attractant", "attractant_repellent", "broa
 LATTICE_POLICIES = frozenset({"q_learning", "gradient", "run_and_tumble", "rule", "simple_rule",
                               "random"})  # fmt: skip
 BROWNIAN_POLICIES = frozenset({"q_learning", "uncontrolled", "run_and_tumble", "gradient",
-                               "exact_gradient", "steer_and_tumble"})  # fmt: skip
+                               "exact_gradient", "steer_and_tumble", "blind_tumble"})  # fmt: skip
 
 MAX_OBSTACLE_VOLUME_FRACTION = 0.3
 DENSEST_PACKING = math.pi / math.sqrt(18)  # Kepler's bound: equal spheres fill at most 74 %
@@ -413,7 +414,9 @@ class Robots(_Part):
         "repellent, toward a message's position. In physics 'active_brownian': 'uncontrolled' "
         "never steers; 'run_and_tumble' tumbles (physics.tumble_rate_s, tumble_rate_rising_s); "
         "'gradient' steers up the sensed gradient; 'steer_and_tumble' steers up the sensed "
-        "gradient and tumbles as run_and_tumble does; 'exact_gradient' steers up the true "
+        "gradient and tumbles as run_and_tumble does; 'blind_tumble' tumbles at "
+        "physics.tumble_rate_s whatever it reads, a searcher that uses no information (the "
+        "baseline that tells steering from reorienting); 'exact_gradient' steers up the true "
         "gradient (an upper bound no robot has).",
     )
     exclusion: bool = Field(
@@ -819,7 +822,7 @@ class Physics(_Part):
         ge=0.0,
         le=1e4,
         description="run_and_tumble and steer_and_tumble: tumbles per second while the reading "
-        "does not rise.",
+        "does not rise; blind_tumble: tumbles per second, always.",
     )
     tumble_rate_rising_s: float = Field(
         0.25,
@@ -867,6 +870,24 @@ class Physics(_Part):
         "molecule takes to cross the body (Berg & Purcell 1977: counts closer in time are not "
         "independent), and at least dt_s. null: 0.1 s (Alonso & Kirkegaard 2024's receptors "
         "count over 0.1 s) or r^2 / D_m if that is longer, filled in in the resolved scenario.",
+    )
+    receptors: int | None = Field(
+        None,
+        ge=1,
+        le=10**9,
+        description="sensor 'counted': the receptors on the body's surface, each a disc of "
+        "receptor_radius_nm. The body takes in N s / (N s + pi a) of a perfect absorber's "
+        "4 pi D_m a c molecules a second (Berg & Purcell 1977), and the gradient's share of "
+        "them as a uniformly absorbing surface of that rate would (docs/explanation/"
+        "sensing.md). They must fit on the surface (N s^2 <= 4 a^2). null: a perfectly "
+        "absorbing body, the limit of many receptors, the most any body of its size can count.",
+    )
+    receptor_radius_nm: float = Field(
+        1.0,
+        ge=0.01,
+        le=1000.0,
+        description="sensor 'counted', with receptors: a receptor's radius, nm (Berg & Purcell "
+        "1977 take about 1 nm for a bacterium's).",
     )
     gradient_memory_s: float = Field(
         0.0,
@@ -935,6 +956,8 @@ class Physics(_Part):
                 "belongs to sensor 'counted' (sensor 'each_step' reads the gradient anew each "
                 "step)",
             )  # fmt: skip
+        if self.receptors is not None or self.receptor_radius_nm != 1.0:
+            self._receptors_fit()
         tau = self.integration_time_s
         if tau is None:
             return
@@ -952,6 +975,26 @@ class Physics(_Part):
         else:
             return
         raise _field_error("Physics", ("integration_time_s",), tau, problem)
+
+    def _receptors_fit(self) -> None:
+        """Receptors belong to sensor 'counted' (and their radius to receptors), and fit on the
+        body: their discs cover at most its surface."""
+        field = "receptors" if self.receptors is not None else "receptor_radius_nm"
+        value = self.receptors if self.receptors is not None else self.receptor_radius_nm
+        if self.sensor != "counted":
+            problem = "belongs to sensor 'counted' (sensor 'each_step' reads a fixed share)"
+        elif self.receptors is None:
+            problem = "belongs to receptors (null: a perfect absorber, whose receptors are all)"
+        else:
+            s_um, a = self.receptor_radius_nm * 1e-3, self.robot_radius_um
+            if self.receptors * s_um * s_um <= 4.0 * a * a:
+                return
+            most = math.floor(4.0 * a * a / (s_um * s_um))
+            problem = (
+                f"{self.receptors} receptors of {self.receptor_radius_nm:g} nm do not fit on a "
+                f"body of {a:g} um: at most {most} (N s^2 <= 4 a^2)"
+            )
+        raise _field_error("Physics", (field,), value, problem)
 
     def _time_limit_fits(self) -> Physics:
         """A time limit is at most as many steps of dt_s as learning.max_steps takes: refused
@@ -1086,7 +1129,7 @@ class Scenario(_Part):
         "'alonso-kirkegaard', the setting of Alonso & Kirkegaard (PNAS Nexus 2024) in three "
         "dimensions: one robot of 0.5 µm at 5 µm/s, D_R 0.025 1/s, no translational noise, "
         "deciding and counting molecules every 0.1 s, turning up to π per decision, one still "
-        "source of field length 100 µm secreting 86,000 molecules/s (their weakest, N = 1e4, "
+        "source of field length 100 µm secreting 21,500 molecules/s (their weakest, N = 1e4, "
         "counted alike 50 µm away), reached within 10.5 µm, 25.6 s. The "
         "swarm's: 'diffuse-tumour', 20 small cells that each need 3 payloads, scattered through "
         "a 100-unit cube, each shedding a faint, short-range marker (spread 3, a noise floor "
@@ -1682,15 +1725,16 @@ PRESETS["diffuse-tumour"] = DIFFUSE_TUMOUR
 # field e^(-r/lambda) with lambda = sqrt(D / k) = sqrt(100 / 0.01) = 100 um, a source of
 # N = 1e4-1e5, an episode of 256 decisions, a start 36-69 um away and success within
 # -ln(0.9) lambda = 10.5 um. Their world is two-dimensional and their five receptors each count
-# N / 2 pi times their area times the field; here the field is a 3-D source's and six patches
-# count at the Berg-Purcell rate, so the secretion is chosen to count as many molecules as their
-# N = 1e4 does (13 in 0.1 s at 50 um, for a 0.5 um robot): Q = 86,000 molecules/s.
+# N / 2 pi times their area times the field; here the field is a 3-D source's and the body a
+# perfect absorber's six patches (4 pi D a c a second in all), so the secretion is chosen to count
+# as many molecules as their N = 1e4 does (13 in 0.1 s at 50 um, for a 0.5 um robot):
+# Q = 21,500 molecules/s (86,000 while a body counted pi D a c, a quarter of an absorber's).
 ALONSO_KIRKEGAARD: dict[str, Any] = {
     "physics": {
         "model": "active_brownian", "robot_radius_um": 0.5, "swim_speed_um_s": 5.0,
         "rotational_diffusion_s": 0.025, "diffusion_um2_s": 0.0, "sensor": "counted",
         "max_turn_rate_rad_s": 31.4, "molecule_diffusion_um2_s": 100.0,
-        "decay_rate_s": 0.01, "secretion_molecules_s": 86_000.0, "cell_radius_um": 10.0,
+        "decay_rate_s": 0.01, "secretion_molecules_s": 21_500.0, "cell_radius_um": 10.0,
         "cell_diffusion_um2_s": 0.0, "time_limit_s": 25.6,
     },
     # the cell starts within 3 um of the centre, the robot anywhere else: 55 um away on average

@@ -121,6 +121,8 @@ def begin_episode(
     s.swept[:] = False
     s.blocked[:] = False
     s.sensed[:] = 0.0
+    s.window_flux[:] = 0.0
+    s.sensed_grad[:] = 0.0
     s.steps[:] = 0
     s.prev_conc[:] = -1.0
     s.returns[:] = 0.0

@@ -49,6 +49,7 @@ from nanonav.engine.qlearning import (
     TURN,
 )
 from nanonav.engine.sensing import (
+    WINDOW_STEPS,
     berg_purcell_reading,
     count_molecules,
     noisy_reading,
@@ -56,6 +57,7 @@ from nanonav.engine.sensing import (
     sensed_gradient,
     steering_state,
     tabular_state,
+    take_in,
 )
 from nanonav.engine.state import (
     ACTIVE_BROWNIAN,
@@ -250,23 +252,32 @@ def read_state(
     s = sim.s
     obs = sim.pc.obs
     if p.physics == ACTIVE_BROWNIAN:
+        fresh = True
         if not p.counted:
             s.sensed[i] = berg_purcell_reading(p, rng, s.reading[i])
-        elif s.prev_conc[i] < 0.0 or t % p.window == 0:
-            # at its first reading, then every window; held
-            count_molecules(p, rng, s, i, s.prev_conc[i] < 0.0)
+        else:
+            if s.prev_conc[i] < 0.0 and s.window_flux[i, WINDOW_STEPS] == 0.0:
+                # a robot starts having counted a window where it starts, before the first step
+                take_in(p, s, i, float(p.window))
+            # a window's count is known once it has ended, then held; the next window starts
+            fresh = s.window_flux[i, WINDOW_STEPS] >= p.window
+            if fresh:
+                count_molecules(p, rng, s, i, s.prev_conc[i] < 0.0)
+            take_in(p, s, i, 1.0)
         c = s.sensed[i]
         recent = c
         if s.prev_conc[i] < 0.0:
-            s.prev_conc[i] = c  # the first reading starts the memories
-            s.recent[i] = c
+            if fresh:
+                s.prev_conc[i] = c  # the first reading starts the memories
+                s.recent[i] = c
         elif p.recent_weight < 1.0:
             s.recent[i] += p.recent_weight * (c - s.recent[i])
             recent = s.recent[i]
         gap = cell_d - p.reach_distance
         obs[i, OBS_READING] = c
-        # temporal sensing: the recent mean (or the reading) against the longer memory's
-        obs[i, OBS_CHANGE] = recent - s.prev_conc[i]
+        # temporal sensing: the recent mean (or the reading) against the longer memory's (none
+        # before the first count: a robot that has read nothing has seen nothing change)
+        obs[i, OBS_CHANGE] = recent - s.prev_conc[i] if s.prev_conc[i] >= 0.0 else 0.0
         if p.turning:
             # a robot that turns by itself reads its gradient each step, in its body frame
             body_gradient(p, rng, sim, i)
@@ -453,7 +464,8 @@ def act(
             body_turn(p, sim, i)
         else:
             steer(p, rng, s, i, code, sx, sy, sz, tx, ty, tz)
-        s.prev_conc[i] += p.memory_weight * (c - s.prev_conc[i])
+        if s.prev_conc[i] >= 0.0:  # a memory once something was read
+            s.prev_conc[i] += p.memory_weight * (c - s.prev_conc[i])
         nx, ny, nz, blocked = brownian.move_robot(p, rng, w, s, i, px, py, pz)
     else:
         step = p.speed

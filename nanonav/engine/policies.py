@@ -28,6 +28,7 @@ from nanonav.engine.qlearning import (
     TUMBLE,
 )
 from nanonav.engine.state import (
+    BLIND_TUMBLE,
     EXACT_GRADIENT,
     GRADIENT,
     RULE,
@@ -188,10 +189,13 @@ def behavior_direction(
 @inlined
 def steering_baseline(p: KernelParams, rng: np.random.Generator, rising: bool) -> int:
     """A fixed active Brownian policy's steering action this step: 'uncontrolled' keeps its
-    heading; 'run_and_tumble' tumbles with probability 1 - exp(-rate dt), at a lower rate while
-    the reading rises; 'steer_and_tumble' tumbles so too, and otherwise steers up the gradient
-    (temporal and spatial sensing combined); 'gradient' and 'exact_gradient' steer up the
+    heading; 'blind_tumble' tumbles with probability 1 - exp(-rate dt) whatever it reads;
+    'run_and_tumble' tumbles so, at a lower rate while the reading rises; 'steer_and_tumble'
+    tumbles so too, and otherwise steers up the gradient (temporal and spatial sensing
+    combined); 'gradient' and 'exact_gradient' steer up the
     gradient (the sensed one, or the true one: an upper bound no robot can have)."""
+    if p.policy == BLIND_TUMBLE:
+        return TUMBLE if rng.random() < p.tumble else KEEP_HEADING
     if p.policy in (RUN_AND_TUMBLE, STEER_AND_TUMBLE):
         chance = p.tumble_rising if rising else p.tumble
         if rng.random() < chance:

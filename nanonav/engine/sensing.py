@@ -14,6 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from nanonav.engine.compiled import inlined, inlined_callable, uncounted
+from nanonav.engine.dynamics import brownian
 from nanonav.engine.dynamics.brownian import read_counted
 from nanonav.engine.fields import sample_many
 from nanonav.engine.qlearning import SIGN_THRESHOLD
@@ -25,8 +26,10 @@ OBSTACLE_NEAR_STEPS = 2.0
 CELL_NEAR_STEPS = 3.0
 # sensor 'counted': receptor patches, each a sixth of the body's surface, facing each world
 # axis's two ways (to first order the estimate's noise is the same whatever way the patches
-# face, so they are not turned with the body)
-RECEPTOR_PATCHES = 6
+# face, so they are not turned with the body); in ``Swarm.window_flux``, the patches' columns
+# (+x, -x, +y, -y, +z, -z), then the window's steps
+RECEPTOR_PATCHES = brownian.RECEPTOR_PATCHES
+WINDOW_STEPS = RECEPTOR_PATCHES
 
 
 @inlined
@@ -151,31 +154,46 @@ def poisson_count(rng: np.random.Generator, mean: float) -> float:
 
 
 @inlined
+def take_in(p: KernelParams, s: Swarm, i: int, steps: float) -> None:
+    """Robot ``i``'s receptor patches take in ``steps`` steps' molecules where it is now, on
+    average: what a patch of an absorbing body takes in (the field to first order across the
+    body; none where that order would give less than none), added to its window's."""
+    c = s.reading[i]
+    for k in range(3):
+        g = s.reading_grad[i, k]
+        ahead = max(p.patch_rate * c + p.patch_gradient_rate * g, 0.0)
+        behind = max(p.patch_rate * c - p.patch_gradient_rate * g, 0.0)
+        s.window_flux[i, 2 * k] += steps * ahead
+        s.window_flux[i, 2 * k + 1] += steps * behind
+    s.window_flux[i, WINDOW_STEPS] += steps
+
+
+@inlined
 def count_molecules(
     p: KernelParams, rng: np.random.Generator, s: Swarm, i: int, first: bool
 ) -> None:
-    """Robot ``i`` counts the molecules its six receptor patches take in over the integration
-    time (sensor 'counted'): each patch's count is Poisson, of mean ``patch_counting`` times
-    the concentration at the patch (the field taken to first order across the body). The
-    reading is the counts' sum over the whole body's counting, the gradient along an axis
-    the difference of its two patches' counts over 2 a times a patch's counting: a reading of
-    0.01 molecules is 0 99 % of the time, and turns nothing. Both are held (``sensed``,
-    ``sensed_grad``) until the next count; the gradient held is the counts' exponential
-    average (``gradient_weight``, from physics.gradient_memory_s) but at the ``first`` count."""
-    c = s.reading[i]
-    a = p.robot_radius
+    """Robot ``i`` counts the molecules its six receptor patches took in over the window just
+    past (sensor 'counted'): each patch's count is Poisson, of mean what it took in along the
+    robot's path (``take_in``), so that a count is known only once its window has ended. The
+    reading is the counts' sum over what the whole body takes in a window at 1 nM, the
+    gradient along an axis the difference of its two patches' counts over twice a patch's
+    gradient rate: a reading of 0.01 molecules is 0 99 % of the time, and turns nothing. Both
+    are held (``sensed``, ``sensed_grad``) until the next count; the gradient held is the
+    counts' exponential average (``gradient_weight``, from physics.gradient_memory_s) but at
+    the ``first`` count. The window starts anew."""
+    steps = s.window_flux[i, WINDOW_STEPS]
     total = 0.0
     for k in range(3):
-        g = s.reading_grad[i, k]
-        ahead = poisson_count(rng, p.patch_counting * max(c + a * g, 0.0))
-        behind = poisson_count(rng, p.patch_counting * max(c - a * g, 0.0))
+        ahead = poisson_count(rng, s.window_flux[i, 2 * k])
+        behind = poisson_count(rng, s.window_flux[i, 2 * k + 1])
         total += ahead + behind
-        g_count = (ahead - behind) / (2.0 * a * p.patch_counting)
+        g_count = (ahead - behind) / (2.0 * steps * p.patch_gradient_rate)
         if first or p.gradient_weight >= 1.0:
             s.sensed_grad[i, k] = g_count
         else:
             s.sensed_grad[i, k] += p.gradient_weight * (g_count - s.sensed_grad[i, k])
-    s.sensed[i] = total / (RECEPTOR_PATCHES * p.patch_counting)
+    s.sensed[i] = total / (RECEPTOR_PATCHES * steps * p.patch_rate)
+    s.window_flux[i, :] = 0.0
 
 
 @inlined

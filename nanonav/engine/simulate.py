@@ -194,10 +194,16 @@ def _brownian_params(scenario: Scenario, params: KernelParams, b: Biomarker) -> 
     d_t = ph.diffusion_um2_s or 0.0
     d_r = ph.rotational_diffusion_s or 0.0
     radius = ph.robot_radius_um
-    # Berg-Purcell: a reading over dt by a sensor of radius a counts pi D_m a c dt molecules
+    # sensor 'each_step': a reading over dt by a sensor of radius a counts pi D_m a c dt
+    # molecules (Bialek & Setayeshgar's single receptor of the body's size)
     counting = math.pi * ph.molecule_diffusion_um2_s * radius * dt * MOLECULES_PER_UM3_PER_NM
-    # sensor 'counted': a count over whole steps; a patch is a sixth of the sphere's counting
+    # sensor 'counted': a count over whole steps of what each receptor patch of an absorbing
+    # body takes in (``brownian.patch_rates``)
     window = max(1, round((ph.integration_time_s or dt) / dt))
+    per_nm, per_gradient = brownian.patch_rates(
+        ph.molecule_diffusion_um2_s, radius,
+        *brownian.absorbed_fractions(ph.receptors, ph.receptor_radius_nm * 1e-3, radius),
+    )  # fmt: skip
     levels = fields.radial_profile(b, ph.cell_radius_um * np.array(qlearning.STEERING_LEVEL_RADII))
     return params._replace(
         physics=state.ACTIVE_BROWNIAN,
@@ -226,7 +232,8 @@ def _brownian_params(scenario: Scenario, params: KernelParams, b: Biomarker) -> 
         recent_weight=_following(dt, ph.short_memory_s),
         counted=ph.sensor == "counted",
         window=window,
-        patch_counting=counting * window / sensing.RECEPTOR_PATCHES,
+        patch_rate=per_nm * dt,
+        patch_gradient_rate=per_gradient * dt,
         gradient_weight=_following(window * dt, ph.gradient_memory_s),
     )  # fmt: skip
 
@@ -396,6 +403,7 @@ def episode_arrays(scenario: Scenario) -> EpisodeArrays:
         sensed=np.zeros(n),
         sensed_grad=np.zeros((n, 3)),
         recent=np.zeros(n),
+        window_flux=np.zeros((n, sensing.RECEPTOR_PATCHES + 1)),
     )
     social = Social(
         bound_to=np.full(n, -1, dtype=np.int64),

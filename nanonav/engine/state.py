@@ -17,10 +17,11 @@ SIMPLE_RULE = 5
 UNCONTROLLED = 6  # active Brownian: swims along its own diffusing heading, never steers
 EXACT_GRADIENT = 7  # active Brownian: steers by the true gradient (an upper bound)
 STEER_AND_TUMBLE = 8  # active Brownian: steers up the sensed gradient, tumbles as run_and_tumble
+BLIND_TUMBLE = 9  # active Brownian: tumbles at one rate whatever it reads (uses no information)
 POLICY_CODES = {"q_learning": Q_LEARNING, "gradient": GRADIENT, "run_and_tumble": RUN_AND_TUMBLE,
                 "random": RANDOM, "rule": RULE, "simple_rule": SIMPLE_RULE,
                 "uncontrolled": UNCONTROLLED, "exact_gradient": EXACT_GRADIENT,
-                "steer_and_tumble": STEER_AND_TUMBLE}  # fmt: skip
+                "steer_and_tumble": STEER_AND_TUMBLE, "blind_tumble": BLIND_TUMBLE}  # fmt: skip
 BEHAVIORS = 0
 DIRECTIONS = 1
 STEERING = 2
@@ -101,10 +102,12 @@ class KernelParams(NamedTuple):
     tumble_rising: float = 0.0  # and while it rises
     memory_weight: float = 1.0  # dt / memory_s: how fast the reading's memory follows it
     # sensor 'counted': molecules are counted every ``window`` steps (the integration time), a
-    # receptor patch counting ``patch_counting`` * c of them on average at c nM
+    # receptor patch taking in, on average in a step, ``patch_rate`` * c of them at c nM at the
+    # body's centre and ``patch_gradient_rate`` * g more with a gradient g (nM/um) toward it
     counted: bool = False
     window: int = 1
-    patch_counting: float = 0.0
+    patch_rate: float = 0.0
+    patch_gradient_rate: float = 0.0
     # the weight of a new count's gradient in the held one (1: it replaces it)
     gradient_weight: float = 1.0
     # dt / short_memory_s: how fast the recent mean follows the reading (1: it is the reading)
@@ -165,6 +168,10 @@ class Swarm(NamedTuple):
     sensed_grad: NDArray[np.float64]
     # its readings' mean over physics.short_memory_s, compared with prev_conc's longer one
     recent: NDArray[np.float64]
+    # sensor 'counted': the molecules each receptor patch (+x, -x, +y, -y, +z, -z) takes in on
+    # average over the count's window so far, summed step by step along the robot's path, and
+    # (column WINDOW_STEPS) the window's steps so far
+    window_flux: NDArray[np.float64]
 
 
 class World(NamedTuple):

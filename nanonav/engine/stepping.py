@@ -233,7 +233,7 @@ def _swarm_at(b: Swarm, k: int) -> Swarm:
         b.collisions[k], b.path_length[k], b.pending[k], b.last_state[k], b.last_action[k],
         b.last_reward[k], b.start[k], b.sum_conc[k], b.sum_dist[k], b.last_dist[k],
         b.reading[k], b.reading_grad[k], b.swept[k], b.blocked[k], b.sensed[k],
-        b.sensed_grad[k], b.recent[k],
+        b.sensed_grad[k], b.recent[k], b.window_flux[k],
     )  # fmt: skip
 
 

@@ -18,7 +18,7 @@ def test_convergence_prints_every_row_with_its_verdict(capsys: pytest.CaptureFix
     out = capsys.readouterr().out
     rows = re.findall(
         r"^  (each_step|counted)\s+2 um\s+(\w+)\s+(?:\d\.\d\d \[\d\.\d\d, \d\.\d\d\]\s+){3}"
-        r"[+-]\d\.\d\d \[[+-]\d\.\d\d, [+-]\d\.\d\d\]\s+(yes|NO) \(\+-\d\.\d\d\)$",
+        r"[+-]\d\.\d\d \[[+-]\d\.\d\d, [+-]\d\.\d\d\]\s+(yes|NO) \(\+-\d\.\d\d\) *$",
         out, re.M,
     )  # fmt: skip
     assert [(sensor, policy) for sensor, policy, _ in rows] == [

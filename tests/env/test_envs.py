@@ -25,8 +25,9 @@ BROWNIAN = {"preset": "tumour-microswimmers", "robots": {"count": 1},
             "physics": {"time_limit_s": 1.5}}  # fmt: skip
 # a small space without obstacles, where a swimmer reaches its cell in some worlds (its cell
 # secreting enough for a 1 um robot's counts to steer by)
+# a cell near enough that a greedy table reaches it in some worlds and not others
 BROWNIAN_NEAR = {**BROWNIAN, "space": {"size": 40}, "obstacles": {"count": 0},
-                 "physics": {"time_limit_s": 10.0, "secretion_molecules_s": 1e5}}  # fmt: skip
+                 "physics": {"time_limit_s": 10.0, "secretion_molecules_s": 1e4}}  # fmt: skip
 LATTICE_SWARM = {"preset": "paper-swarm", "learning": {"max_steps": 60}}
 BROWNIAN_SWARM = {"preset": "tumour-microswimmers", "robots": {"count": 8},
                   "physics": {"time_limit_s": 0.6}}  # fmt: skip

@@ -111,6 +111,48 @@ def berg_purcell_relative_error(
     return math.inf if counted <= 0.0 else 1.0 / math.sqrt(counted)
 
 
+# The integral over one receptor patch of the unit sphere (the sixth of it nearer one axis's way
+# than any other's) of the outward normal's component along that axis: the patch's shadow on
+# the plane across the axis, where 2 y^2 + z^2 < 1 and y^2 + 2 z^2 < 1, whose area is
+# 2 sqrt(2) atan(1 / sqrt(2)) ~ 1.741 (a hemisphere's shadow is pi)
+PATCH_NORMAL_INTEGRAL = 2.0 * math.sqrt(2.0) * math.atan(1.0 / math.sqrt(2.0))
+RECEPTOR_PATCHES = 6
+
+
+def absorbed_fractions(
+    receptors: int | None, receptor_radius_um: float, radius_um: float
+) -> tuple[float, float]:
+    """What a sphere of radius a covered with N receptors of radius s takes in, as fractions of
+    a perfect absorber's (None receptors: the perfect absorber itself, 1 and 1).
+
+    The total: N s / (N s + pi a) of Smoluchowski's 4 pi D a c (Berg & Purcell, Biophys. J.
+    20, 193 (1977), eq. 8). The gradient's part: a linear gradient g adds 3 D g cos(theta) to a
+    perfect absorber's inward flux density D c / a (theta from g's direction); a surface that
+    absorbs at a uniform rate kappa takes in x / (1 + x) of the first and x / (2 + x) of the
+    second, x = kappa a / D (Collins & Kimball, J. Colloid Sci. 4, 425 (1949), the flux's
+    l = 0 and l = 1 terms), and x = N s / (pi a) gives Berg and Purcell's total: the receptors
+    are taken as that uniform rate, so that the gradient is read with the same receptors."""
+    if receptors is None:
+        return 1.0, 1.0
+    x = receptors * receptor_radius_um / (math.pi * radius_um)
+    return x / (1.0 + x), x / (2.0 + x)
+
+
+def patch_rates(
+    molecule_diffusion_um2_s: float, radius_um: float, total: float, gradient: float
+) -> tuple[float, float]:
+    """What one receptor patch (a sixth of the body) takes in a second, on average: per nM of
+    the concentration at the body's centre, and per nM/um of the gradient along the patch's
+    axis (its sign: toward the patch), for a body that takes in ``total`` and ``gradient`` of a
+    perfect absorber's (``absorbed_fractions``). A perfect absorber's flux density is
+    D (c / a + 3 g cos(theta)) (``absorbed_fractions``): over a patch, D c / a times its area
+    4 pi a^2 / 6, and 3 D g a^2 times ``PATCH_NORMAL_INTEGRAL``."""
+    d, a = molecule_diffusion_um2_s, radius_um
+    per_nm = d * a * (4.0 * math.pi / RECEPTOR_PATCHES) * total * MOLECULES_PER_UM3_PER_NM
+    per_gradient = 3.0 * d * a * a * PATCH_NORMAL_INTEGRAL * gradient * MOLECULES_PER_UM3_PER_NM
+    return per_nm, per_gradient
+
+
 @inlined
 def _tangent_basis(
     nx: float, ny: float, nz: float

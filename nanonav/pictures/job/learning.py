@@ -29,6 +29,7 @@ _POLICY_NAMES = {
     "uncontrolled": "the uncontrolled swimmer",
     "exact_gradient": "steering by the exact gradient",
     "steer_and_tumble": "steering and tumbling",
+    "blind_tumble": "the blind tumbler",
 }
 # Policies that learn nothing: their episodes are independent trials of the same behaviour.
 BASELINES = frozenset(
@@ -41,6 +42,7 @@ BASELINES = frozenset(
         "uncontrolled",
         "exact_gradient",
         "steer_and_tumble",
+        "blind_tumble",
     }
 )
 # The moving mean spans about an eighth of the episodes, within these bounds; runs shorter than
