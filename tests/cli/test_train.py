@@ -1,14 +1,19 @@
-"""``nanonav train``: each learner trains for a few hundred decisions through the SB3 VecEnv
-and leaves its model, checkpoints, TensorBoard logs and a report that can be read back."""
+"""``nanonav train``: NanoNav's own trainer (the default) trains PPO and recurrent PPO, prints
+its progress, leaves a network the service accepts, a checkpoint a later run resumes from and
+a report; with ``--library sb3`` each Stable-Baselines3 learner trains for a few hundred
+decisions through the SB3 VecEnv and leaves its model, checkpoints, TensorBoard logs and a
+report that can be read back."""
 
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
 import onnxruntime as ort
 import pytest
+import torch
 from sb3_contrib import RecurrentPPO
 from stable_baselines3 import DQN, PPO
 from stable_baselines3.common.base_class import BaseAlgorithm
@@ -23,11 +28,11 @@ LOADERS: dict[str, type[BaseAlgorithm]] = {"ppo": PPO, "recurrent-ppo": Recurren
 
 
 @pytest.mark.parametrize("algo", sorted(LOADERS))
-def test_a_learner_trains_and_leaves_what_it_learned(
+def test_a_learner_of_sb3_trains_and_leaves_what_it_learned(
     algo: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     out = tmp_path / algo
-    rollout = [] if algo == "dqn" else ["--rollout", "96"]
+    rollout = [] if algo == "dqn" else ["--rollout", "96", "--library", "sb3"]
     args = ["train", "--preset", "paper-single", "--seed", "5000", "--algo", algo,
             "--steps", "256", "--envs", "2", "--checkpoint-every", "128", "--out", str(out),
             "--no-progress", *rollout]  # fmt: skip
@@ -37,6 +42,7 @@ def test_a_learner_trains_and_leaves_what_it_learned(
     assert main(args) == 0
     report = json.loads((out / "training.json").read_text())
     assert report["algo"] == algo and report["envs"] == 2 and report["seed"] == 5000
+    assert report["library"] == "sb3"
     assert report["decisions"] == (256 if algo == "dqn" else 384)
     assert report["decisions_per_s"] > 0
     assert f"trained {algo}" in capsys.readouterr().out
@@ -100,7 +106,8 @@ def test_a_continuous_turn_is_trained_and_exported_as_a_turn(
             "--steering", "continuous", "--steps", "64", "--envs", "2", "--rollout", "32",
             "--out", str(out), "--no-progress"]  # fmt: skip
     assert main(args) == 0
-    assert json.loads((out / "training.json").read_text())["steering"] == "continuous"
+    report = json.loads((out / "training.json").read_text())
+    assert report["steering"] == "continuous" and report["library"] == "nanonav"
     session = ort.InferenceSession(str(out / "policy.onnx"), providers=["CPUExecutionProvider"])
     meta = session.get_modelmeta().custom_metadata_map
     assert json.loads(meta["nanonav.actions"]) == ["turn_side", "turn_up"]
@@ -123,3 +130,79 @@ def test_a_continuous_turn_is_trained_and_exported_as_a_turn(
     assert main(dqn) == 2
     assert "--rollout: dqn learns from a replay buffer" in capsys.readouterr().err
     assert not (tmp_path / "no").exists()
+
+
+@pytest.mark.parametrize("algo", ["ppo", "recurrent-ppo"])
+def test_nanonavs_trainer_is_the_default_and_says_how_fast_it_went(
+    algo: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / algo
+    args = ["train", "--preset", "alonso-kirkegaard", "--seed", "5000", "--algo", algo,
+            "--envs", "16", "--rollout", "16", "--minibatch", "128", "--steps", "600",
+            "--out", str(out)]  # fmt: skip
+    assert main(args) == 0
+    printed = capsys.readouterr().out
+    # progress is printed as it goes, stdout being no terminal here: the last line at least
+    assert re.search(r"^768/600 decisions  [\d,]+/s  ", printed, re.M), printed
+    assert f"trained {algo} to 768 decisions" in printed
+    report = json.loads((out / "training.json").read_text())
+    assert report["library"] == "nanonav" and report["algo"] == algo
+    assert report["decisions"] == report["decisions_this_run"] == 768  # three whole rollouts
+    assert report["resumed_from"] is None
+    assert report["decisions_per_s"] == pytest.approx(768 / report["seconds"], rel=0.01)
+    assert report["threads"] == 1 and report["device"] == "cpu"
+    assert report["memory_units"] == (25 if algo == "recurrent-ppo" else 0)
+    assert report["peak_memory_mb"] > 0
+    assert {"checkpoint.pt", "model.pt", "policy.onnx", "scenario.json"} <= {
+        p.name for p in out.iterdir()
+    }
+    session = ort.InferenceSession(str(out / "policy.onnx"), providers=["CPUExecutionProvider"])
+    names = [i.name for i in session.get_inputs()]
+    assert names == (["observation", "memory_in"] if algo == "recurrent-ppo" else ["observation"])
+    passes_the_services_check(out / "policy.onnx", 3, 4)
+
+
+def test_a_run_resumes_from_its_checkpoints_decision_count(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "run"
+    first = ["train", "--preset", "paper-single", "--seed", "5000", "--algo", "recurrent-ppo",
+             "--envs", "8", "--rollout", "16", "--bptt", "8", "--minibatch", "64",
+             "--steps", "256", "--out", str(out), "--no-progress"]  # fmt: skip
+    assert main(first) == 0
+    kept = torch.load(out / "checkpoint.pt", weights_only=True)
+    assert kept["decisions"] == 256
+    assert main(["train", "--resume", str(out), "--steps", "512", "--no-progress"]) == 0
+    report = json.loads((out / "training.json").read_text())
+    assert report["resumed_from"] == 256 and report["decisions"] == 512
+    assert report["decisions_this_run"] == 256 and report["algo"] == "recurrent-ppo"
+    assert report["config"]["bptt"] == 8 and report["memory_units"] == 25
+    assert "trained recurrent-ppo to 512 decisions (from 256)" in capsys.readouterr().out
+    assert torch.load(out / "checkpoint.pt", weights_only=True)["decisions"] == 512
+    assert not list(out.glob("*.tmp"))
+
+
+@pytest.mark.parametrize(
+    ("args", "says"),
+    [
+        (["--resume", "RUN", "--preset", "paper-single"], "--preset: a resumed run keeps"),
+        (["--resume", "RUN", "--memory-units", "8"], "--memory-units: a resumed run keeps"),
+        (["--resume", "NOTHING"], "holds no run to resume"),
+        (["--library", "sb3", "--memory", "gru", "--out", "X"], "NanoNav's trainer's, not"),
+        (["--algo", "dqn", "--library", "nanonav", "--out", "X"], "Stable-Baselines3's"),
+        (["--algo", "recurrent-ppo", "--memory", "none", "--out", "X"], "learns with a memory"),
+        (["--memory-units", "8", "--out", "X"], "with a memory only"),
+        (["--algo", "recurrent-ppo", "--rollout", "20", "--out", "X"], "whole sequences of 16"),
+        (["--preset", "paper-single"], "--out DIR"),
+    ],
+)
+def test_options_that_do_not_fit_are_refused(
+    args: list[str], says: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    (tmp_path / "RUN").mkdir()
+    (tmp_path / "RUN" / "checkpoint.pt").write_bytes(b"")
+    (tmp_path / "RUN" / "scenario.json").write_text("{}")
+    given = [str(tmp_path / a) if a in ("RUN", "NOTHING", "X") else a for a in args]
+    assert main(["train", "--steps", "8", *given]) == 2
+    assert says in capsys.readouterr().err
+    assert not (tmp_path / "X").exists()
