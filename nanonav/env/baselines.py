@@ -11,8 +11,6 @@ next-step reset; both step the same worlds (``nanonav.engine.worlds``).
 
 from __future__ import annotations
 
-import json
-import warnings
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -33,7 +31,6 @@ from nanonav.engine.worlds import (
     with_robots,
 )
 from nanonav.env.robot import ScenarioLike, action_space_of
-from nanonav.rl.graph import METADATA_ACTIONS, METADATA_OBSERVATION
 from nanonav.scenario import Steering
 
 
@@ -146,10 +143,6 @@ class NanoNavVecEnv(VecEnv):
         return [False for _ in self._get_indices(indices)]
 
 
-ONNX_OPSET = 17
-"""The ONNX opset ``export_onnx`` writes: one onnxruntime has run since 2022."""
-
-
 def _recurrent_logits_class() -> Any:
     import torch
     from stable_baselines3.common.policies import ActorCriticPolicy
@@ -221,6 +214,8 @@ def export_onnx(
     import torch
     from stable_baselines3 import DQN, PPO
 
+    from nanonav.rl.export import write_onnx
+
     policy = model.policy
     head: torch.nn.Module
     if isinstance(model, PPO):
@@ -261,22 +256,5 @@ def export_onnx(
         inputs += ["hidden_in", "cell_in"]
         outputs += ["hidden_out", "cell_out"]
         axes.update({name: {1: "batch"} for name in (*inputs[1:], *outputs[1:])})
-    with warnings.catch_warnings():
-        # the TorchScript exporter (torch's newer one needs onnxscript, which nothing else
-        # does) warns that it is deprecated, and its tracer that the LSTM's shape checks are
-        # traced as constants: the ONNX LSTM operator it writes takes any batch (a test runs
-        # the file at another batch size)
-        warnings.simplefilter("ignore")
-        torch.onnx.export(
-            head, given, str(path), input_names=inputs, output_names=outputs,
-            opset_version=ONNX_OPSET, dynamo=False, dynamic_axes=axes,
-        )  # fmt: skip
-    if observation is not None or actions is not None:
-        import onnx
-
-        exported = onnx.load(str(path))
-        for key, labels in ((METADATA_OBSERVATION, observation), (METADATA_ACTIONS, actions)):
-            if labels is not None:
-                entry = exported.metadata_props.add()
-                entry.key, entry.value = key, json.dumps(list(labels))
-        onnx.save(exported, str(path))
+    write_onnx(head, given, path, inputs=inputs, outputs=outputs, axes=axes,
+               observation=observation, actions=actions)  # fmt: skip

@@ -38,14 +38,32 @@ def export_network(
         inputs.append("memory_in")
         outputs.append("memory_out")
     axes = {name: {0: "batch"} for name in (*inputs, *outputs)}
+    write_onnx(greedy, given, path, inputs=inputs, outputs=outputs, axes=axes,
+               observation=observation, actions=actions)  # fmt: skip
+
+
+def write_onnx(
+    module: torch.nn.Module,
+    given: tuple[torch.Tensor, ...],
+    path: Path,
+    *,
+    inputs: list[str],
+    outputs: list[str],
+    axes: dict[str, dict[int, str]],
+    observation: Sequence[str] | None = None,
+    actions: Sequence[str] | None = None,
+) -> None:
+    """Trace ``module`` on ``given`` into an ONNX model at ``path``, its inputs and outputs
+    named and their ``axes`` dynamic, with the labels in its metadata (``label``), through a
+    temporary file, so that a reader never meets half a model."""
     written = path.with_name(path.name + ".tmp")
     with warnings.catch_warnings():
         # the TorchScript exporter (the newer one needs onnxscript, which nothing else does)
-        # warns that it is deprecated, and its tracer that the GRU's shape checks are traced
-        # as constants: the ONNX GRU it writes takes any batch (a test runs it at another)
+        # warns that it is deprecated, and its tracer that a recurrent cell's shape checks are
+        # traced as constants: the ONNX cell it writes takes any batch (tests run it at another)
         warnings.simplefilter("ignore")
         torch.onnx.export(
-            greedy, given, str(written), input_names=inputs, output_names=outputs,
+            module, given, str(written), input_names=inputs, output_names=outputs,
             opset_version=ONNX_OPSET, dynamo=False, dynamic_axes=axes,
         )  # fmt: skip
     label(written, observation=observation, actions=actions)

@@ -23,6 +23,8 @@ atexit.register(_SCHEMAS.close)
 try:
     schema = schema_of(_SCHEMAS.enter_context(postgres_schema()))
 except pytest.skip.Exception as unreachable:
+    # outside CI only, where no PostgreSQL answers (in CI postgres_schema fails instead): a
+    # skip raised while collecting must be a module's, with the reason it gave
     pytest.skip(str(unreachable), allow_module_level=True)
 # As tests/service/test_fuzz.py: each operation takes well under this on two busy cores.
 pytestmark = pytest.mark.timeout(120)
