@@ -51,10 +51,13 @@ class _Process:
             self.process.send_signal(signal.SIGTERM)
         try:
             code = self.process.wait(timeout=timeout)
-        except subprocess.TimeoutExpired:
+        except subprocess.TimeoutExpired as error:
             self.process.kill()
             self.process.wait()
-            raise
+            self._log_file.close()
+            tail = self.text()[-4000:]
+            message = f"no exit within {timeout:g} s of SIGTERM; its log:\n{tail}"
+            raise AssertionError(message) from error
         finally:
             self._log_file.close()
         return code

@@ -47,6 +47,8 @@ LOG_FORMAT = "%(asctime)s %(levelname)s [%(process)d] %(name)s: %(message)s"
 # How often a worker looks for jobs whose lease ran out (their worker died), whether it is busy
 # or not: with the default 15 s lease a killed worker's job runs again within about 20 s.
 RECOVERY_INTERVAL_S = 3.0
+# How long a stopping worker waits for its housekeeping threads, all of them together.
+HOUSEKEEPING_STOP_S = 5.0
 # How often a worker with a retention deletes what ended before it, and how long and how many
 # batches (of RETENTION_BATCH jobs, a transaction each) one pass may take before the next sweep.
 RETENTION_INTERVAL_S = 60.0
@@ -171,12 +173,23 @@ def work(settings: Settings, shutdown: threading.Event, *, max_jobs: int | None 
     finally:
         stopped.set()
         wakeups.close()
-        for thread in housekeeping:
-            thread.join()
+        join_within(housekeeping, HOUSEKEEPING_STOP_S)
         with contextlib.suppress(SQLAlchemyError):
             store.worker_gone(owner)
         store.close()
     return ran
+
+
+def join_within(threads: list[threading.Thread], timeout_s: float) -> None:
+    """Wait at most ``timeout_s`` in all for ``threads`` to stop, naming those that did not: a
+    thread held in a store call (a locked SQLite file waits up to ``store_busy_timeout_s``) or a
+    webhook's request must not hold a worker that was asked to stop; they are daemons, and what
+    they held is leased, so another worker takes it up."""
+    deadline = time.monotonic() + timeout_s
+    for thread in threads:
+        thread.join(max(0.0, deadline - time.monotonic()))
+    if late := [thread.name for thread in threads if thread.is_alive()]:
+        logger.warning("stopping without waiting for %s", ", ".join(late))
 
 
 def _announce(store: JobStore, owner: str, stopped: threading.Event, *, ready: bool = True) -> None:
