@@ -1,8 +1,10 @@
 """Does a physical result move with the time step? Each fixed rule's success, and the exact
 gradient's bound, at dt, dt/2 and dt/4, with each sensor, at robot radii 1, 2 and 5 um, in the
-'tumour-microswimmers' world (one cell, 40 obstacles, 20 robots, 60 s), paired by seed.
+'tumour-microswimmers' world (one cell, 40 obstacles, 20 robots, 60 s), paired by seed; or in
+another preset's, such as 'tumour-signals' (robots bound to a cell call the others with an
+attractant that they count as they count the biomarker).
 
-    python benchmarks/convergence.py [--seeds N] [--seeds-from S] [--worlds N]
+    python benchmarks/convergence.py [--preset P] [--seeds N] [--seeds-from S] [--worlds N]
                                      [--sensors S,S] [--radii R,R] [--policies P,P]
                                      [--dt DT,DT,...] [--quick]
 
@@ -36,17 +38,18 @@ DT_S = (0.01, 0.005, 0.0025)
 # seeds no document has reported on (the documentation's tables use 0-99 and 5000-5099)
 FRESH_SEEDS = 7000
 
-Job = tuple[str, float, str, float, int, int]
+Job = tuple[str, float, str, float, int, int, str]
 
 
 def run_one(job: Job) -> float:
-    """The share of robots that reach the cell in one run."""
-    sensor, radius, policy, dt, seed, worlds = job
-    return reached(radius, seed, worlds, policy, {"dt_s": dt, "sensor": sensor})
+    """The share of robots that reach a cell in one run."""
+    sensor, radius, policy, dt, seed, worlds, preset = job
+    return reached(radius, seed, worlds, policy, {"dt_s": dt, "sensor": sensor}, preset=preset)
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
+    parser.add_argument("--preset", default=PRESET, help="the world (default: %(default)s)")
     parser.add_argument("--seeds", type=int, default=10)
     parser.add_argument("--seeds-from", type=int, default=FRESH_SEEDS)
     parser.add_argument("--worlds", type=int, default=4, help="evaluation worlds per run")
@@ -65,14 +68,14 @@ def main(argv: list[str] | None = None) -> int:
     steps = tuple(float(dt) for dt in args.dt.split(","))
     worlds = 1 if args.quick else args.worlds
     jobs: list[Job] = [
-        (sensor, radius, policy, dt, seed, worlds)
+        (sensor, radius, policy, dt, seed, worlds, args.preset)
         for sensor in sensors for radius in radii for policy in policies for dt in steps
         for seed in seeds
     ]  # fmt: skip
     started = time.perf_counter()
     done = in_parallel(run_one, jobs)
     print(
-        f"{PRESET}, 60 s: share of robots that reach the cell, {len(seeds)} seeds (from "
+        f"{args.preset}, 60 s: share of robots that reach a cell, {len(seeds)} seeds (from "
         f"{args.seeds_from}) x {worlds} worlds, paired by seed; the finest step minus the "
         "coarsest holds when within the half-width of the coarsest's 95 % interval\n"
     )
@@ -86,7 +89,7 @@ def main(argv: list[str] | None = None) -> int:
             for policy in policies:
 
                 def shares(dt: float, key: Any = (sensor, radius, policy)) -> list[float]:
-                    return [done[(*key, dt, seed, worlds)] for seed in seeds]
+                    return [done[(*key, dt, seed, worlds, args.preset)] for seed in seeds]
 
                 coarse, finest = shares(steps[0]), shares(steps[-1])
                 moved = stats.paired(finest, coarse)

@@ -35,6 +35,7 @@ PresetName = Literal[
     "tumour-microswimmers",
     "tumour-nanorobots",
     "tumour-passive",
+    "tumour-signals",
     "diffuse-tumour",
     "alonso-kirkegaard",
 ]
@@ -1126,6 +1127,10 @@ class Scenario(_Part):
         "touching it and take up space (hard spheres), 60 s; 'tumour-nanorobots', the same "
         "with robots of 0.2 µm; "
         "'tumour-passive', robots of 1 µm that do not swim (uncontrolled, speed 0); "
+        "'tumour-signals', the same tissue with 5 cells that each need 3 payloads and 40 "
+        "robots of 1 µm following 'gradient': a robot bound to a cell releases an attractant "
+        "(10,000 molecules/s, D 100 µm²/s, decay 0.1 /s) that the others count as they count "
+        "the biomarker, and follow where the biomarker is at trace level; "
         "'alonso-kirkegaard', the setting of Alonso & Kirkegaard (PNAS Nexus 2024) in three "
         "dimensions: one robot of 0.5 µm at 5 µm/s, D_R 0.025 1/s, no translational noise, "
         "deciding and counting molecules every 0.1 s, turning up to π per decision, one still "
@@ -1751,6 +1756,15 @@ PRESETS.update(
         "tumour-nanorobots": deep_merge(TUMOUR, {"physics": {"robot_radius_um": 0.2}}),
         "tumour-passive": deep_merge(
             TUMOUR, {"physics": {"swim_speed_um_s": 0.0}, "robots": {"policy": "uncontrolled"}}
+        ),
+        # signalling in the tissue: robots bound to a cell call the others with an attractant
+        "tumour-signals": deep_merge(
+            TUMOUR,
+            {
+                "cells": {"count": 5, "capacity": 3},
+                "robots": {"count": 40, "policy": "gradient"},
+                "communication": {"model": "attractant"},
+            },
         ),
     }
 )

@@ -3,10 +3,14 @@
 Chemical signals ('attractant', 'attractant_repellent'): every robot bound to a cell releases,
 each solver step, into the grid of ``signals`` (species 0 the attractant; species 1 the
 repellent, released instead once its cell is treated), which then diffuses and decays. A robot
-reads the net signal, attractant minus repellent, and its gradient where it is, with the noise
-rules it reads the biomarker with. 'broadcast': an engineered radio; a robot that reaches a cell
-sends its position to every robot within range (found in a cell list as wide as the range), who
-keeps the nearest message it was sent until it gets there.
+reads the net signal, attractant minus repellent, and its gradient where it is, as it reads the
+biomarker: in the lattice with its noise rules; in the active Brownian physics with sensor
+'counted', by counting each species' molecules that its six receptor patches took in over the
+window just past (``sensing.absorb``, ``sensing.count_patches``), a count known at the window's
+end and held until the next; with sensor 'each_step', at the Berg-Purcell limit each step.
+'broadcast': an engineered radio; a robot that reaches a cell sends its position to every
+robot within range (found in a cell list as wide as the range), who keeps the nearest message
+it was sent until it gets there.
 
 A room of its own because signalling is apart from how robots move and from what they decide to
 do with what they receive. Everything here runs under numba.
@@ -24,6 +28,7 @@ from nanonav.engine import signals
 from nanonav.engine.compiled import inlined
 from nanonav.engine.contacts import CellList, each_within
 from nanonav.engine.dynamics.brownian import read_counted
+from nanonav.engine.sensing import RECEPTOR_PATCHES, absorb, count_patches
 from nanonav.engine.state import (
     ACTIVE_BROWNIAN,
     ATTRACTANT_REPELLENT,
@@ -41,6 +46,10 @@ ATTRACTANT_RISING = 1
 ATTRACTANT_FALLING = 2
 REPELLENT = 3
 MESSAGE = 1  # broadcast: a message is waiting
+
+# sensor 'counted': ``Social.signal_flux`` holds each species' patches (``RECEPTOR_PATCHES``
+# columns a species, at most two species), then the window's steps
+SIGNAL_STEPS = 2 * RECEPTOR_PATCHES
 
 
 @njit(cache=True, error_model="numpy")
@@ -136,6 +145,74 @@ def receive(
 
 
 @inlined
+def take_in_signal(
+    p: KernelParams, grid: NDArray[np.float64], pos: NDArray[np.float64], so: Social, i: int,
+    steps: float,
+) -> None:  # fmt: skip
+    """Robot ``i``'s receptor patches take in ``steps`` steps' molecules of each species where
+    it is now, on average, added to its window's."""
+    for species in range(grid.shape[0]):
+        c, dx, dy, dz = signals.sample(
+            grid, p.signal_origin, p.signal_spacing, p.signal_dims, species,
+            pos[i, 0], pos[i, 1], pos[i, 2],
+        )  # fmt: skip
+        absorb(
+            so.signal_flux[i], species * RECEPTOR_PATCHES, p.signal_patch_rate,
+            p.signal_patch_gradient_rate, max(c, 0.0), dx, dy, dz, steps,
+        )  # fmt: skip
+    so.signal_flux[i, SIGNAL_STEPS] += steps
+
+
+@inlined
+def count_signal(
+    p: KernelParams, rng: np.random.Generator, species_count: int, so: Social, i: int
+) -> None:
+    """Robot ``i`` counts the molecules of each species that its patches took in over the
+    window just past: the net signal is the attractant's counts less the repellent's, each over
+    what the body takes in a window at 1 nM; its gradient, their patches' differences over
+    twice a patch's gradient rate. The last count becomes ``prev_signal``; the window starts
+    anew."""
+    steps = so.signal_flux[i, SIGNAL_STEPS]
+    net = 0.0
+    gx = 0.0
+    gy = 0.0
+    gz = 0.0
+    for species in range(species_count):
+        sign = 1.0 if species == ATTRACTANT_SPECIES else -1.0
+        total, dx, dy, dz = count_patches(rng, so.signal_flux[i], species * RECEPTOR_PATCHES)
+        net += sign * total / (RECEPTOR_PATCHES * steps * p.signal_patch_rate)
+        across = sign / (2.0 * steps * p.signal_patch_gradient_rate)
+        gx += dx * across
+        gy += dy * across
+        gz += dz * across
+    so.prev_signal[i] = so.signal[i]
+    so.signal[i] = net
+    so.signal_grad[i, 0] = gx
+    so.signal_grad[i, 1] = gy
+    so.signal_grad[i, 2] = gz
+    so.signal_flux[i, :] = 0.0
+
+
+@inlined
+def counted_signal(
+    p: KernelParams, rng: np.random.Generator, grid: NDArray[np.float64],
+    pos: NDArray[np.float64], so: Social, i: int,
+) -> tuple[float, float, float, float]:  # fmt: skip
+    """Robot ``i``'s net signal and its gradient with sensor 'counted': a count in the steps
+    that end a window, held between (a robot starts having counted a window where it starts),
+    then this step's molecules taken in for the next."""
+    if so.signal_flux[i, SIGNAL_STEPS] == 0.0:
+        take_in_signal(p, grid, pos, so, i, float(p.window))
+    if so.signal_flux[i, SIGNAL_STEPS] >= p.window:
+        count_signal(p, rng, grid.shape[0], so, i)
+    take_in_signal(p, grid, pos, so, i, 1.0)
+    net = so.signal[i]
+    if abs(net) <= p.signal_threshold:
+        return net, 0.0, 0.0, 0.0
+    return net, so.signal_grad[i, 0], so.signal_grad[i, 1], so.signal_grad[i, 2]
+
+
+@inlined
 def received(p: KernelParams, net: float, prev: float) -> int:
     """The state's 'signal' of a chemical reading: nothing, an attractant rising or not, or a
     repellent."""
@@ -201,14 +278,17 @@ def listen(
 ) -> tuple[int, float, float, float]:  # fmt: skip
     """What robot ``i`` receives this step: the state's 'signal', and the way it points (up
     the net signal, or toward the message it holds, dropped within ``arrived`` of it); the
-    reading is kept in ``so.signal`` (broadcast: 1 while a message waits)."""
+    reading is kept in ``so.signal``, the one before in ``so.prev_signal`` (broadcast: 1 while
+    a message waits)."""
     if p.signal == BROADCAST:
         ux, uy, uz = toward_message(p, pos, so, i, arrived)
         heard = MESSAGE if so.has_message[i] else NOTHING
         so.signal[i] = heard
         return heard, ux, uy, uz
-    net, ux, uy, uz = receive(p, rng, grid, pos[i, 0], pos[i, 1], pos[i, 2])
-    heard = received(p, net, so.prev_signal[i])
-    so.prev_signal[i] = net
-    so.signal[i] = net
-    return heard, ux, uy, uz
+    if p.counted:
+        net, ux, uy, uz = counted_signal(p, rng, grid, pos, so, i)
+    else:
+        net, ux, uy, uz = receive(p, rng, grid, pos[i, 0], pos[i, 1], pos[i, 2])
+        so.prev_signal[i] = so.signal[i]
+        so.signal[i] = net
+    return received(p, net, so.prev_signal[i]), ux, uy, uz

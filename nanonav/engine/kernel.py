@@ -136,6 +136,8 @@ def begin_episode(
     so.bumps[:] = 0
     so.signal[:] = 0.0
     so.prev_signal[:] = 0.0
+    so.signal_grad[:] = 0.0
+    so.signal_flux[:] = 0.0
     so.has_message[:] = False
     tr.treated_sources[0] = 0
     tr.load[:] = 0

@@ -345,12 +345,11 @@ def perceive(
         arrived = max(p.cell_sensing_radius, p.speed)
         if p.physics == ACTIVE_BROWNIAN:
             arrived = max(p.cell_sensing_radius + p.reach_distance, p.speed)
-        before = so.prev_signal[i]
         heard, ux, uy, uz = radio_room.listen(p, rng, sim.sig, s.pos, so, i, arrived)
         state = state * p.signal_states + heard
         pc.obs[i, OBS_SIGNAL] = so.signal[i]
         if p.signal != BROADCAST:
-            pc.obs[i, OBS_SIGNAL_CHANGE] = so.signal[i] - before
+            pc.obs[i, OBS_SIGNAL_CHANGE] = so.signal[i] - so.prev_signal[i]
     pc.state[i] = state
     pc.heard[i] = heard
     pc.target[i] = cell
@@ -626,12 +625,14 @@ def respond(
 @uncounted
 def _heard(p: KernelParams, rng: np.random.Generator, sim: Sim, i: int) -> int:
     """What robot ``i`` would receive where it ended (the state's 'signal'), without taking
-    it in, for the episode's last bootstrap."""
+    it in, for the episode's last bootstrap (sensor 'counted': its last count, held)."""
     s = sim.s
     if p.signal == BROADCAST:
         return 1 if sim.so.has_message[i] else 0
+    if p.counted:
+        return radio_room.received(p, sim.so.signal[i], sim.so.prev_signal[i])
     net = radio_room.receive(p, rng, sim.sig, s.pos[i, 0], s.pos[i, 1], s.pos[i, 2])[0]
-    return radio_room.received(p, net, sim.so.prev_signal[i])
+    return radio_room.received(p, net, sim.so.signal[i])
 
 
 @episodic

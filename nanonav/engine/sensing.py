@@ -154,17 +154,52 @@ def poisson_count(rng: np.random.Generator, mean: float) -> float:
 
 
 @inlined
+def absorb(
+    flux: NDArray[np.float64], first: int, rate: float, gradient_rate: float, c: float,
+    gx: float, gy: float, gz: float, steps: float,
+) -> None:  # fmt: skip
+    """What six receptor patches (+x, -x, +y, -y, +z, -z) of an absorbing body take in over
+    ``steps`` steps at a concentration c at its centre and a gradient g, on average, added to
+    ``flux[first:first + 6]``: ``rate`` * c a patch and ``gradient_rate`` * g more toward it
+    (the field to first order across the body; none where that order would give less than
+    none). The biomarker's and the signals' counts both take in so."""
+    for k in range(3):
+        g = gx if k == 0 else (gy if k == 1 else gz)
+        flux[first + 2 * k] += steps * max(rate * c + gradient_rate * g, 0.0)
+        flux[first + 2 * k + 1] += steps * max(rate * c - gradient_rate * g, 0.0)
+
+
+@inlined
+def count_patches(
+    rng: np.random.Generator, flux: NDArray[np.float64], first: int
+) -> tuple[float, float, float, float]:
+    """The six patches' Poisson counts of what they took in (``flux[first:first + 6]``, from
+    ``absorb``): their sum, and along each axis the count ahead less the count behind."""
+    total = 0.0
+    dx = 0.0
+    dy = 0.0
+    dz = 0.0
+    for k in range(3):
+        ahead = poisson_count(rng, flux[first + 2 * k])
+        behind = poisson_count(rng, flux[first + 2 * k + 1])
+        total += ahead + behind
+        if k == 0:
+            dx = ahead - behind
+        elif k == 1:
+            dy = ahead - behind
+        else:
+            dz = ahead - behind
+    return total, dx, dy, dz
+
+
+@inlined
 def take_in(p: KernelParams, s: Swarm, i: int, steps: float) -> None:
     """Robot ``i``'s receptor patches take in ``steps`` steps' molecules where it is now, on
-    average: what a patch of an absorbing body takes in (the field to first order across the
-    body; none where that order would give less than none), added to its window's."""
-    c = s.reading[i]
-    for k in range(3):
-        g = s.reading_grad[i, k]
-        ahead = max(p.patch_rate * c + p.patch_gradient_rate * g, 0.0)
-        behind = max(p.patch_rate * c - p.patch_gradient_rate * g, 0.0)
-        s.window_flux[i, 2 * k] += steps * ahead
-        s.window_flux[i, 2 * k + 1] += steps * behind
+    average (``absorb``), added to its window's."""
+    absorb(
+        s.window_flux[i], 0, p.patch_rate, p.patch_gradient_rate, s.reading[i],
+        s.reading_grad[i, 0], s.reading_grad[i, 1], s.reading_grad[i, 2], steps,
+    )  # fmt: skip
     s.window_flux[i, WINDOW_STEPS] += steps
 
 
@@ -182,12 +217,10 @@ def count_molecules(
     counts' exponential average (``gradient_weight``, from physics.gradient_memory_s) but at
     the ``first`` count. The window starts anew."""
     steps = s.window_flux[i, WINDOW_STEPS]
-    total = 0.0
+    total, dx, dy, dz = count_patches(rng, s.window_flux[i], 0)
     for k in range(3):
-        ahead = poisson_count(rng, s.window_flux[i, 2 * k])
-        behind = poisson_count(rng, s.window_flux[i, 2 * k + 1])
-        total += ahead + behind
-        g_count = (ahead - behind) / (2.0 * steps * p.patch_gradient_rate)
+        difference = dx if k == 0 else (dy if k == 1 else dz)
+        g_count = difference / (2.0 * steps * p.patch_gradient_rate)
         if first or p.gradient_weight >= 1.0:
             s.sensed_grad[i, k] = g_count
         else:

@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from nanonav.engine import (
+    communication,
     contacts,
     fields,
     kernel,
@@ -134,14 +135,23 @@ def _swarm_params(scenario: Scenario, params: KernelParams) -> KernelParams:
     number of engine steps, or a whole number of solver steps per engine step)."""
     comm = scenario.communication
     diffusion, decay, release = scenario.signal_rates
-    # Berg-Purcell for the signal: a reading of c nM counts pi D a c dt molecules
-    signal_counting = 0.0
-    if scenario.physics.model == "active_brownian":
-        radius = scenario.physics.robot_radius_um
+    # sensor 'each_step': a reading of c nM of the signal counts pi D a c dt molecules (as the
+    # biomarker's); 'counted': the signal's molecules counted as the biomarker's are, by the
+    # same receptor patches, with the signal's diffusion coefficient
+    signal_counting = signal_patch_rate = signal_patch_gradient_rate = 0.0
+    ph = scenario.physics
+    if ph.model == "active_brownian":
+        radius = ph.robot_radius_um
         signal_counting = (
-            math.pi * comm.diffusion_um2_s * radius * scenario.physics.step_s
-            * MOLECULES_PER_UM3_PER_NM
+            math.pi * comm.diffusion_um2_s * radius * ph.step_s * MOLECULES_PER_UM3_PER_NM
+        )
+    if ph.model == "active_brownian" and ph.sensor == "counted":
+        per_nm, per_gradient = brownian.patch_rates(
+            comm.diffusion_um2_s, radius,
+            *brownian.absorbed_fractions(ph.receptors, ph.receptor_radius_nm * 1e-3, radius),
         )  # fmt: skip
+        signal_patch_rate = per_nm * ph.step_s
+        signal_patch_gradient_rate = per_gradient * ph.step_s
     grid = signal_grid(scenario)
     every, substeps = scenario.signal_solver_steps
     return params._replace(
@@ -159,6 +169,8 @@ def _swarm_params(scenario: Scenario, params: KernelParams) -> KernelParams:
         # the biomarker's noise rules hold for the signal too, its detection threshold with them
         signal_threshold=max(comm.threshold, params.detection_threshold),
         signal_counting=signal_counting,
+        signal_patch_rate=signal_patch_rate,
+        signal_patch_gradient_rate=signal_patch_gradient_rate,
         signal_origin=grid.origin,
         signal_spacing=grid.spacing,
         signal_dims=grid.dims,
@@ -410,6 +422,8 @@ def episode_arrays(scenario: Scenario) -> EpisodeArrays:
         bumps=np.zeros(n, dtype=np.int64),
         signal=np.zeros(n),
         prev_signal=np.zeros(n),
+        signal_grad=np.zeros((n, 3)),
+        signal_flux=np.zeros((n, communication.SIGNAL_STEPS + 1)),
         message=np.zeros((n, 3)),
         has_message=np.zeros(n, dtype=np.bool_),
     )

@@ -126,6 +126,10 @@ class KernelParams(NamedTuple):
     signal_release: float = 0.0  # amount one bound robot releases per engine step
     signal_threshold: float = 0.0  # a net signal above it is received
     signal_counting: float = 0.0  # active Brownian: molecules counted per nM of signal read
+    # sensor 'counted': what a receptor patch takes in of a signal in a step, per nM at the
+    # body's centre and per nM/um toward it (its counts share the biomarker's ``window``)
+    signal_patch_rate: float = 0.0
+    signal_patch_gradient_rate: float = 0.0
     signal_origin: float = 0.0
     signal_spacing: float = 1.0
     signal_dims: int = 1
@@ -191,8 +195,14 @@ class Social(NamedTuple):
 
     bound_to: NDArray[np.int64]  # the cell it delivered its payload to, -1 while it carries it
     bumps: NDArray[np.int64]  # moves refused because another robot was in the way
-    signal: NDArray[np.float64]  # the net signal it read this step (attractant - repellent)
-    prev_signal: NDArray[np.float64]  # and the step before
+    signal: NDArray[np.float64]  # the net signal it read last (attractant - repellent)
+    prev_signal: NDArray[np.float64]  # and the reading before (sensor 'counted': the count)
+    # sensor 'counted': the net signal's gradient its last count gave, (N, 3), world frame
+    signal_grad: NDArray[np.float64]
+    # sensor 'counted': what each species' six receptor patches took in so far in the window,
+    # species by species (``SIGNAL_PATCHES`` columns each), then (column ``SIGNAL_STEPS``)
+    # the window's steps so far
+    signal_flux: NDArray[np.float64]
     message: NDArray[np.float64]  # (N, 3) broadcast: the position it was sent
     has_message: NDArray[np.bool_]
 

@@ -240,8 +240,9 @@ def _swarm_at(b: Swarm, k: int) -> Swarm:
 @inlined
 def _social_at(b: Social, k: int) -> Social:
     return Social(
-        b.bound_to[k], b.bumps[k], b.signal[k], b.prev_signal[k], b.message[k], b.has_message[k]
-    )
+        b.bound_to[k], b.bumps[k], b.signal[k], b.prev_signal[k], b.signal_grad[k],
+        b.signal_flux[k], b.message[k], b.has_message[k],
+    )  # fmt: skip
 
 
 @inlined

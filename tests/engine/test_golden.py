@@ -96,6 +96,10 @@ def _cases() -> dict[str, dict[str, Any]]:
         cases[f"active_brownian signal {model}"] = _merge(
             MICROSWIMMERS, SHORT_SI, TREATED, CROWDED, {"communication": {"model": model}}
         )
+    for model in ("attractant", "attractant_repellent"):
+        cases[f"active_brownian counted signal {model}"] = _merge(
+            MICROSWIMMERS, SHORT_SI, TREATED, CROWDED, COUNTED, {"communication": {"model": model}}
+        )
     cases["active_brownian treatment, per-robot tables"] = _merge(
         MICROSWIMMERS,
         SHORT_SI,

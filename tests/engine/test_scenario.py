@@ -37,6 +37,7 @@ def test_presets_give_the_papers_figures_and_fields_override_them() -> None:
         "tumour-microswimmers",
         "tumour-nanorobots",
         "tumour-passive",
+        "tumour-signals",
         "diffuse-tumour",
         "alonso-kirkegaard",
     }
