@@ -1,17 +1,19 @@
 """The paper's question asked physically: does steering, or learning, help a robot find a tumour
 cell, and for robots of what size? Active Brownian robots of radius 0.2 to 5 um in the
 'tumour-microswimmers' world (one cell among 40 tissue obstacles, 20 robots swimming at 10 um/s,
-60 s), each policy on the same seeds, paired with the robot that does not steer, with a passive
-one (speed 0) and with 'gradient', the strongest fixed rule (the bar a learner must clear).
+60 s), each policy on the same seeds, paired with the robot that does not steer, with the blind
+tumbler (the rules' motion, reading nothing: a gain over it is steering), with a passive one
+(speed 0) and with 'gradient', the strongest fixed rule (the bar a learner must clear).
 
     python benchmarks/physical_question.py [--seeds N] [--seeds-from S] [--worlds N]
                                            [--sensor counted|each_step] [--quick]
 
 For every radius: the Peclet numbers, the share of robots that reach the cell within the time
 limit and the time it takes (mean over seeds of each run's mean over its evaluation worlds, with
-the 95 % interval), and each policy minus 'uncontrolled', minus a passive robot and minus
-'gradient', paired by seed. q_learning is the default learner (a decision a second, 50
-episodes). 'exact_gradient' steers by the true gradient: an upper bound no robot has.
+the 95 % interval), and each policy minus 'uncontrolled', minus 'blind_tumble' (at the default
+tumble rate), minus a passive robot and minus 'gradient', paired by seed. q_learning is the
+default learner (a decision a second, 50 episodes). 'exact_gradient' steers by the true
+gradient: an upper bound no robot has.
 """
 
 from __future__ import annotations
@@ -33,6 +35,7 @@ from nanonav.scenario import preset_scenario
 RADII = (0.2, 0.5, 1.0, 2.0, 5.0)
 POLICIES = (
     "uncontrolled",
+    "blind_tumble",
     "run_and_tumble",
     "steer_and_tumble",
     "gradient",
@@ -161,18 +164,20 @@ def main(argv: list[str] | None = None) -> int:
         )
         passive = [r["summary"]["success_rate"] for r in runs("uncontrolled", 0.0)]
         floating = [r["summary"]["success_rate"] for r in runs("uncontrolled")]
+        blind = [r["summary"]["success_rate"] for r in runs("blind_tumble")]
         bar = [r["summary"]["success_rate"] for r in runs("gradient")]
         header = ("policy", "reached", "time to reach (s; the limit if not)", "minus uncontrolled",
-                  "minus passive", "minus gradient")  # fmt: skip
+                  "minus blind_tumble", "minus passive", "minus gradient")  # fmt: skip
         rows = [("passive (speed 0)", mean_ci(passive),
                  mean_ci([r["physics"]["time_to_reach_s"] for r in runs("uncontrolled", 0.0)],
-                         1, (0.0, float("inf"))), "", "", paired(passive, bar))]  # fmt: skip
+                         1, (0.0, float("inf"))), "", "", "", paired(passive, bar))]  # fmt: skip
         for policy in POLICIES:
             found = runs(policy)
             success = [r["summary"]["success_rate"] for r in found]
             times = [r["physics"]["time_to_reach_s"] for r in found]
             rows.append((policy, mean_ci(success), mean_ci(times, 1, (0.0, float("inf"))),
                          paired(success, floating) if policy != "uncontrolled" else "",
+                         paired(success, blind) if policy != "blind_tumble" else "",
                          paired(success, passive),
                          paired(success, bar) if policy != "gradient" else ""))  # fmt: skip
         widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(header)]

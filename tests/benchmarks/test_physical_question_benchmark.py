@@ -22,5 +22,6 @@ def test_the_question_prints_every_radius_and_policy(capsys: pytest.CaptureFixtu
     assert out.count("passive (speed 0)") == 2 and "Pe_R" in out
     # every policy but the bar is paired with it, and the passive robot too
     assert len(re.findall(r"minus gradient", out)) == 2
+    assert len(re.findall(r"minus blind_tumble", out)) == 2
     for policy in ("passive \\(speed 0\\)", "q_learning", "exact_gradient"):
         assert len(re.findall(rf"^  {policy}\s.*[+-]\d\.\d\d \[.*\]\*?\s*$", out, re.M)) == 2
