@@ -4,6 +4,7 @@ one (Stable-Baselines3's) in one run, beside the raw env's rate with random acti
 
     python benchmarks/train_speed.py               # about six minutes
     python benchmarks/train_speed.py --libraries   # the maintained libraries at our settings
+    python benchmarks/train_speed.py --gru         # the recurrent update, old GRU and new
     python benchmarks/train_speed.py --quick       # a smoke run
 
 The world is 'alonso-kirkegaard' (one robot, a decision every 0.1 s = 10 engine steps, three
@@ -22,6 +23,9 @@ says: decisions over the wall-clock seconds of the training loop.
   (1,024 worlds, 64-decision rollouts, 4 epochs, minibatches of 8,192; an LSTM of 25), and
   TorchRL's PPO loss and GAE (``ClipPPOLoss``, ``GAE``) learning from our rollouts (its
   collector not used: an upper bound on its rate), where TorchRL is installed.
+- ``--gru``: one recurrent update (GRU-25, 1,024 worlds, a 64-decision rollout) with the
+  GRU stepped by ``nanonav.rl.gru`` and by ``nn.GRUCell`` in a loop (as before it), the two
+  alternated six times in one process on the same rollout: the seconds of each (median).
 """
 
 from __future__ import annotations
@@ -30,6 +34,7 @@ import argparse
 import json
 import multiprocessing
 import os
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -177,6 +182,46 @@ def _torchrl(worlds: int, rollouts: int) -> dict[str, Any]:
     return {"decisions_per_s": _steps(worlds, rollouts) / (time.perf_counter() - started)}
 
 
+def gru_update(worlds: int, repeats: int) -> dict[str, list[float]]:
+    """Seconds of one recurrent update, the GRU stepped by ``nanonav.rl.gru`` ("new") and by
+    ``nn.GRUCell`` in a loop ("old"), alternated on the same rollout."""
+    import torch
+
+    import nanonav.rl.networks as networks
+    from nanonav.env.arrays import NanoNavArrayEnv
+    from nanonav.rl.ppo import PPO, PPOConfig
+    from nanonav.rl.training import keep_freed_memory
+    from nanonav.scenario import preset_scenario
+
+    torch.set_num_threads(1)
+    keep_freed_memory()
+
+    def cell_loop(cell: Any, x: Any, memory: Any, starts: Any) -> Any:
+        keep = (~starts).unsqueeze(-1).to(x.dtype)
+        outputs, h = [], memory
+        for t in range(x.shape[1]):
+            h = cell(x[:, t], h * keep[:, t])
+            outputs.append(h)
+        return torch.stack(outputs, dim=1)
+
+    env = NanoNavArrayEnv(worlds, preset_scenario(PRESET, seed=SEED))
+    learner = PPO(env, PPOConfig(envs=worlds, memory_units=25))
+    learner.learn(worlds * 64)
+    learner._collect()
+    ways = {"new": networks.gru_sequence, "old": cell_loop}
+    seconds: dict[str, list[float]] = {name: [] for name in ways}
+    try:
+        for _ in range(repeats):
+            for name, way in ways.items():
+                networks.gru_sequence = way
+                started = time.perf_counter()
+                learner._update()
+                seconds[name].append(time.perf_counter() - started)
+    finally:
+        networks.gru_sequence = ways["new"]
+    return seconds
+
+
 def _spin(stop: Any) -> None:
     while not stop.is_set():
         sum(range(10_000))
@@ -261,8 +306,19 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="a smoke run")
     parser.add_argument("--libraries", action="store_true", help="the libraries, only")
+    parser.add_argument("--gru", action="store_true", help="the recurrent update, old and new")
     parser.add_argument("--measure", help=argparse.SUPPRESS)  # one case, in this process
     args = parser.parse_args(argv)
+    if args.gru:
+        worlds = 64 if args.quick else 1024
+        seconds = gru_update(worlds, 2 if args.quick else 6)
+        print(f"one recurrent update (GRU-25, {worlds:,} worlds x 64 decisions), seconds, "
+              "alternated in one process:")  # fmt: skip
+        for name, found in seconds.items():
+            way = "nanonav.rl.gru" if name == "new" else "nn.GRUCell in a loop"
+            print(f"  {name} ({way}): median {statistics.median(found):.3f}  "
+                  f"({', '.join(f'{x:.3f}' for x in found)})")  # fmt: skip
+        return 0
     every = cases(args.quick)
     if args.measure:
         print(json.dumps(every[args.measure][1]()))

@@ -5,7 +5,7 @@ export as ONNX (``nanonav.rl.export``).
 
 Each call takes every world at once: the rollout asks for one batched forward a decision
 (``act``), the update for one a minibatch (``evaluate``), a recurrent one stepping its memory
-through each minibatch's sequences.
+through each minibatch's sequences (``nanonav.rl.gru``).
 """
 
 from __future__ import annotations
@@ -15,6 +15,8 @@ from typing import Literal, NamedTuple
 
 import torch
 from torch import Tensor, nn
+
+from nanonav.rl.gru import gru_sequence
 
 Activation = Literal["relu", "tanh"]
 ACTIVATIONS: tuple[Activation, ...] = ("relu", "tanh")
@@ -198,14 +200,8 @@ class ActorCritic(nn.Module):
         if self.memory is None:
             features = self.normaliser(obs.reshape(-1, self.width))
         else:
-            x = self.normaliser(obs)
-            keep = (~starts).unsqueeze(-1).to(x.dtype)
-            outputs = []
-            h = memory
-            for t in range(x.shape[1]):
-                h = self.memory(x[:, t], h * keep[:, t])
-                outputs.append(h)
-            features = torch.stack(outputs, dim=1).reshape(-1, self.memory_units)
+            steps = gru_sequence(self.memory, self.normaliser(obs), memory, starts)
+            features = steps.reshape(-1, self.memory_units)
         features = self.torso(features)
         head = self.actor(features)
         flat = action.reshape(-1, self.actions) if self.continuous else action.reshape(-1)

@@ -36,3 +36,15 @@ def test_train_speed_benchmark_prints_old_and_new_beside_the_raw_env(
     assert rate("new, MLP, 64 worlds, 1 thread") > 0
     assert rate("new, MLP, 64 worlds, 2 threads") > 0
     assert "target: 100,000 decisions a second" in out
+
+
+def test_the_recurrent_update_is_timed_with_the_new_gru_and_the_cell_loop_alternately(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    assert train_speed.main(["--gru", "--quick"]) == 0
+    out = capsys.readouterr().out
+    for name in ("new (nanonav.rl.gru)", "old (nn.GRUCell in a loop)"):
+        pattern = rf"^  {re.escape(name)}: median ([\d.]+)  \(([\d.]+), ([\d.]+)\)$"
+        row = re.search(pattern, out, re.M)
+        assert row, out
+        assert float(row.group(1)) > 0
