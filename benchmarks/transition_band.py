@@ -1,0 +1,271 @@
+"""The transition band asked with the anchor's budgets: in 'alonso-kirkegaard', does a learner
+trained for 10^8 to 10^9 decisions beat the strongest rule, for robots of what size?
+
+    python benchmarks/transition_band.py train --radius 1 --learner gru --decisions 100000000
+    python benchmarks/transition_band.py report [--seeds 20] [--worlds 20]
+    python benchmarks/transition_band.py --quick          # a smoke run of both
+
+``train`` trains one learner at one radius with NanoNav's trainer (``nanonav.rl.training``)
+into ``runs/transition-band/R-um-LEARNER`` (``--out``), in stages of 10^6, 3 x 10^6, 10^7, ...
+decisions up to ``--decisions``; after each stage it evaluates the policy on the curve seeds
+and adds a point to the run's ``curve.json``. Each stage resumes from the last checkpoint, so
+a run that was stopped (a session's end, a kill) goes on where it stood when ``train`` is
+given again, and a longer ``--decisions`` extends a finished one.
+
+- ``gru``: a GRU of 25 units then a 64x64 torso the actor and the critic share (the trainer's
+  fast recurrent setting; Alonso & Kirkegaard's memory size); ``mlp``: no memory, the same
+  torso. Both observe what the rule reads: the count, its change, and the gradient of the
+  counts averaged over the rule's own gradient memory at that radius.
+- Training worlds are drawn from seed 100,000 on (world k of ``--envs`` from 100,000 + k), far
+  from every seed evaluated here.
+- The rule: ``gradient`` with the gradient memory the design seeds chose at each radius
+  (``python benchmarks/strongest_rule.py --preset alonso-kirkegaard`` on seeds 5000-5009,
+  among 29 rules that include temporal comparison, run and tumble on the change of the counts,
+  and the remembered spatial gradient: 2 s at 0.5 and 1 um, 0.5 s at 2 um).
+
+``report`` evaluates every finished run in ``--out`` on two sets of fresh seeds (7100.. and
+7200.., ``--seeds`` x ``--worlds`` worlds each), beside the rule in the same worlds: the share
+of episodes that reach the source, each learner minus the rule paired by seed with its 95 %
+interval and Wilcoxon's p, Holm over every comparison of the set; and draws ``curves.png``:
+each run's success on the curve seeds against the decisions it was trained for, with the
+rule's level on the same seeds.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from science import mean_ci
+
+from nanonav import stats
+from nanonav.engine import simulate
+from nanonav.engine.worlds import action_labels, observation_of
+from nanonav.scenario import Scenario, preset_scenario
+
+PRESET = "alonso-kirkegaard"
+TIME_LIMIT_S = 25.6
+RADII = (0.5, 1.0, 2.0)
+# the strongest rule's gradient memory, s, at each radius (design seeds; see the docstring)
+RULE_MEMORY_S = {0.5: 2.0, 1.0: 2.0, 2.0: 0.5}
+LEARNERS = ("gru", "mlp")
+TRAINING_SEED = 100_000
+CURVE_SEEDS = 8000
+REPORT_FROM = (7100, 7200)
+STAGES = (10**6, 3 * 10**6, 10**7, 3 * 10**7, 10**8, 3 * 10**8, 10**9, 3 * 10**9)
+OUT = Path("runs/transition-band")
+
+
+def memory_s(radius: float) -> float:
+    """The rule's gradient memory at ``radius`` (the nearest radius the design seeds chose for)."""
+    nearest = min(RULE_MEMORY_S, key=lambda r: abs(r - radius))
+    return RULE_MEMORY_S[nearest]
+
+
+def scenario(radius: float, seed: int, worlds: int, policy: str = "q_learning") -> Scenario:
+    """The preset with one robot of ``radius`` um that remembers its counts' gradient as the
+    rule does, over 25.6 s, evaluated in ``worlds`` worlds."""
+    physics = {"model": "active_brownian", "time_limit_s": TIME_LIMIT_S,
+               "robot_radius_um": radius, "gradient_memory_s": memory_s(radius)}  # fmt: skip
+    return preset_scenario(
+        PRESET, seed=seed, physics=physics, robots={"policy": policy},
+        learning={"episodes": 0}, evaluation={"worlds": worlds},
+    )  # fmt: skip
+
+
+def folder(out: Path, radius: float, learner: str) -> Path:
+    return out / f"{radius:g}-um-{learner}"
+
+
+def config(learner: str, quick: bool) -> Any:
+    from nanonav.rl.ppo import PPOConfig
+
+    units = 25 if learner == "gru" else 0
+    if quick:
+        return PPOConfig(envs=32, rollout=16, minibatch=256, bptt=8, memory_units=units,
+                         seed=TRAINING_SEED)  # fmt: skip
+    return PPOConfig(memory_units=units, seed=TRAINING_SEED)
+
+
+def success(policy: Path, radius: float, seeds: range, worlds: int) -> list[float]:
+    """The share of episodes that reach the source, a seed each, for the exported network
+    ``policy`` run by the service's own path (its memory carried from decision to decision)."""
+    from nanonav.rl.evaluate import evaluate
+    from nanonav.rl.onnx_policy import NetworkPolicy
+
+    shown = scenario(radius, seeds.start, worlds)
+    model = policy.read_bytes()
+    width, actions = observation_of(shown).columns.size, len(action_labels(shown))
+    found = []
+    with NetworkPolicy(model, width, actions, max_bytes=len(model)) as decide:
+        for seed in seeds:
+            result = evaluate(scenario(radius, seed, worlds), decide)
+            found.append(float(result.summary["success_rate"]))
+    return found
+
+
+def rule_success(radius: float, seeds: range, worlds: int) -> list[float]:
+    """The rule's share of episodes that reach the source, a seed each, in the same worlds."""
+    return [
+        float(simulate(scenario(radius, seed, worlds, "gradient")).summary["success_rate"])
+        for seed in seeds
+    ]
+
+
+def train(radius: float, learner: str, decisions: int, out: Path, curve: tuple[int, int],
+          quick: bool = False) -> list[dict[str, Any]]:  # fmt: skip
+    """Train ``learner`` at ``radius`` in stages up to ``decisions``, resuming what ``out``
+    holds, and add each stage's point to its ``curve.json``: the points."""
+    from nanonav.rl.checkpoint import load_checkpoint
+    from nanonav.rl.training import POLICY, RunSettings
+    from nanonav.rl.training import train as train_run
+
+    run = folder(out, radius, learner)
+    points_file = run / "curve.json"
+    points: list[dict[str, Any]] = (
+        json.loads(points_file.read_text()) if points_file.exists() else []
+    )
+    first = quick and 2 * config(learner, quick).batch
+    stages = [s for s in ((first,) if quick else STAGES) if s < decisions] + [decisions]
+    done = int(load_checkpoint(run)["decisions"]) if (run / "checkpoint.pt").exists() else 0
+    settings = RunSettings(progress=None if quick else sys.stdout, progress_every_s=60.0)
+    for stage in stages:
+        if stage <= done and any(p["decisions"] >= stage for p in points):
+            continue
+        started = time.perf_counter()
+        if done:
+            report = train_run(run, stage, resume=True, settings=settings)
+        else:
+            report = train_run(run, stage, scenario=scenario(radius, TRAINING_SEED, 1),
+                               config=config(learner, quick), settings=settings)  # fmt: skip
+        done = int(report["decisions"])
+        seeds = range(CURVE_SEEDS, CURVE_SEEDS + curve[0])
+        shares = success(run / POLICY, radius, seeds, curve[1])
+        points.append({
+            "decisions": done, "success": sum(shares) / len(shares),
+            "train_s": round(time.perf_counter() - started, 1),
+            "decisions_per_s": report["decisions_per_s"],
+            "peak_memory_mb": report["peak_memory_mb"],
+        })  # fmt: skip
+        points_file.write_text(json.dumps(points, indent=1) + "\n")
+        print(f"R = {radius:g} um, {learner}: {done:,} decisions, success "
+              f"{points[-1]['success']:.2f} on the curve seeds "
+              f"({report['decisions_per_s']:,.0f} decisions/s)", flush=True)  # fmt: skip
+    return points
+
+
+def runs(out: Path) -> list[tuple[float, str, Path]]:
+    """Every run in ``out`` that has exported a policy, by radius then learner."""
+    found = []
+    for radius in RADII:
+        for learner in LEARNERS:
+            run = folder(out, radius, learner)
+            if (run / "policy.onnx").exists() and (run / "curve.json").exists():
+                found.append((radius, learner, run))
+    return found
+
+
+def draw(out: Path, every: list[tuple[float, str, Path]], curve: tuple[int, int]) -> Path:
+    """curves.png: success on the curve seeds against the decisions trained, a panel a
+    radius, with the rule's level on the same seeds."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    radii = sorted({r for r, _, _ in every})
+    figure, axes = plt.subplots(1, len(radii), figsize=(4.2 * len(radii), 3.6), squeeze=False)
+    seeds = range(CURVE_SEEDS, CURVE_SEEDS + curve[0])
+    for ax, radius in zip(axes[0], radii, strict=True):
+        level = rule_success(radius, seeds, curve[1])
+        ax.axhline(sum(level) / len(level), color="black", linestyle="--",
+                   label=f"rule (gradient, memory {memory_s(radius):g} s)")  # fmt: skip
+        for r, learner, run in every:
+            if r != radius:
+                continue
+            points = json.loads((run / "curve.json").read_text())
+            ax.plot([p["decisions"] for p in points], [p["success"] for p in points],
+                    marker="o", label=learner)  # fmt: skip
+        ax.set_xscale("log")
+        ax.set_ylim(0, 1)
+        ax.set_xlabel("decisions trained")
+        ax.set_ylabel("share of episodes reaching the source")
+        ax.set_title(f"robot radius {radius:g} µm")
+        ax.legend(fontsize=7, loc="lower right")
+    figure.tight_layout()
+    where = out / "curves.png"
+    figure.savefig(where, dpi=120)
+    plt.close(figure)
+    return where
+
+
+def report(out: Path, seeds: int, worlds: int, sets: tuple[int, ...],
+           curve: tuple[int, int]) -> int:  # fmt: skip
+    every = runs(out)
+    if not every:
+        print(f"no finished run in {out}: train one first")
+        return 1
+    started = time.perf_counter()
+    for start in sets:
+        chosen = range(start, start + seeds)
+        rules = {r: rule_success(r, chosen, worlds) for r in sorted({r for r, _, _ in every})}
+        learned = {(r, learner): success(run / "policy.onnx", r, chosen, worlds)
+                   for r, learner, run in every}  # fmt: skip
+        found = {key: stats.paired(shares, rules[key[0]]) for key, shares in learned.items()}
+        adjusted = dict(zip(found, stats.holm([d.p_value or 1.0 for d in found.values()]),
+                            strict=True))  # fmt: skip
+        print(f"\nSeeds {start}-{start + seeds - 1} x {worlds} worlds; learner minus the rule "
+              f"paired by seed, Holm over the {len(found)} comparisons of this set:")  # fmt: skip
+        for (r, learner), d in found.items():
+            trained = json.loads((folder(out, r, learner) / "curve.json").read_text())[-1]
+            if d.mean_difference is None or d.ci_low is None or d.ci_high is None:
+                continue
+            mark = "*" if d.ci_low > 0 or d.ci_high < 0 else " "
+            print(f"  R = {r:g} um  rule {mean_ci(rules[r])}  {learner} ({trained['decisions']:,} "
+                  f"decisions) {mean_ci(learned[(r, learner)])}  {learner} - rule "
+                  f"{d.mean_difference:+.2f} [{d.ci_low:+.2f}, {d.ci_high:+.2f}]{mark} "
+                  f"p {d.p_value:.3g}, Holm {adjusted[(r, learner)]:.3g}")  # fmt: skip
+    print(f"\ncurves: {draw(out, every, curve)}")
+    print(f"({time.perf_counter() - started:.0f} s)")
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="a smoke run: train, then report")
+    parser.add_argument("--out", type=Path, default=OUT, help=f"the runs' folder ({OUT})")
+    parser.add_argument("--curve-seeds", type=int, default=10, help="curve seeds (8000 on)")
+    parser.add_argument("--curve-worlds", type=int, default=20)
+    commands = parser.add_subparsers(dest="command")
+    training = commands.add_parser("train", help="train one learner at one radius")
+    training.add_argument("--radius", type=float, required=True, choices=RADII)
+    training.add_argument("--learner", required=True, choices=LEARNERS)
+    training.add_argument("--decisions", type=int, required=True)
+    reporting = commands.add_parser("report", help="every finished run against the rule")
+    reporting.add_argument("--seeds", type=int, default=20)
+    reporting.add_argument("--worlds", type=int, default=20)
+    args = parser.parse_args(argv)
+    curve = (args.curve_seeds, args.curve_worlds)
+    if args.quick:
+        for learner in LEARNERS:
+            train(1.0, learner, 3 * config(learner, True).batch, args.out, (1, 2), quick=True)
+        return report(args.out, 2, 2, REPORT_FROM, (1, 2))
+    if args.command == "train":
+        if args.decisions < 1:
+            parser.error("--decisions: at least 1")
+        train(args.radius, args.learner, args.decisions, args.out, curve)
+        return 0
+    if args.command == "report":
+        return report(args.out, args.seeds, args.worlds, REPORT_FROM, curve)
+    parser.print_help()
+    return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())
