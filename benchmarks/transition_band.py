@@ -15,7 +15,9 @@ given again, and a longer ``--decisions`` extends a finished one.
 - ``gru``: a GRU of 25 units then a 64x64 torso the actor and the critic share (the trainer's
   fast recurrent setting; Alonso & Kirkegaard's memory size); ``mlp``: no memory, the same
   torso. Both observe what the rule reads: the count, its change, and the gradient of the
-  counts averaged over the rule's own gradient memory at that radius.
+  counts averaged over the rule's own gradient memory at that radius. ``gru-counts``: the GRU
+  given the last count's gradient alone (no gradient memory), as Alonso & Kirkegaard's
+  recurrent policy read its counts: its memory must do the averaging.
 - Training worlds are drawn from seed 100,000 on (world k of ``--envs`` from 100,000 + k), far
   from every seed evaluated here.
 - The rule: ``gradient`` with the gradient memory the design seeds chose at each radius
@@ -54,7 +56,7 @@ TIME_LIMIT_S = 25.6
 RADII = (0.5, 1.0, 2.0)
 # the strongest rule's gradient memory, s, at each radius (design seeds; see the docstring)
 RULE_MEMORY_S = {0.5: 2.0, 1.0: 2.0, 2.0: 0.5}
-LEARNERS = ("gru", "mlp")
+LEARNERS = ("gru", "mlp", "gru-counts")
 TRAINING_SEED = 100_000
 CURVE_SEEDS = 8000
 REPORT_FROM = (7100, 7200)
@@ -68,11 +70,20 @@ def memory_s(radius: float) -> float:
     return RULE_MEMORY_S[nearest]
 
 
-def scenario(radius: float, seed: int, worlds: int, policy: str = "q_learning") -> Scenario:
+def observed_memory_s(radius: float, learner: str) -> float:
+    """The gradient memory a learner observes through: the rule's, or none for ``gru-counts``."""
+    return 0.0 if learner == "gru-counts" else memory_s(radius)
+
+
+def scenario(
+    radius: float, seed: int, worlds: int, policy: str = "q_learning",
+    gradient_memory_s: float | None = None,
+) -> Scenario:  # fmt: skip
     """The preset with one robot of ``radius`` um that remembers its counts' gradient as the
-    rule does, over 25.6 s, evaluated in ``worlds`` worlds."""
+    rule does (or for ``gradient_memory_s``), over 25.6 s, evaluated in ``worlds`` worlds."""
+    memory = memory_s(radius) if gradient_memory_s is None else gradient_memory_s
     physics = {"model": "active_brownian", "time_limit_s": TIME_LIMIT_S,
-               "robot_radius_um": radius, "gradient_memory_s": memory_s(radius)}  # fmt: skip
+               "robot_radius_um": radius, "gradient_memory_s": memory}  # fmt: skip
     return preset_scenario(
         PRESET, seed=seed, physics=physics, robots={"policy": policy},
         learning={"episodes": 0}, evaluation={"worlds": worlds},
@@ -86,26 +97,29 @@ def folder(out: Path, radius: float, learner: str) -> Path:
 def config(learner: str, quick: bool) -> Any:
     from nanonav.rl.ppo import PPOConfig
 
-    units = 25 if learner == "gru" else 0
+    units = 0 if learner == "mlp" else 25
     if quick:
         return PPOConfig(envs=32, rollout=16, minibatch=256, bptt=8, memory_units=units,
                          seed=TRAINING_SEED)  # fmt: skip
     return PPOConfig(memory_units=units, seed=TRAINING_SEED)
 
 
-def success(policy: Path, radius: float, seeds: range, worlds: int) -> list[float]:
+def success(
+    policy: Path, radius: float, learner: str, seeds: range, worlds: int
+) -> list[float]:  # fmt: skip
     """The share of episodes that reach the source, a seed each, for the exported network
     ``policy`` run by the service's own path (its memory carried from decision to decision)."""
     from nanonav.rl.evaluate import evaluate
     from nanonav.rl.onnx_policy import NetworkPolicy
 
-    shown = scenario(radius, seeds.start, worlds)
+    memory = observed_memory_s(radius, learner)
+    shown = scenario(radius, seeds.start, worlds, gradient_memory_s=memory)
     model = policy.read_bytes()
     width, actions = observation_of(shown).columns.size, len(action_labels(shown))
     found = []
     with NetworkPolicy(model, width, actions, max_bytes=len(model)) as decide:
         for seed in seeds:
-            result = evaluate(scenario(radius, seed, worlds), decide)
+            result = evaluate(scenario(radius, seed, worlds, gradient_memory_s=memory), decide)
             found.append(float(result.summary["success_rate"]))
     return found
 
@@ -142,11 +156,13 @@ def train(radius: float, learner: str, decisions: int, out: Path, curve: tuple[i
         if done:
             report = train_run(run, stage, resume=True, settings=settings)
         else:
-            report = train_run(run, stage, scenario=scenario(radius, TRAINING_SEED, 1),
-                               config=config(learner, quick), settings=settings)  # fmt: skip
+            world = scenario(radius, TRAINING_SEED, 1,
+                             gradient_memory_s=observed_memory_s(radius, learner))  # fmt: skip
+            report = train_run(run, stage, scenario=world, config=config(learner, quick),
+                               settings=settings)  # fmt: skip
         done = int(report["decisions"])
         seeds = range(CURVE_SEEDS, CURVE_SEEDS + curve[0])
-        shares = success(run / POLICY, radius, seeds, curve[1])
+        shares = success(run / POLICY, radius, learner, seeds, curve[1])
         points.append({
             "decisions": done, "success": sum(shares) / len(shares),
             "train_s": round(time.perf_counter() - started, 1),
@@ -215,7 +231,7 @@ def report(out: Path, seeds: int, worlds: int, sets: tuple[int, ...],
     for start in sets:
         chosen = range(start, start + seeds)
         rules = {r: rule_success(r, chosen, worlds) for r in sorted({r for r, _, _ in every})}
-        learned = {(r, learner): success(run / "policy.onnx", r, chosen, worlds)
+        learned = {(r, learner): success(run / "policy.onnx", r, learner, chosen, worlds)
                    for r, learner, run in every}  # fmt: skip
         found = {key: stats.paired(shares, rules[key[0]]) for key, shares in learned.items()}
         adjusted = dict(zip(found, stats.holm([d.p_value or 1.0 for d in found.values()]),

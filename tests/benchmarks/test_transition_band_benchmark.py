@@ -28,7 +28,7 @@ def test_a_smoke_run_trains_both_learners_and_reports_them(
         pattern = rf"^  R = 1 um  rule .* {learner} - rule [+-]\d\.\d\d \[.*Holm"
         rows = re.findall(pattern, out, re.M)
         assert len(rows) == 2, out  # one a seed set
-    assert "Holm over the 2 comparisons of this set" in out
+    assert f"Holm over the {len(transition_band.LEARNERS)} comparisons of this set" in out
     picture = image.imread(tmp_path / "curves.png")
     assert picture.shape[0] > 100 and picture.shape[1] > 100
 
