@@ -104,11 +104,32 @@ def config(learner: str, quick: bool) -> Any:
     return PPOConfig(memory_units=units, seed=TRAINING_SEED)
 
 
+class Counted:
+    """A network's decisions, counted by action as they are made (what the policy learned,
+    read from what it does); its memory is the network's."""
+
+    def __init__(self, decide: Any, actions: int) -> None:
+        self.decide = decide
+        self.counts = [0] * actions
+        self.remembers = decide.remembers
+
+    def forget(self) -> None:
+        self.decide.forget()
+
+    def __call__(self, observations: Any) -> Any:
+        chosen = self.decide(observations)
+        for action in chosen.tolist():
+            self.counts[int(action)] += 1
+        return chosen
+
+
 def success(
-    policy: Path, radius: float, learner: str, seeds: range, worlds: int
+    policy: Path, radius: float, learner: str, seeds: range, worlds: int,
+    counts: list[int] | None = None,
 ) -> list[float]:  # fmt: skip
     """The share of episodes that reach the source, a seed each, for the exported network
-    ``policy`` run by the service's own path (its memory carried from decision to decision)."""
+    ``policy`` run by the service's own path (its memory carried from decision to decision);
+    ``counts``, if given, gets how often it chose each action."""
     from nanonav.rl.evaluate import evaluate
     from nanonav.rl.onnx_policy import NetworkPolicy
 
@@ -117,10 +138,13 @@ def success(
     model = policy.read_bytes()
     width, actions = observation_of(shown).columns.size, len(action_labels(shown))
     found = []
-    with NetworkPolicy(model, width, actions, max_bytes=len(model)) as decide:
+    with NetworkPolicy(model, width, actions, max_bytes=len(model)) as network:
+        decide = Counted(network, actions)
         for seed in seeds:
             result = evaluate(scenario(radius, seed, worlds, gradient_memory_s=memory), decide)
             found.append(float(result.summary["success_rate"]))
+    if counts is not None:
+        counts[:] = decide.counts
     return found
 
 
@@ -231,7 +255,9 @@ def report(out: Path, seeds: int, worlds: int, sets: tuple[int, ...],
     for start in sets:
         chosen = range(start, start + seeds)
         rules = {r: rule_success(r, chosen, worlds) for r in sorted({r for r, _, _ in every})}
-        learned = {(r, learner): success(run / "policy.onnx", r, learner, chosen, worlds)
+        chose: dict[tuple[float, str], list[int]] = {(r, n): [] for r, n, _ in every}
+        learned = {(r, learner): success(run / "policy.onnx", r, learner, chosen, worlds,
+                                         chose[(r, learner)])
                    for r, learner, run in every}  # fmt: skip
         found = {key: stats.paired(shares, rules[key[0]]) for key, shares in learned.items()}
         adjusted = dict(zip(found, stats.holm([d.p_value or 1.0 for d in found.values()]),
@@ -247,6 +273,11 @@ def report(out: Path, seeds: int, worlds: int, sets: tuple[int, ...],
                   f"decisions) {mean_ci(learned[(r, learner)])}  {learner} - rule "
                   f"{d.mean_difference:+.2f} [{d.ci_low:+.2f}, {d.ci_high:+.2f}]{mark} "
                   f"p {d.p_value:.3g}, Holm {adjusted[(r, learner)]:.3g}")  # fmt: skip
+            made = chose[(r, learner)]
+            labels = action_labels(scenario(r, start, 1))
+            total = max(sum(made), 1)
+            shares = (f"{label} {n / total:.2f}" for label, n in zip(labels, made, strict=True))
+            print("    its decisions: " + ", ".join(shares))
     print(f"\ncurves: {draw(out, every, curve)}")
     print(f"({time.perf_counter() - started:.0f} s)")
     return 0

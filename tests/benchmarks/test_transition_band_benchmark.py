@@ -28,6 +28,11 @@ def test_a_smoke_run_trains_both_learners_and_reports_them(
         pattern = rf"^  R = 1 um  rule .* {learner} - rule [+-]\d\.\d\d \[.*Holm"
         rows = re.findall(pattern, out, re.M)
         assert len(rows) == 2, out  # one a seed set
+    # what each learner chose, by action, its shares summing to 1
+    made = re.findall(r"^    its decisions: keep_heading ([\d.]+), steer_up_gradient ([\d.]+), "
+                      r"tumble ([\d.]+), steer_to_cell ([\d.]+)$", out, re.M)  # fmt: skip
+    assert len(made) == 2 * len(transition_band.LEARNERS), out
+    assert all(abs(sum(float(x) for x in row) - 1.0) < 0.02 for row in made)
     assert f"Holm over the {len(transition_band.LEARNERS)} comparisons of this set" in out
     picture = image.imread(tmp_path / "curves.png")
     assert picture.shape[0] > 100 and picture.shape[1] > 100
