@@ -42,6 +42,8 @@ import time
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from science import mean_ci
@@ -110,7 +112,7 @@ class Counted:
 
     def __init__(self, decide: Any, actions: int) -> None:
         self.decide = decide
-        self.counts = [0] * actions
+        self.counts = np.zeros(actions, dtype=np.int64)
         self.remembers = decide.remembers
 
     def forget(self) -> None:
@@ -118,8 +120,7 @@ class Counted:
 
     def __call__(self, observations: Any) -> Any:
         chosen = self.decide(observations)
-        for action in chosen.tolist():
-            self.counts[int(action)] += 1
+        self.counts += np.bincount(chosen, minlength=self.counts.size)
         return chosen
 
 
@@ -144,7 +145,7 @@ def success(
             result = evaluate(scenario(radius, seed, worlds, gradient_memory_s=memory), decide)
             found.append(float(result.summary["success_rate"]))
     if counts is not None:
-        counts[:] = decide.counts
+        counts[:] = decide.counts.tolist()
     return found
 
 
@@ -169,8 +170,8 @@ def train(radius: float, learner: str, decisions: int, out: Path, curve: tuple[i
     points: list[dict[str, Any]] = (
         json.loads(points_file.read_text()) if points_file.exists() else []
     )
-    first = quick and 2 * config(learner, quick).batch
-    stages = [s for s in ((first,) if quick else STAGES) if s < decisions] + [decisions]
+    early = (2 * config(learner, quick).batch,) if quick else STAGES
+    stages = [s for s in early if s < decisions] + [decisions]
     done = int(load_checkpoint(run)["decisions"]) if (run / "checkpoint.pt").exists() else 0
     settings = RunSettings(progress=None if quick else sys.stdout, progress_every_s=60.0)
     for stage in stages:
