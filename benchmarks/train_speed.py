@@ -14,7 +14,9 @@ says: decisions over the wall-clock seconds of the training loop.
 
 - raw env: ``NanoNavArrayEnv`` stepped with random actions, 1,024 and 4,096 worlds.
 - new: ``nanonav train`` with its defaults (an MLP of 64x64 shared by actor and critic; GRU-25:
-  ``--algo recurrent-ppo``), 1,024 and 4,096 worlds, one torch thread.
+  ``--algo recurrent-ppo``; the next rollout collected in a second process while the learner
+  learns from the last), 1,024 and 4,096 worlds, one torch thread a process; and at 1,024
+  worlds ``--no-overlap`` (rollout and update in turn, in one process, as before overlap).
 - old: ``nanonav train --library sb3`` (PPO and recurrent PPO with the library's defaults,
   8 worlds; recurrent PPO's rollout cut to 256 decisions a world so that it ends in seconds).
 - under load: a busy process on every core while ``nanonav train`` runs with one thread and
@@ -129,7 +131,8 @@ def _torchrl(worlds: int, rollouts: int) -> dict[str, Any]:
     from nanonav.scenario import preset_scenario
 
     env = NanoNavArrayEnv(worlds, preset_scenario(PRESET, seed=SEED))
-    ours = OurPPO(env, PPOConfig(envs=worlds))
+    ours = OurPPO(env, PPOConfig(envs=worlds, overlap=False))
+    collector = ours._collector
     width, actions = env.width, env.actions
 
     def mlp(out: int) -> nn.Module:
@@ -148,11 +151,11 @@ def _torchrl(worlds: int, rollouts: int) -> dict[str, Any]:
     r = ours._rollout
 
     def rollout() -> TensorDict:
-        ours._collect()  # our stepping and sampling; the learning below is TorchRL's
-        assert ours._obs is not None
+        collector.collect(r)  # our stepping and sampling; the learning below is TorchRL's
+        assert collector.obs is not None
         shape = (worlds, 64)
         done = r.dones.T.bool().unsqueeze(-1)
-        nxt = torch.cat([r.obs[1:], ours._obs.unsqueeze(0)]).transpose(0, 1)
+        nxt = torch.cat([r.obs[1:], collector.obs.unsqueeze(0)]).transpose(0, 1)
         return TensorDict({
             "observation": r.obs.transpose(0, 1), "action": r.actions.T.long(),
             "action_log_prob": r.log_probs.T,
@@ -205,9 +208,9 @@ def gru_update(worlds: int, repeats: int) -> dict[str, list[float]]:
         return torch.stack(outputs, dim=1)
 
     env = NanoNavArrayEnv(worlds, preset_scenario(PRESET, seed=SEED))
-    learner = PPO(env, PPOConfig(envs=worlds, memory_units=25))
+    learner = PPO(env, PPOConfig(envs=worlds, memory_units=25, overlap=False))
     learner.learn(worlds * 64)
-    learner._collect()
+    learner._collector.collect(learner._rollout)
     ways = {"new": networks.gru_sequence, "old": cell_loop}
     seconds: dict[str, list[float]] = {name: [] for name in ways}
     try:
@@ -215,7 +218,7 @@ def gru_update(worlds: int, repeats: int) -> dict[str, list[float]]:
             for name, way in ways.items():
                 networks.gru_sequence = way
                 started = time.perf_counter()
-                learner._update()
+                learner._update(learner._rollout)
                 seconds[name].append(time.perf_counter() - started)
     finally:
         networks.gru_sequence = ways["new"]
@@ -261,6 +264,10 @@ def cases(quick: bool) -> dict[str, tuple[str, Callable[[], dict[str, Any]]]]:
         f"new, MLP, {large:,} worlds": ("new", new(large, n or 6)),
         f"new, GRU-25, {small:,} worlds": ("new", new(small, n or 16, "--algo", "recurrent-ppo")),
         f"new, GRU-25, {large:,} worlds": ("new", new(large, n or 4, "--algo", "recurrent-ppo")),
+        f"new in turn (--no-overlap), MLP, {small:,} worlds": (
+            "new", new(small, n or 24, "--no-overlap")),
+        f"new in turn (--no-overlap), GRU-25, {small:,} worlds": (
+            "new", new(small, n or 16, "--algo", "recurrent-ppo", "--no-overlap")),
         "old, SB3 PPO, 8 worlds": (
             "old", lambda: _cli(["--library", "sb3", "--steps", old_steps, "--threads", "1"])),
         "old, SB3 recurrent PPO, 8 worlds": (

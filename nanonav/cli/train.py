@@ -41,6 +41,7 @@ CONFIG_OPTIONS = (
     "actor",
     "critic",
     "activation",
+    "overlap",
 )
 # What a resumed run takes from its folder: given with --resume, each is refused
 RUN_OPTIONS = ("preset", "scenario", "seed", "memory", "memory_units", *CONFIG_OPTIONS)
@@ -154,6 +155,11 @@ def add_train(subcommands: Subcommands) -> None:
     learning.add_argument(
         "--activation", choices=("relu", "tanh"),
         help="between hidden layers (default relu; tanh, the anchor's, costs a fifth more here)",
+    )  # fmt: skip
+    learning.add_argument(
+        "--overlap", action=argparse.BooleanOptionalAction,
+        help="collect the next rollout in a second process while learning from the last, its "
+        "policy one update behind (the default; --no-overlap: in turn, in one process)",
     )  # fmt: skip
     learning.add_argument("--epochs", type=positive, help="passes over a rollout (default 4)")
     learning.add_argument(

@@ -11,7 +11,7 @@ through each minibatch's sequences (``nanonav.rl.gru``).
 from __future__ import annotations
 
 import math
-from typing import Literal, NamedTuple
+from typing import Any, Literal, NamedTuple
 
 import torch
 from torch import Tensor, nn
@@ -133,6 +133,11 @@ class ActorCritic(nn.Module):
         activation: Activation = "relu",
     ) -> None:
         super().__init__()
+        self._arguments = {
+            "width": width, "actions": actions, "continuous": continuous,
+            "memory_units": memory_units, "layers": layers, "actor": actor, "critic": critic,
+            "activation": activation,
+        }  # fmt: skip
         self.width = width
         self.actions = actions
         self.continuous = continuous
@@ -145,6 +150,11 @@ class ActorCritic(nn.Module):
         self.actor = _mlp(features, actor, actions, activation, 0.01)
         self.critic = _mlp(features, critic, 1, activation, 1.0)
         self.log_std = nn.Parameter(torch.zeros(actions)) if continuous else None
+
+    def arguments(self) -> dict[str, Any]:
+        """What this network was built with: ``ActorCritic(**net.arguments())`` is another of
+        the same shape (the collector's process builds its own so)."""
+        return dict(self._arguments)
 
     def blank_memory(self, rows: int, device: torch.device | None = None) -> Tensor:
         """The memory of ``rows`` robots at an episode's start (an empty one without memory)."""

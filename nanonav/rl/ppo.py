@@ -11,10 +11,11 @@ table and the command that measured it).
 
 from __future__ import annotations
 
+import contextlib
 import math
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 from typing import Any
 
 import numpy as np
@@ -22,6 +23,7 @@ import torch
 from torch import Tensor
 
 from nanonav.env.arrays import NanoNavArrayEnv
+from nanonav.rl.collect import Collector, CollectorProcess, Rollout
 from nanonav.rl.networks import ACTIVATIONS, Activation, ActorCritic
 
 CHECKPOINT_FORMAT = 1
@@ -50,6 +52,9 @@ class PPOConfig:
     critic: tuple[int, ...] = ()  # the critic's own hidden layers
     activation: Activation = "relu"  # between hidden layers (tanh costs 4 ns a number here)
     seed: int = 0  # the weights', the sampling's and the shuffling's
+    # the next rollout collected on a second core while the learner learns from the last
+    # (its policy then one update behind); False: in turn, in one process
+    overlap: bool = True
 
     def __post_init__(self) -> None:
         if min(self.envs, self.rollout, self.epochs, self.minibatch, self.bptt) < 1:
@@ -72,6 +77,7 @@ class PPOConfig:
         given = dict(data)
         for name in ("layers", "actor", "critic"):
             given[name] = tuple(given[name])
+        given.setdefault("overlap", False)  # runs from before it learned in turn
         return cls(**given)
 
 
@@ -111,26 +117,13 @@ class Update:
     update_s: float
 
 
-@dataclass
-class _Rollout:
-    """The rollout's tensors, ``(steps, worlds, ...)``, allocated once."""
-
-    obs: Tensor
-    actions: Tensor
-    log_probs: Tensor
-    values: Tensor
-    rewards: Tensor
-    dones: Tensor
-    starts: Tensor
-    memories: Tensor  # each sequence's first memory: (steps // bptt, worlds, units)
-    returns: list[float] = field(default_factory=list)
-
-
 class PPO:
     """PPO over a ``NanoNavArrayEnv``'s worlds (``config.envs`` of them). ``learn`` runs whole
     rollouts until a number of decisions is done; ``state_dict`` and ``load_state_dict`` are
     what a checkpoint holds (the networks, the optimiser, every random stream, the
-    decisions done)."""
+    decisions done). With ``config.overlap`` the rollouts are collected in a process of its
+    own (``nanonav.rl.collect``), the next while the learner learns from the last: ``close``
+    ends it (a ``with`` block does)."""
 
     def __init__(
         self, env: NanoNavArrayEnv, config: PPOConfig, *, device: str | torch.device = "cpu"
@@ -147,93 +140,103 @@ class PPO:
             activation=config.activation,
         ).to(self.device)  # fmt: skip
         self.optimizer = torch.optim.Adam(self.net.parameters(), lr=config.learning_rate, eps=1e-5)
-        self.generator = torch.Generator(self.device).manual_seed(config.seed)
         self.shuffle = np.random.default_rng(config.seed)
         self.decisions = 0
         self.updates = 0
-        self._rollout = self._allocated()
-        self._obs: Tensor | None = None
-        self._memory = self.net.blank_memory(config.envs, self.device)
-        self._starting = torch.ones(config.envs, dtype=torch.bool, device=self.device)
-        self._returns = np.zeros(config.envs)
-
-    def _allocated(self) -> _Rollout:
-        c, n, d = self.config, self.config.envs, self.device
-        shape = (c.rollout, n)
-        action_shape = (*shape, self.env.actions) if self.env.continuous else shape
-        sequences = c.rollout // c.bptt if c.memory_units else 0
-        return _Rollout(
-            obs=torch.zeros((*shape, self.env.width), device=d),
-            actions=torch.zeros(action_shape, device=d),
-            log_probs=torch.zeros(shape, device=d),
-            values=torch.zeros(shape, device=d),
-            rewards=torch.zeros(shape, device=d),
-            dones=torch.zeros(shape, device=d),
-            starts=torch.zeros(shape, dtype=torch.bool, device=d),
-            memories=torch.zeros((sequences, n, c.memory_units), device=d),
+        # the streams live here until the collector's process starts, and there from then on
+        self._collector = Collector(
+            env, self.net, steps=config.rollout, bptt=config.bptt, gamma=config.gamma,
+            seed=config.seed, device=self.device,
+        )  # fmt: skip
+        self._away: CollectorProcess | None = None
+        self.collector_peak_memory_mb = 0.0  # the collector's process's, once it has ended
+        self._rollout = Rollout.allocated(
+            config.rollout, config.envs, env, config.memory_units, config.bptt, self.device
         )
+
+    def __enter__(self) -> PPO:
+        return self
+
+    def __exit__(self, *_: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """End the collector's process, if there is one."""
+        if self._away is not None:
+            state = None
+            with contextlib.suppress(RuntimeError):
+                state = self._away.state_dict()
+            self._away.close()
+            self.collector_peak_memory_mb = self._away.peak_memory_mb
+            self._away = None
+            if state is not None:
+                self._collector.load_state_dict(state)
+
+    def collector_pid(self) -> int | None:
+        """The collector's process's id while there is one."""
+        return None if self._away is None else self._away.pid
+
+    def _remote(self) -> CollectorProcess:
+        if self._away is None:
+            c = self.config
+            self._away = CollectorProcess(
+                self.env, self.net, steps=c.rollout, bptt=c.bptt, gamma=c.gamma, seed=c.seed
+            )
+            self._away.load_state_dict(self._collector.state_dict())
+        return self._away
 
     def learn(self, decisions: int, after: Callable[[Update], None] | None = None) -> None:
         """Collect rollouts and learn from each until ``decisions`` are done in all (the last
-        rollout finished: a run does a whole number of them); ``after`` is told of each."""
+        rollout finished: a run does a whole number of them); ``after`` is told of each.
+        With ``overlap``, no rollout is under way when it returns."""
+        if self.config.overlap:
+            self._learn_overlapped(decisions, after)
+            return
+        rollout = self._rollout
         while self.decisions < decisions:
             started = time.perf_counter()
-            self._collect()
+            returns = self._collector.collect(rollout)
             collected = time.perf_counter()
-            losses = self._update()
-            self.decisions += self.config.batch
-            self.updates += 1
-            returns = self._rollout.returns
-            if after is not None:
-                after(Update(
-                    self.decisions, len(returns),
-                    float(np.mean(returns)) if returns else None, *losses,
-                    collected - started, time.perf_counter() - collected,
-                ))  # fmt: skip
+            losses = self._update(rollout)
+            self._learned(returns, losses, collected - started, time.perf_counter() - collected,
+                          after)  # fmt: skip
 
-    def _collect(self) -> None:
-        c, r, env, net = self.config, self._rollout, self.env, self.net
-        if self._obs is None:
-            self._obs = torch.from_numpy(env.reset()).to(self.device)
-        obs, memory, starting = self._obs, self._memory, self._starting
-        r.returns = []
-        for t in range(c.rollout):
-            r.obs[t] = obs
-            r.starts[t] = starting
-            if c.memory_units:
-                memory = memory * (~starting).unsqueeze(-1)
-                if t % c.bptt == 0:
-                    r.memories[t // c.bptt] = memory
-            decision = net.act(obs, memory, self.generator)
-            step = env.step(decision.action.cpu().numpy())
-            reward = torch.from_numpy(step.reward).to(self.device)
-            if step.final_obs.shape[0]:
-                # a time limit is no end of the task: what would follow is the value's
-                # (Stable-Baselines3's bootstrap), read with the memory after the decision
-                cut = torch.from_numpy(np.flatnonzero(step.truncated)).to(self.device)
-                final = torch.from_numpy(step.final_obs).to(self.device)
-                reward[cut] += c.gamma * net.value(final, decision.memory[cut])
-            done = step.terminated | step.truncated
-            self._returns += step.reward
-            if done.any():
-                r.returns.extend(self._returns[done].tolist())
-                self._returns[done] = 0.0
-            r.actions[t] = decision.action
-            r.log_probs[t] = decision.log_prob
-            r.values[t] = decision.value
-            r.rewards[t] = reward
-            starting = torch.from_numpy(done).to(self.device)
-            r.dones[t] = starting
-            obs = torch.from_numpy(step.obs).to(self.device)
-            memory = decision.memory
-        self._obs, self._memory, self._starting = obs, memory, starting
+    def _learn_overlapped(self, decisions: int, after: Callable[[Update], None] | None) -> None:
+        """Rollout k+1 is collected, with the weights the update of rollout k starts from,
+        while that update runs: each rollout's policy is one update behind the learner's
+        (PPO's ratio to the policy that collected it corrects for that, as in asynchronous
+        PPO). The first rollout of a call is collected alone."""
+        left = math.ceil(max(decisions - self.decisions, 0) / self.config.batch)
+        if left == 0:
+            return
+        away = self._remote()
+        away.start(0, self.net)
+        returns, collect_s = away.wait()
+        for k in range(left):
+            rollout = away.rollouts[k % 2]
+            if k + 1 < left:
+                away.start((k + 1) % 2, self.net)
+            started = time.perf_counter()
+            losses = self._update(rollout.to(self.device))
+            update_s = time.perf_counter() - started
+            self._learned(returns, losses, collect_s, update_s, after)
+            if k + 1 < left:
+                returns, collect_s = away.wait()
 
-    def _update(self) -> tuple[float, float, float, float]:
-        c, r, net = self.config, self._rollout, self.net
-        assert self._obs is not None
-        kept = self._memory * (~self._starting).unsqueeze(-1)
-        next_value = net.value(self._obs, kept)
-        advantages = gae(r.rewards, r.values, r.dones, next_value, c.gamma, c.gae_lambda)
+    def _learned(self, returns: list[float], losses: tuple[float, float, float, float],
+                 rollout_s: float, update_s: float,
+                 after: Callable[[Update], None] | None) -> None:  # fmt: skip
+        self.decisions += self.config.batch
+        self.updates += 1
+        if after is not None:
+            after(Update(
+                self.decisions, len(returns), float(np.mean(returns)) if returns else None,
+                *losses, rollout_s, update_s,
+            ))  # fmt: skip
+
+    def _update(self, r: Rollout) -> tuple[float, float, float, float]:
+        c, net = self.config, self.net
+        advantages = gae(r.rewards, r.values, r.dones, r.next_value, c.gamma, c.gae_lambda)
         returns = advantages + r.values
         # sequences of bptt decisions (one decision each without memory), shaped (sequences,
         # decisions, ...): sequence s = chunk x worlds + world, as the memories are kept
@@ -258,7 +261,7 @@ class PPO:
                 def pick(x: Tensor, chosen: Tensor = chosen) -> Tensor:
                     return x.index_select(0, chosen)
 
-                memory = pick(memories) if c.memory_units else self._memory[:0]
+                memory = pick(memories) if c.memory_units else memories[:0].reshape(0, 0)
                 judged = net.evaluate(pick(obs), pick(actions), memory, pick(starts))
                 advantage = pick(advantages).reshape(-1)
                 advantage = (advantage - advantage.mean()) / (advantage.std() + 1e-8)
@@ -294,10 +297,8 @@ class PPO:
             "net": self.net.state_dict(),
             "optimizer": self.optimizer.state_dict(),
             "torch_rng": torch.get_rng_state(),
-            "sampling_rng": self.generator.get_state(),
             "shuffle_rng": self.shuffle.bit_generator.state,
-            "env_seed": self.env.seed,
-            "env_rngs": self.env.generator_states(),
+            **(self._away or self._collector).state_dict(),
         }
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
@@ -312,16 +313,12 @@ class PPO:
         self.net.load_state_dict(state["net"])
         self.optimizer.load_state_dict(state["optimizer"])
         torch.set_rng_state(state["torch_rng"])
-        self.generator.set_state(state["sampling_rng"])
         self.shuffle.bit_generator.state = state["shuffle_rng"]
-        self.env.restore_generators(state["env_rngs"])
-        self.env.seed = int(state["env_seed"])
+        self._collector.load_state_dict(state)
+        if self._away is not None:
+            self._away.load_state_dict(state)
         self.decisions = int(state["decisions"])
         self.updates = int(state["updates"])
-        self._obs = None
-        self._memory = self.net.blank_memory(self.config.envs, self.device)
-        self._starting.fill_(True)
-        self._returns[:] = 0.0
 
 
 def rollouts_for(decisions: int, config: PPOConfig) -> int:

@@ -160,26 +160,21 @@ def train(
     if not resume:
         (out / SCENARIO).write_text(scenario.model_dump_json(indent=1) + "\n")
     env = NanoNavArrayEnv(config.envs, scenario, steering=steering)
-    learner = PPO(env, config, device=device)
-    if state is not None:
-        learner.load_state_dict(state)
-    first = learner.decisions
-    every = settings.checkpoint_every or max(decisions // 4, config.batch)
-    progress = _Progress(settings.progress, settings.progress_every_s, decisions, first)
-    due = [first + every]
-
-    def after(update: Update) -> None:
-        progress(update)
-        if update.decisions >= due[0]:
+    with PPO(env, config, device=device) as learner:
+        if state is not None:
+            learner.load_state_dict(state)
+        first = learner.decisions
+        every = settings.checkpoint_every or max(decisions // 4, config.batch)
+        progress = _Progress(settings.progress, settings.progress_every_s, decisions, first)
+        started = time.perf_counter()
+        # in stretches that each end at a checkpoint: the learner's ``learn`` returns with no
+        # rollout under way, so that what the checkpoint keeps is all there is
+        while learner.decisions < decisions:
+            learner.learn(min(learner.decisions + every, decisions), progress)
             save_checkpoint(out, {**learner.state_dict(), "steering": steering})
-            due[0] = update.decisions + every
-
-    started = time.perf_counter()
-    learner.learn(decisions, after)
-    seconds = time.perf_counter() - started
-    if progress.last is not None:
-        progress(progress.last, last=True)
-    save_checkpoint(out, {**learner.state_dict(), "steering": steering})
+        seconds = time.perf_counter() - started
+        if progress.last is not None:
+            progress(progress.last, last=True)
     torch.save({"config": config.to_json(), "net": learner.net.state_dict()}, out / WEIGHTS)
     export_network(learner.net, out / POLICY, observation=env.observation_labels,
                    actions=env.action_labels)  # fmt: skip
@@ -204,7 +199,9 @@ def train(
         "memory_units": config.memory_units,
         "threads": settings.threads,
         "device": str(device),
-        "peak_memory_mb": round(peak_memory_mb(), 1),
+        # the learner's process and the collector's (with overlap), each at its peak
+        "peak_memory_mb": round(peak_memory_mb() + learner.collector_peak_memory_mb, 1),
+        "collector_peak_memory_mb": round(learner.collector_peak_memory_mb, 1),
         "config": config.to_json(),
         "onnx": POLICY,
     }

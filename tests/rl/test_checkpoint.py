@@ -4,6 +4,7 @@ takes up the run there."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -19,9 +20,9 @@ CONFIG = PPOConfig(envs=8, rollout=16, minibatch=64, memory_units=4, bptt=8, see
 
 
 def test_a_checkpoint_is_written_whole_and_read_back(tmp_path: Path) -> None:
-    learner = PPO(NanoNavArrayEnv(8, WORLD), CONFIG)
-    learner.learn(2 * CONFIG.batch)
-    save_checkpoint(tmp_path, learner.state_dict())
+    with PPO(NanoNavArrayEnv(8, WORLD), CONFIG) as learner:
+        learner.learn(2 * CONFIG.batch)
+        save_checkpoint(tmp_path, learner.state_dict())
     assert [p.name for p in tmp_path.iterdir()] == [CHECKPOINT]
     state = load_checkpoint(tmp_path)
     assert state["decisions"] == 2 * CONFIG.batch and state["updates"] == 2
@@ -30,19 +31,22 @@ def test_a_checkpoint_is_written_whole_and_read_back(tmp_path: Path) -> None:
         torch.testing.assert_close(state["net"][name], weights)
 
 
-def test_a_resumed_learner_goes_on_as_the_one_that_wrote_it(tmp_path: Path) -> None:
+@pytest.mark.parametrize("overlap", [True, False])
+def test_a_resumed_learner_goes_on_as_the_one_that_wrote_it(tmp_path: Path,
+                                                            overlap: bool) -> None:  # fmt: skip
     torch.set_num_threads(1)
-    first = PPO(NanoNavArrayEnv(8, WORLD), CONFIG)
-    first.learn(2 * CONFIG.batch)
-    save_checkpoint(tmp_path, first.state_dict())
-    resumed = PPO(NanoNavArrayEnv(8, WORLD), CONFIG)
-    resumed.load_state_dict(load_checkpoint(tmp_path))
-    assert resumed.decisions == first.decisions
-    # both draw every world afresh from the generators as they were, and learn alike
-    first.load_state_dict(first.state_dict())
-    first.learn(3 * CONFIG.batch)
-    resumed.learn(3 * CONFIG.batch)
-    assert resumed.decisions == first.decisions == 3 * CONFIG.batch
+    config = replace(CONFIG, overlap=overlap)
+    with PPO(NanoNavArrayEnv(8, WORLD), config) as first:
+        first.learn(2 * config.batch)
+        save_checkpoint(tmp_path, first.state_dict())
+        with PPO(NanoNavArrayEnv(8, WORLD), config) as resumed:
+            resumed.load_state_dict(load_checkpoint(tmp_path))
+            assert resumed.decisions == first.decisions
+            # both draw every world afresh from the generators as they were, and learn alike
+            first.load_state_dict(first.state_dict())
+            first.learn(3 * config.batch)
+            resumed.learn(3 * config.batch)
+    assert resumed.decisions == first.decisions == 3 * config.batch
     for name, weights in first.net.state_dict().items():
         torch.testing.assert_close(resumed.net.state_dict()[name], weights)
 

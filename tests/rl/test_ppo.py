@@ -4,11 +4,17 @@ are."""
 
 from __future__ import annotations
 
+import os
+import signal
+from pathlib import Path
+
 import numpy as np
 import pytest
 import torch
 
 from nanonav.env.arrays import NanoNavArrayEnv
+from nanonav.rl import collect
+from nanonav.rl.collect import Collector, Rollout
 from nanonav.rl.networks import ActorCritic
 from nanonav.rl.ppo import PPO, PPOConfig, gae
 from nanonav.scenario import preset_scenario
@@ -16,6 +22,7 @@ from nanonav.scenario import preset_scenario
 # paper-single, where the rule reaches the cell (docs/explanation/learning.md), in short
 # episodes so that an evaluation ends within a hundred decisions
 SHORT = preset_scenario("paper-single", seed=5000, learning={"max_steps": 100})
+CPU = torch.device("cpu")
 
 
 def test_gae_with_lambda_and_gamma_one_is_the_return_to_go_less_the_value() -> None:
@@ -55,17 +62,18 @@ def _mean_first_return(net: ActorCritic, worlds: int = 256, seed: int = 9000) ->
     return float(total.mean())
 
 
-@pytest.mark.parametrize("memory_units", [0, 25])
+@pytest.mark.parametrize(("memory_units", "overlap"), [(0, False), (25, False), (0, True),
+                                                        (25, True)])  # fmt: skip
 def test_seconds_of_training_improve_the_return_where_the_rule_succeeds(
-    memory_units: int,
+    memory_units: int, overlap: bool
 ) -> None:
     torch.set_num_threads(1)
     config = PPOConfig(envs=256, rollout=32, minibatch=2048, bptt=8, memory_units=memory_units,
-                       seed=1)  # fmt: skip
-    learner = PPO(NanoNavArrayEnv(256, SHORT), config)
-    before = _mean_first_return(learner.net)
-    seen: list[int] = []
-    learner.learn(20 * config.batch, lambda update: seen.append(update.decisions))
+                       seed=1, overlap=overlap)  # fmt: skip
+    with PPO(NanoNavArrayEnv(256, SHORT), config) as learner:
+        before = _mean_first_return(learner.net)
+        seen: list[int] = []
+        learner.learn(20 * config.batch, lambda update: seen.append(update.decisions))
     after = _mean_first_return(learner.net)
     assert seen == [config.batch * k for k in range(1, 21)]
     assert after > before + 3.0, (before, after)
@@ -81,10 +89,11 @@ def test_a_sequence_starts_from_the_memory_its_world_had_then() -> None:
     """The update judges each sequence from the memory kept at its first decision: run from
     there, the GRU gives back the memory the rollout carried at its last one."""
     torch.set_num_threads(1)
-    config = PPOConfig(envs=4, rollout=8, bptt=4, memory_units=5, minibatch=8, seed=3)
-    learner = PPO(NanoNavArrayEnv(4, SHORT), config)
-    learner._collect()
-    r, net = learner._rollout, learner.net
+    env = NanoNavArrayEnv(4, SHORT)
+    net = ActorCritic(env.width, env.actions, memory_units=5)
+    collector = Collector(env, net, steps=8, bptt=4, gamma=0.99, seed=3, device=CPU)
+    r = Rollout.allocated(8, 4, env, memory_units=5, bptt=4, device=CPU)
+    collector.collect(r)
     assert net.memory is not None
     for chunk in range(2):
         for world in range(4):
@@ -97,3 +106,48 @@ def test_a_sequence_starts_from_the_memory_its_world_had_then() -> None:
             if chunk == 0:
                 expected = r.memories[1, world]
                 torch.testing.assert_close(h * (~r.starts[4, world]), expected)
+
+
+def _weights(net: ActorCritic) -> list[torch.Tensor]:
+    return [value.clone() for value in net.state_dict().values()]
+
+
+@pytest.mark.parametrize("memory_units", [0, 4])
+def test_an_overlapped_run_is_the_same_run_each_time(memory_units: int) -> None:
+    """The collector's process takes each rollout's weights at a fixed point of the schedule,
+    whatever the two processes' timing: two runs of one seed end with the same weights, bit
+    for bit."""
+    torch.set_num_threads(1)
+    config = PPOConfig(envs=16, rollout=16, minibatch=64, bptt=8, memory_units=memory_units,
+                       seed=4, overlap=True)  # fmt: skip
+    runs = []
+    for _ in range(2):
+        with PPO(NanoNavArrayEnv(16, SHORT), config) as learner:
+            learner.learn(6 * config.batch)
+            runs.append(_weights(learner.net))
+    for first, second in zip(*runs, strict=True):
+        assert torch.equal(first, second)
+
+
+def test_the_collectors_shared_files_are_gone_once_it_has_started(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Both processes map the rollouts and the weights, then the files are removed: a run
+    that is killed leaves nothing behind."""
+    monkeypatch.setattr(collect, "SHARED_FOLDER", tmp_path)
+    config = PPOConfig(envs=8, rollout=16, minibatch=64, seed=5, overlap=True)
+    with PPO(NanoNavArrayEnv(8, SHORT), config) as learner:
+        learner.learn(2 * config.batch)
+        assert list(tmp_path.iterdir()) == []
+        assert learner.decisions == 2 * config.batch
+
+
+def test_a_collector_that_dies_ends_the_run_with_an_error_not_a_hang() -> None:
+    config = PPOConfig(envs=8, rollout=16, minibatch=64, seed=6, overlap=True)
+    with PPO(NanoNavArrayEnv(8, SHORT), config) as learner:
+        learner.learn(config.batch)
+        pid = learner.collector_pid()
+        assert pid is not None
+        os.kill(pid, signal.SIGKILL)
+        with pytest.raises(RuntimeError, match="collector's process ended"):
+            learner.learn(4 * config.batch)
