@@ -276,6 +276,9 @@ def cases(quick: bool) -> dict[str, tuple[str, Callable[[], dict[str, Any]]]]:
         f"new, MLP, {small:,} worlds, 1 thread": (
             "load", lambda: under_load(["--envs", str(small), "--steps",
                                         str(_steps(small, n or 10))])),
+        f"new in turn (--no-overlap), MLP, {small:,} worlds, 1 thread": (
+            "load", lambda: under_load(["--envs", str(small), "--no-overlap", "--steps",
+                                        str(_steps(small, n or 10))])),
         f"new, MLP, {small:,} worlds, 2 threads": (
             "load", lambda: under_load(["--envs", str(small), "--threads", "2", "--steps",
                                         str(_steps(small, n or 4))])),

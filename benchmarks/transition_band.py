@@ -96,15 +96,15 @@ def folder(out: Path, radius: float, learner: str) -> Path:
     return out / f"{radius:g}-um-{learner}"
 
 
-def config(learner: str, quick: bool) -> Any:
+def config(learner: str, quick: bool, overlap: bool = False) -> Any:
     from nanonav.rl.ppo import PPOConfig
 
     units = 0 if learner == "mlp" else 25
     if quick:
         return PPOConfig(envs=32, rollout=16, minibatch=256, bptt=8, memory_units=units,
                          seed=TRAINING_SEED)  # fmt: skip
-    # in turn, as the tables in docs/explanation/learning.md were trained (before overlap)
-    return PPOConfig(memory_units=units, seed=TRAINING_SEED, overlap=False)
+    # in turn unless asked, as the tables in docs/explanation/learning.md were trained
+    return PPOConfig(memory_units=units, seed=TRAINING_SEED, overlap=overlap)
 
 
 class Counted:
@@ -159,7 +159,7 @@ def rule_success(radius: float, seeds: range, worlds: int) -> list[float]:
 
 
 def train(radius: float, learner: str, decisions: int, out: Path, curve: tuple[int, int],
-          quick: bool = False) -> list[dict[str, Any]]:  # fmt: skip
+          quick: bool = False, overlap: bool = False) -> list[dict[str, Any]]:  # fmt: skip
     """Train ``learner`` at ``radius`` in stages up to ``decisions``, resuming what ``out``
     holds, and add each stage's point to its ``curve.json``: the points."""
     from nanonav.rl.checkpoint import load_checkpoint
@@ -184,7 +184,8 @@ def train(radius: float, learner: str, decisions: int, out: Path, curve: tuple[i
         else:
             world = scenario(radius, TRAINING_SEED, 1,
                              gradient_memory_s=observed_memory_s(radius, learner))  # fmt: skip
-            report = train_run(run, stage, scenario=world, config=config(learner, quick),
+            report = train_run(run, stage, scenario=world,
+                               config=config(learner, quick, overlap),
                                settings=settings)  # fmt: skip
         done = int(report["decisions"])
         seeds = range(CURVE_SEEDS, CURVE_SEEDS + curve[0])
@@ -296,6 +297,11 @@ def main(argv: list[str] | None = None) -> int:
     training.add_argument("--radius", type=float, required=True, choices=RADII)
     training.add_argument("--learner", required=True, choices=LEARNERS)
     training.add_argument("--decisions", type=int, required=True)
+    training.add_argument(
+        "--overlap", action="store_true",
+        help="a new run collects while it learns (nanonav train's default; the tables were "
+        "trained in turn)",
+    )  # fmt: skip
     reporting = commands.add_parser("report", help="every finished run against the rule")
     reporting.add_argument("--seeds", type=int, default=20)
     reporting.add_argument("--worlds", type=int, default=20)
@@ -308,7 +314,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.command == "train":
         if args.decisions < 1:
             parser.error("--decisions: at least 1")
-        train(args.radius, args.learner, args.decisions, args.out, curve)
+        train(args.radius, args.learner, args.decisions, args.out, curve,
+              overlap=args.overlap)  # fmt: skip
         return 0
     if args.command == "report":
         return report(args.out, args.seeds, args.worlds, REPORT_FROM, curve)
