@@ -56,6 +56,9 @@ def build_parser() -> argparse.ArgumentParser:
     policies.add_policy(subcommands)
     policies.add_policies(subcommands)
     train.add_train(subcommands)
+    for subparser in subcommands.choices.values():
+        # so that an argument it does not know is said with its usage (``main``)
+        subparser.set_defaults(parser=subparser)
     return parser
 
 
@@ -67,7 +70,10 @@ def main(argv: list[str] | None = None) -> int:
     left early."""
     parser = build_parser()
     try:
-        args = parser.parse_args(argv)
+        args, unknown = parser.parse_known_args(argv)
+        if unknown:
+            # said with the subcommand's usage, not the top level's (which lists commands)
+            args.parser.error(f"unrecognized arguments: {' '.join(unknown)}")
     except SystemExit as stop:
         return stop.code if isinstance(stop.code, int) else EXIT_USAGE
     handler: Handler = args.handler

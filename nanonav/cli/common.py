@@ -134,3 +134,40 @@ def connect(args: argparse.Namespace) -> Iterator[Client]:
         raise UsageError(validation_messages(error)) from error
     with client:
         yield client
+
+
+def parse_setting(text: str) -> tuple[list[str], Any]:
+    """``FIELD=VALUE`` as the field's path and its value: JSON (20, true, null, [1, 2]) where
+    it reads as JSON, else the text itself (gradient)."""
+    field, equals, value = text.partition("=")
+    path = field.strip().split(".")
+    if not equals or not all(path):
+        raise argparse.ArgumentTypeError(f"not FIELD=VALUE: {text!r}")
+    try:
+        return path, json.loads(value)
+    except ValueError:
+        return path, value
+
+
+def add_set_option(parser: argparse.ArgumentParser, over: str) -> None:
+    """``--set FIELD=VALUE`` (repeatable) into ``args.settings``, over ``over``'s fields."""
+    parser.add_argument(
+        "--set", action="append", default=[], type=parse_setting, metavar="FIELD=VALUE",
+        dest="settings",
+        help=f"a scenario field by its dotted name, over {over} (repeatable): "
+        "learning.episodes=20, robots.policy=gradient; VALUE is read as JSON, else as text",
+    )  # fmt: skip
+
+
+def with_settings(scenario: dict[str, Any], settings: list[tuple[list[str], Any]]) -> None:
+    """``scenario`` with each ``--set`` path set to its value, the sections on the way made as
+    needed."""
+    for path, value in settings:
+        section = scenario
+        for i, name in enumerate(path[:-1]):
+            inner = section.setdefault(name, {})
+            if not isinstance(inner, dict):
+                where = ".".join(path[: i + 1])
+                raise UsageError([f"--set {'.'.join(path)}: {where} is not a section"])
+            section = inner
+        section[path[-1]] = value

@@ -19,10 +19,12 @@ from nanonav.cli.common import (
     Failed,
     Subcommands,
     UsageError,
+    add_set_option,
     add_url,
     connect,
     positive,
     read_json_object,
+    with_settings,
 )
 from nanonav.cli.tables import format_jobs, format_study, format_table, plural, study_counts
 from nanonav.client import (
@@ -98,52 +100,17 @@ def add_submit(subcommands: Subcommands) -> None:
         help="base values (explicit fields of FILE override them)",
     )
     submit.add_argument("--seed", type=int, metavar="N", help="seed of every random draw")
-    submit.add_argument(
-        "--set",
-        action="append",
-        default=[],
-        type=_setting,
-        metavar="FIELD=VALUE",
-        dest="settings",
-        help="a scenario field by its dotted name, over FILE's (repeatable): "
-        "learning.episodes=20, robots.policy=gradient; VALUE is read as JSON, else as text",
-    )
+    add_set_option(submit, "FILE's")
     submit.add_argument("--wait", action="store_true", help=WAIT_HELP)
     add_url(submit)
     submit.set_defaults(handler=_submit)
-
-
-def _setting(text: str) -> tuple[list[str], Any]:
-    """``FIELD=VALUE`` as the field's path and its value: JSON (20, true, null, [1, 2]) where
-    it reads as JSON, else the text itself (gradient)."""
-    field, equals, value = text.partition("=")
-    path = field.strip().split(".")
-    if not equals or not all(path):
-        raise argparse.ArgumentTypeError(f"not FIELD=VALUE: {text!r}")
-    try:
-        return path, json.loads(value)
-    except ValueError:
-        return path, value
-
-
-def _with_setting(scenario: dict[str, Any], path: list[str], value: Any) -> None:
-    """``scenario`` with ``path`` set to ``value``, the sections on the way made as needed."""
-    section = scenario
-    for i, name in enumerate(path[:-1]):
-        inner = section.setdefault(name, {})
-        if not isinstance(inner, dict):
-            where = ".".join(path[: i + 1])
-            raise UsageError([f"--set {'.'.join(path)}: {where} is not a section"])
-        section = inner
-    section[path[-1]] = value
 
 
 def _submit(args: argparse.Namespace) -> int:
     if args.file is None and args.preset is None:
         raise UsageError(["give a scenario FILE or --preset NAME"])
     scenario = {} if args.file is None else read_json_object(args.file, "scenario")
-    for path, value in args.settings:
-        _with_setting(scenario, path, value)
+    with_settings(scenario, args.settings)
     if args.preset is not None:
         scenario["preset"] = args.preset
     if args.seed is not None:

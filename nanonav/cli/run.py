@@ -21,8 +21,10 @@ from nanonav.cli.common import (
     EXIT_OK,
     Subcommands,
     UsageError,
+    add_set_option,
     read_json_object,
     validation_messages,
+    with_settings,
 )
 from nanonav.cli.tables import format_table, plural
 from nanonav.scenario import PRESETS, Scenario, ScenarioError
@@ -36,7 +38,7 @@ def add_run(subcommands: Subcommands) -> None:
         "run",
         help="run one simulation here and print the paper's Table 1",
         description="Run one simulation in this process and print its metrics (paper Table 1). "
-        "The scenario is read from --scenario, then --preset and --seed override it.",
+        "The scenario is read from --scenario, then --set, --preset and --seed override it.",
     )
     run.add_argument(
         "--preset",
@@ -45,6 +47,7 @@ def add_run(subcommands: Subcommands) -> None:
     )
     run.add_argument("--scenario", type=Path, metavar="FILE.json", help="scenario as a JSON object")
     run.add_argument("--seed", type=int, metavar="N", help="seed of every random draw")
+    add_set_option(run, "the scenario file's")
     run.add_argument(
         "--out",
         type=Path,
@@ -62,7 +65,8 @@ def add_run(subcommands: Subcommands) -> None:
 def _run(args: argparse.Namespace) -> int:
     from nanonav.engine import simulate
 
-    scenario = load_scenario(args.scenario, preset=args.preset, seed=args.seed)
+    scenario = load_scenario(args.scenario, preset=args.preset, seed=args.seed,
+                             settings=args.settings)  # fmt: skip
     source = scenario.policy_from
     if source is not None:
         named = f"{source} is a policy" if isinstance(source, str) else f"job {source} is a job"
@@ -96,9 +100,14 @@ def _run(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def load_scenario(path: Path | None, *, preset: str | None, seed: int | None) -> Scenario:
-    """The scenario from a JSON file (or the defaults), with ``preset`` and ``seed`` on top."""
+def load_scenario(
+    path: Path | None, *, preset: str | None, seed: int | None,
+    settings: list[tuple[list[str], Any]] | None = None,
+) -> Scenario:  # fmt: skip
+    """The scenario from a JSON file (or the defaults), with ``--set``'s ``settings``, then
+    ``preset`` and ``seed`` on top."""
     data = {} if path is None else read_json_object(path, "scenario")
+    with_settings(data, settings or [])
     if preset is not None:
         data["preset"] = preset
     if seed is not None:

@@ -16,7 +16,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from nanonav.cli.common import EXIT_OK, Subcommands, UsageError, positive
+from nanonav.cli.common import EXIT_OK, Subcommands, UsageError, add_set_option, positive
 from nanonav.cli.run import load_scenario
 from nanonav.scenario import PRESETS, STEERINGS
 
@@ -99,6 +99,7 @@ def add_train(subcommands: Subcommands) -> None:
         "--seed", type=int, metavar="N",
         help="the first training world's seed (train on seeds you will not evaluate on)",
     )  # fmt: skip
+    add_set_option(train, "the scenario file's")
     train.add_argument(
         "--algo", choices=ALGOS, default="ppo",
         help="the learner (default: ppo); recurrent-ppo is ppo with a memory (--memory gru); "
@@ -224,7 +225,8 @@ def _train(args: argparse.Namespace) -> int:
         return _resume(args, library)
     if args.out is None:
         raise UsageError(["--out DIR: where the run is written (or --resume DIR)"])
-    scenario = load_scenario(args.scenario, preset=args.preset, seed=args.seed)
+    scenario = load_scenario(args.scenario, preset=args.preset, seed=args.seed,
+                             settings=args.settings)  # fmt: skip
     if args.steering == "continuous":
         if args.algo == "dqn":
             raise UsageError(["--steering continuous: dqn chooses among actions; use ppo"])
@@ -297,6 +299,7 @@ def _resume(args: argparse.Namespace, library: str) -> int:
     if library != "nanonav":
         raise UsageError(["--resume takes up a run of NanoNav's trainer, not --library sb3's"])
     given = [name for name in RUN_OPTIONS if getattr(args, name) is not None]
+    given += ["set"] if args.settings else []
     if given:
         flags = ", ".join("--" + name.replace("_", "-") for name in given)
         raise UsageError([f"{flags}: a resumed run keeps its scenario and settings"])

@@ -488,11 +488,11 @@ def test_the_client_and_the_command_load_neither_service_worker_nor_engine() -> 
 def test_set_gives_a_field_by_its_dotted_name_or_is_refused_naming_it(
     capsys: pytest.CaptureFixture[str],
 ) -> None:
-    from nanonav.cli.remote import _setting, _with_setting
+    from nanonav.cli.common import parse_setting, with_settings
 
     scenario: dict[str, Any] = {"learning": {"alpha": 0.1}}
-    for text in ("learning.episodes=20", "robots.policy=gradient", "cells.capacity=null"):
-        _with_setting(scenario, *_setting(text))
+    with_settings(scenario, [parse_setting(text) for text in (
+        "learning.episodes=20", "robots.policy=gradient", "cells.capacity=null")])  # fmt: skip
     assert scenario == {"learning": {"alpha": 0.1, "episodes": 20},
                         "robots": {"policy": "gradient"}, "cells": {"capacity": None}}  # fmt: skip
     url = ["--url", "http://127.0.0.1:9"]

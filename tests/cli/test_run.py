@@ -298,3 +298,37 @@ def test_a_physical_preset_runs_and_prints_its_units(
     assert document["physics"]["time_limit_s"] == pytest.approx(1.0)
     with np.load(out_dir / "result.npz") as arrays:
         assert arrays["headings"].shape[1:] == (3, 3) and arrays["sensed"].shape[1] == 3
+
+
+def test_set_overrides_a_field_as_submit_does(capsys: pytest.CaptureFixture[str]) -> None:
+    code = cli.main(["run", "--preset", "paper-single", "--set", "learning.episodes=2",
+                     "--set", "learning.max_steps=50", "--json"])  # fmt: skip
+    out, _ = capsys.readouterr()
+    assert code == 0
+    document = json.loads(out)
+    assert document["scenario"]["learning"]["episodes"] == 2
+    assert document["scenario"]["learning"]["max_steps"] == 50
+    assert len(document["episodes"]) == 2
+
+
+def test_a_set_the_scenario_refuses_names_the_field(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    code = cli.main(["run", "--preset", "paper-single", "--set", "robots.count=many"])
+    assert code == 2
+    assert capsys.readouterr().err.startswith("nanonav run: robots.count: ")
+    path = write_scenario(tmp_path, {"seed": 3})
+    code = cli.main(["run", "--scenario", path, "--set", "seed.x=1"])
+    assert code == 2
+    assert "--set seed.x: seed is not a section" in capsys.readouterr().err
+
+
+def test_an_argument_run_does_not_know_is_said_with_runs_usage(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    code = cli.main(["run", "--preset", "paper-single", "--episodes", "2"])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert err.startswith("usage: nanonav run ")
+    assert "nanonav run: error: unrecognized arguments: --episodes 2" in err
+    assert "COMMAND" not in err  # not the top level's usage
