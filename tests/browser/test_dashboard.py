@@ -412,3 +412,35 @@ def test_a_swarm_studys_comparisons_can_be_read_to_their_right_edge_at_1400_pixe
     assert_study_tables_fit(page)
     assert page.evaluate("document.documentElement.scrollWidth") <= 1400
     screenshot(page, "swarm-study-1400")
+
+
+def test_a_right_to_left_override_in_a_name_turns_nothing_after_it(page: Page, site: Site) -> None:
+    """A study named with U+202E (right-to-left override) once turned the rest of its heading
+    around: the status after the name was drawn to its left. The name is isolated (``bdi``),
+    so what follows it keeps its order, on the study's page and in the list of studies."""
+    name = "tumour \u202eevil"
+    study = {"name": name, "base": QUICK, "grid": {"robots.policy": ["gradient"]}, "seeds": [1]}
+    study_id = httpx.post(f"{site.url}/studies", json=study).json()["id"]
+    page.goto(f"{site.url}/ui/studies/{study_id}")
+    expect(page.locator("h1")).to_contain_text(name)
+    # the right edge of the name's text as drawn, and where the status after it begins
+    name_right = page.evaluate(
+        """() => {
+          const walker = document.createTreeWalker(document.querySelector('h1'),
+                                                   NodeFilter.SHOW_TEXT);
+          while (walker.nextNode()) {
+            if (walker.currentNode.data.includes('\\u202e')) {
+              const range = document.createRange();
+              range.selectNodeContents(walker.currentNode);
+              return range.getBoundingClientRect().right;
+            }
+          }
+          return null;
+        }"""
+    )
+    status = page.locator("#study-status").bounding_box()
+    assert name_right is not None and status is not None
+    assert status["x"] >= name_right, (status, name_right)
+    page.goto(f"{site.url}/ui/studies")
+    row = page.locator("tr", has_text="evil").first
+    assert row.locator("bdi").first.inner_text() == name
