@@ -87,6 +87,8 @@ def prepare(shutdown: threading.Event) -> bool:
     started = time.monotonic()
     ready = CACHE / f"worker-ready-{_warm_up_digest()}"
     if not ready.exists():
+        logger.info("compiling the engine for this machine, once: about a minute on two cores "
+                    "(later starts load it in seconds)")  # fmt: skip
         compiling = subprocess.Popen(
             [sys.executable, "-c",
              f"from worker.loop import compile_alone; compile_alone({os.getpid()})"],

@@ -63,7 +63,7 @@ def add_run(subcommands: Subcommands) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from nanonav.engine import simulate
+    from nanonav.engine import compiled_here, simulate
 
     scenario = load_scenario(args.scenario, preset=args.preset, seed=args.seed,
                              settings=args.settings)  # fmt: skip
@@ -76,6 +76,10 @@ def _run(args: argparse.Namespace) -> int:
                 "submit this scenario with `nanonav submit`"
             ]
         )
+    if not compiled_here():
+        # the first run after an install or a change compiles the engine, silently otherwise
+        print("nanonav run: compiling the engine for this machine, once: about a minute on two "
+              "cores (later runs load it in seconds)", file=sys.stderr, flush=True)  # fmt: skip
     show_bar = not args.json and sys.stderr.isatty()
     with _stop_on_interrupt() as stopped, _progress_bar(show_bar) as report:
 

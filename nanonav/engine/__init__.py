@@ -8,7 +8,7 @@ It knows nothing of HTTP or SQL: a scenario goes in, plain arrays and dicts come
 from nanonav.engine import compiled  # noqa: F401  # isort: skip
 from nanonav.engine.fields import field_and_gradient
 from nanonav.engine.result import QTable, SimulationResult, Trajectory, without_timings
-from nanonav.engine.simulate import Progress, ProgressCallback, simulate
+from nanonav.engine.simulate import Progress, ProgressCallback, compiled_here, simulate
 
 __all__ = [
     "Progress",
@@ -16,6 +16,7 @@ __all__ = [
     "QTable",
     "SimulationResult",
     "Trajectory",
+    "compiled_here",
     "field_and_gradient",
     "simulate",
     "without_timings",

@@ -105,6 +105,15 @@ def keep_compiled_code() -> Path:
 CACHE = keep_compiled_code()
 
 
+def in_cache(function: Any) -> bool:
+    """Whether numba's cache on disk holds machine code of the compiled engine function
+    ``function``: if not, its first call compiles it (a minute for the whole engine), and
+    whoever waits should be told."""
+    python = function.py_func
+    stem = f"{python.__module__.rsplit('.', 1)[-1]}.{python.__qualname__}-"
+    return any(CACHE.glob(f"{stem}*.nbi"))
+
+
 def uncounted(function: _F) -> _F:
     """``njit`` without reference counting (numba's ``_nrt=False``, which its typed signature
     does not name). Nothing compiled so may allocate (numba refuses it if anything does, and an

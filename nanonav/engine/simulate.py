@@ -27,6 +27,7 @@ from nanonav.engine import (
     signals,
     state,
 )  # fmt: skip
+from nanonav.engine.compiled import in_cache
 from nanonav.engine.dynamics import brownian
 from nanonav.engine.dynamics.brownian import heading_kick_scale
 from nanonav.engine.result import QTable, SimulationResult, Trajectory
@@ -640,6 +641,12 @@ def _warm_up() -> None:
         tiny.biomarker, run.world.cells, np.zeros((1, 0, 3)), np.zeros((1, 3))
     )
     _compiled = True
+
+
+def compiled_here() -> bool:
+    """Whether this machine holds ``simulate``'s machine code (else its first call compiles
+    the engine: about a minute on two cores)."""
+    return in_cache(kernel.run)
 
 
 def simulate(

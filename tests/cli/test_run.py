@@ -2,10 +2,12 @@
 
 import io
 import json
+import os
 import re
 import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 from typing import Any
 
@@ -253,7 +255,9 @@ def test_command_runs_as_a_process(tmp_path: Path) -> None:
     document = json.loads(completed.stdout)
     assert set(document) == DOCUMENT_KEYS
     assert document["scenario"]["seed"] == 9
-    assert completed.stderr == ""
+    # nothing on stderr but, where the engine was not yet compiled here, the line saying so
+    said = completed.stderr.splitlines()
+    assert said == [] or (len(said) == 1 and "compiling the engine" in said[0]), said
 
 
 def test_a_physical_preset_runs_and_prints_its_units(
@@ -332,3 +336,25 @@ def test_an_argument_run_does_not_know_is_said_with_runs_usage(
     assert err.startswith("usage: nanonav run ")
     assert "nanonav run: error: unrecognized arguments: --episodes 2" in err
     assert "COMMAND" not in err  # not the top level's usage
+
+
+def test_a_cold_run_says_it_is_compiling_before_it_compiles(tmp_path: Path) -> None:
+    """With no machine code on disk (an empty ``NUMBA_CACHE_DIR``), the first line comes at
+    once, not after the minute of compiling it announces (the process is stopped then)."""
+    cold = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "empty")}
+    started = time.monotonic()
+    process = subprocess.Popen(
+        [sys.executable, "-m", "nanonav.cli", "run", "--preset", "paper-single", "--set",
+         "learning.episodes=1", "--json"],
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=cold,
+    )  # fmt: skip
+    try:
+        assert process.stderr is not None
+        first = process.stderr.readline()
+        said_after_s = time.monotonic() - started
+        assert first.startswith("nanonav run: compiling the engine for this machine"), first
+        assert process.poll() is None, "it had finished: the line came after the compile"
+    finally:
+        process.kill()
+        process.communicate()
+    assert said_after_s < 30.0  # a second or two idle; the bound only rules out the compile
