@@ -196,6 +196,11 @@ def add_train(subcommands: Subcommands) -> None:
     )  # fmt: skip
     train.add_argument("--out", type=Path, metavar="DIR", help="where the run is written")
     train.add_argument("--no-progress", action="store_true", help="no progress printed")
+    train.add_argument(
+        "--progress-every", type=_positive_float, default=5.0, metavar="SECONDS",
+        help="seconds between two lines of progress (default 5), each flushed as it is "
+        "written, to a file or a pipe too",
+    )  # fmt: skip
     train.set_defaults(handler=_train)
 
 
@@ -271,7 +276,7 @@ def _settings(args: argparse.Namespace) -> Any:
         raise UsageError([f"--device {args.device}: {error}"]) from None
     return RunSettings(
         threads=args.threads, device=args.device, checkpoint_every=args.checkpoint_every,
-        progress=None if args.no_progress else sys.stdout,
+        progress=None if args.no_progress else sys.stdout, progress_every_s=args.progress_every,
     )  # fmt: skip
 
 

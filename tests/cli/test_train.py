@@ -8,6 +8,9 @@ from __future__ import annotations
 
 import json
 import re
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -206,3 +209,29 @@ def test_options_that_do_not_fit_are_refused(
     assert main(["train", "--steps", "8", *given]) == 2
     assert says in capsys.readouterr().err
     assert not (tmp_path / "X").exists()
+
+
+def test_progress_reaches_a_file_while_it_trains(tmp_path: Path) -> None:
+    """``nanonav train ... > log``: lines of progress are in the file while the run goes on,
+    not all at its end, each with the rate the summary gives the same way."""
+    log = tmp_path / "train.log"
+    with log.open("w") as out:
+        process = subprocess.Popen(
+            [sys.executable, "-m", "nanonav.cli", "train", "--preset", "alonso-kirkegaard",
+             "--seed", "5000", "--envs", "64", "--rollout", "16", "--minibatch", "512",
+             "--steps", "100000000", "--progress-every", "0.2", "--no-overlap",
+             "--out", str(tmp_path / "run")],
+            stdout=out, stderr=subprocess.PIPE, text=True,
+        )  # fmt: skip
+        try:
+            deadline = time.monotonic() + 120
+            lines: list[str] = []
+            while len(lines) < 2:
+                assert process.poll() is None, process.communicate()[1]
+                assert time.monotonic() < deadline, "no progress written within two minutes"
+                time.sleep(0.2)
+                lines = [line for line in log.read_text().splitlines() if "decisions  " in line]
+        finally:
+            process.kill()
+            process.communicate()
+    assert re.match(r"^[\d,]+/100,000,000 decisions  [\d,]+/s  ", lines[0]), lines
