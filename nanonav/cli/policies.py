@@ -14,6 +14,7 @@ with the arrays ``states``, ``actions`` and ``values`` (``numpy.savez`` of an en
 from __future__ import annotations
 
 import argparse
+import json
 import zipfile
 from pathlib import Path
 from typing import Any
@@ -60,7 +61,11 @@ def add_policy(subcommands: Subcommands) -> None:
         "--actions", metavar="LABELS",
         help="an .onnx model's actions, comma-separated (default: the model's metadata)",
     )  # fmt: skip
-    policy.add_argument("--name", metavar="NAME", help="what lists call it (default: FILE's)")
+    policy.add_argument(
+        "--name", metavar="NAME",
+        help="what lists call it (default: FILE's; for a network nanonav train wrote, its run's "
+        "folder, learner and decisions)",
+    )  # fmt: skip
     policy.add_argument(
         "--idempotency-key",
         metavar="KEY",
@@ -109,7 +114,7 @@ def _network(args: argparse.Namespace) -> int:
             model,
             observation=labels(args.observation),
             actions=labels(args.actions),
-            name=args.name or args.file.stem,
+            name=args.name or network_name(args.file),
             idempotency_key=args.idempotency_key,
         )
     print(
@@ -117,6 +122,20 @@ def _network(args: argparse.Namespace) -> int:
         f"observation columns -> {sent.action_count} {sent.action_set} actions)"
     )
     return EXIT_OK
+
+
+def network_name(path: Path) -> str:
+    """What a network is called when no ``--name`` is given: a file ``nanonav train`` wrote
+    (its ``training.json`` beside it) by its run's folder, its learner and its decisions
+    (``gru: recurrent-ppo, 10,000,000 decisions``), not by the stem every such file shares
+    (``policy``); any other file by its stem."""
+    report = path.parent / "training.json"
+    try:
+        trained = json.loads(report.read_text(encoding="utf-8"))
+        decisions = int(trained["decisions"])
+        return f"{path.resolve().parent.name}: {trained['algo']}, {decisions:,} decisions"
+    except (OSError, ValueError, KeyError, TypeError):
+        return path.stem
 
 
 def read_table(path: Path) -> dict[str, Any]:

@@ -124,3 +124,16 @@ def test_a_file_that_holds_no_table_is_refused_before_anything_is_sent(
         assert err.startswith("nanonav policy: ") and words in err, err
     assert main(["delete", "3", "--policy", "4", *nowhere]) == 2
     assert "one of them" in capsys.readouterr().err
+
+
+def test_a_network_nanonav_train_wrote_is_named_by_its_run_not_policy(tmp_path: Path) -> None:
+    from nanonav.cli.policies import network_name
+
+    run = tmp_path / "gru-1um"
+    run.mkdir()
+    (run / "training.json").write_text(json.dumps({"algo": "recurrent-ppo",
+                                                   "decisions": 10_027_008}))  # fmt: skip
+    assert network_name(run / "policy.onnx") == "gru-1um: recurrent-ppo, 10,027,008 decisions"
+    (run / "training.json").write_text("{not json")
+    assert network_name(run / "policy.onnx") == "policy"
+    assert network_name(tmp_path / "mine.onnx") == "mine"  # no run beside it: the stem
