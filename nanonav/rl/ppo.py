@@ -143,10 +143,11 @@ class PPO:
         self.shuffle = np.random.default_rng(config.seed)
         self.decisions = 0
         self.updates = 0
-        # the streams live here until the collector's process starts, and there from then on
+        # the streams live here until the collector's process starts, and there from then on;
+        # that process decides on the CPU, whatever device the learner learns on
         self._collector = Collector(
             env, self.net, steps=config.rollout, bptt=config.bptt, gamma=config.gamma,
-            seed=config.seed, device=self.device,
+            seed=config.seed, device=torch.device("cpu") if config.overlap else self.device,
         )  # fmt: skip
         self._away: CollectorProcess | None = None
         self.collector_peak_memory_mb = 0.0  # the collector's process's, once it has ended
