@@ -236,7 +236,7 @@ def draw(out: Path, every: list[tuple[float, str, Path]], curve: tuple[int, int]
             ax.plot([p["decisions"] for p in points], [p["success"] for p in points],
                     marker="o", label=learner)  # fmt: skip
         ax.set_xscale("log")
-        ax.set_ylim(0, 1)
+        ax.set_ylim(0, 1.05)  # a share of 1 drawn inside the frame, not on it
         ax.set_xlabel("decisions trained")
         ax.set_ylabel("share of episodes reaching the source")
         ax.set_title(f"robot radius {radius:g} µm")

@@ -173,6 +173,15 @@ class PPO:
             if state is not None:
                 self._collector.load_state_dict(state)
 
+    def prepare(self) -> None:
+        """What a run counts as its start, not its training: with overlap, the collector's
+        process started (it loads torch and the engine and draws its worlds); the engine's
+        step loaded from numba's cache where the rollouts are collected."""
+        if self.config.overlap:
+            self._remote()
+        else:
+            self._collector.warm_up()
+
     def collector_pid(self) -> int | None:
         """The collector's process's id while there is one."""
         return None if self._away is None else self._away.pid

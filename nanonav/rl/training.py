@@ -6,7 +6,7 @@ The folder holds everything a later ``--resume`` needs: ``scenario.json`` and
 ``checkpoint.pt`` (``nanonav.rl.checkpoint``). ``training.json`` says how fast the run went:
 its decisions over the wall-clock seconds of its training loop (rollouts, updates and
 checkpoints alike), and separately the seconds it took to start (the worlds drawn, the engine
-loaded from numba's cache or compiled).
+loaded from numba's cache or compiled, the collector's process started).
 """
 
 from __future__ import annotations
@@ -165,6 +165,7 @@ def train(
             learner.load_state_dict(state)
         first = learner.decisions
         every = settings.checkpoint_every or max(decisions // 4, config.batch)
+        learner.prepare()
         progress = _Progress(settings.progress, settings.progress_every_s, decisions, first)
         started = time.perf_counter()
         # in stretches that each end at a checkpoint: the learner's ``learn`` returns with no
