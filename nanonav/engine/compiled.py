@@ -111,7 +111,8 @@ def in_cache(function: Any) -> bool:
     whoever waits should be told."""
     python = function.py_func
     stem = f"{python.__module__.rsplit('.', 1)[-1]}.{python.__qualname__}-"
-    return any(CACHE.glob(f"{stem}*.nbi"))
+    # numba keeps each source folder's code in a folder of its own under the cache's
+    return any(CACHE.rglob(f"{stem}*.nbi"))
 
 
 def uncounted(function: _F) -> _F:

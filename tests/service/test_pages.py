@@ -297,7 +297,7 @@ def test_a_policys_page_shows_its_greedy_table_and_is_linked_wherever_it_is_name
     model = network(api, name="mlp")
     html = api.client.get(f"/ui/policies/{model['id']}").text
     assert "A network (an ONNX model)" in html
-    assert all(f"<code>{label}</code>" in html for label in OBSERVATION)
+    assert all(f"<code><bdi>{label}</bdi></code>" in html for label in OBSERVATION)
     assert f'href="/policies/{model["id"]}/model"' in html
     assert api.client.get(f"/ui/policies/{model['id'] + 1}").status_code == 404
 
