@@ -9,8 +9,8 @@ trained for 10^8 to 10^9 decisions beat the strongest rule, for robots of what s
 into ``runs/transition-band/R-um-LEARNER`` (``--out``), in stages of 10^6, 3 x 10^6, 10^7, ...
 decisions up to ``--decisions``; after each stage it evaluates the policy on the curve seeds
 and adds a point to the run's ``curve.json``. Each stage resumes from the last checkpoint, so
-a run that was stopped (a session's end, a kill) goes on where it stood when ``train`` is
-given again, and a longer ``--decisions`` extends a finished one.
+a run that was stopped (a session's end, a kill) goes on from its last checkpoint (one every
+10^7 decisions) when ``train`` is given again, and a longer ``--decisions`` extends a finished one.
 
 - ``gru``: a GRU of 25 units then a 64x64 torso the actor and the critic share (the trainer's
   fast recurrent setting; Alonso & Kirkegaard's memory size); ``mlp``: no memory, the same
@@ -63,6 +63,9 @@ TRAINING_SEED = 100_000
 CURVE_SEEDS = 8000
 REPORT_FROM = (7100, 7200)
 STAGES = (10**6, 3 * 10**6, 10**7, 3 * 10**7, 10**8, 3 * 10**8, 10**9, 3 * 10**9)
+# decisions between two checkpoints: a minute and a half at 100,000 decisions a second, so
+# that a stopped run (a session's end, a kill) loses little of a long stage
+CHECKPOINT_EVERY = 10**7
 OUT = Path("runs/transition-band")
 
 
@@ -174,7 +177,10 @@ def train(radius: float, learner: str, decisions: int, out: Path, curve: tuple[i
     early = (2 * config(learner, quick).batch,) if quick else STAGES
     stages = [s for s in early if s < decisions] + [decisions]
     done = int(load_checkpoint(run)["decisions"]) if (run / "checkpoint.pt").exists() else 0
-    settings = RunSettings(progress=None if quick else sys.stdout, progress_every_s=60.0)
+    settings = RunSettings(
+        progress=None if quick else sys.stdout, progress_every_s=60.0,
+        checkpoint_every=None if quick else CHECKPOINT_EVERY,
+    )  # fmt: skip
     for stage in stages:
         if stage <= done and any(p["decisions"] >= stage for p in points):
             continue

@@ -106,9 +106,11 @@ class _GRUSequence(torch.autograd.Function):
             carry = torch.addmm(dh * z_t, d_gh_t, w_hh).mul_(kept_t)
         flat_gh = d_gh.view(steps * sequences, 3 * units)
         flat_gi = torch.cat([d_gh[..., : 2 * units], d_n], -1).view(steps * sequences, -1)
-        d_w_hh = flat_gh.t() @ memories.view(steps * sequences, units)
+        # the weights' gradients as (inputs x gates) products, transposed after: with
+        # thousands of rows and a handful of columns MKL's product is 1.2-3x faster so
+        d_w_hh = (memories.view(steps * sequences, units).t() @ flat_gh).t()
         d_b_hh = flat_gh.sum(0)
-        d_w_ih = flat_gi.t() @ xs
+        d_w_ih = (xs.t() @ flat_gi).t()
         d_b_ih = flat_gi.sum(0)
         d_x = None
         if ctx.needs_input_grad[0]:

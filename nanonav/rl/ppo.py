@@ -150,6 +150,9 @@ class PPO:
             seed=config.seed, device=torch.device("cpu") if config.overlap else self.device,
         )  # fmt: skip
         self._away: CollectorProcess | None = None
+        # with overlap, the rollout collected for the next update: its slot in the collector's
+        # two, the returns of the episodes that ended in it, and its seconds
+        self._pending: tuple[int, list[float], float] | None = None
         self.collector_peak_memory_mb = 0.0  # the collector's process's, once it has ended
         self._rollout = Rollout.allocated(
             config.rollout, config.envs, env, config.memory_units, config.bptt, self.device
@@ -168,6 +171,7 @@ class PPO:
             with contextlib.suppress(RuntimeError):
                 state = self._away.state_dict()
             self._away.close()
+            self._pending = None  # its rollout was in the memory the process shared
             self.collector_peak_memory_mb = self._away.peak_memory_mb
             self._away = None
             if state is not None:
@@ -198,7 +202,8 @@ class PPO:
     def learn(self, decisions: int, after: Callable[[Update], None] | None = None) -> None:
         """Collect rollouts and learn from each until ``decisions`` are done in all (the last
         rollout finished: a run does a whole number of them); ``after`` is told of each.
-        With ``overlap``, no rollout is under way when it returns."""
+        With ``overlap`` it returns with the next rollout collected and none under way (a
+        checkpoint may be read then), and the next call learns from that rollout first."""
         if self.config.overlap:
             self._learn_overlapped(decisions, after)
             return
@@ -215,23 +220,24 @@ class PPO:
         """Rollout k+1 is collected, with the weights the update of rollout k starts from,
         while that update runs: each rollout's policy is one update behind the learner's
         (PPO's ratio to the policy that collected it corrects for that, as in asynchronous
-        PPO). The first rollout of a call is collected alone."""
+        PPO). Only a run's first rollout is collected alone: each call returns with the next
+        rollout collected, and the next call learns from it, so that a run learns the same,
+        bit for bit, whether it stops for checkpoints or not."""
         left = math.ceil(max(decisions - self.decisions, 0) / self.config.batch)
         if left == 0:
             return
         away = self._remote()
-        away.start(0, self.net)
-        returns, collect_s = away.wait()
-        for k in range(left):
-            rollout = away.rollouts[k % 2]
-            if k + 1 < left:
-                away.start((k + 1) % 2, self.net)
+        if self._pending is None:
+            away.start(0, self.net)
+            self._pending = (0, *away.wait())
+        for _ in range(left):
+            which, returns, collect_s = self._pending
+            away.start(1 - which, self.net)
             started = time.perf_counter()
-            losses = self._update(rollout.to(self.device))
+            losses = self._update(away.rollouts[which].to(self.device))
             update_s = time.perf_counter() - started
             self._learned(returns, losses, collect_s, update_s, after)
-            if k + 1 < left:
-                returns, collect_s = away.wait()
+            self._pending = (1 - which, *away.wait())
 
     def _learned(self, returns: list[float], losses: tuple[float, float, float, float],
                  rollout_s: float, update_s: float,
@@ -327,6 +333,7 @@ class PPO:
         self._collector.load_state_dict(state)
         if self._away is not None:
             self._away.load_state_dict(state)
+        self._pending = None  # collected before the streams were taken up
         self.decisions = int(state["decisions"])
         self.updates = int(state["updates"])
 

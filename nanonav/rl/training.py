@@ -169,7 +169,8 @@ def train(
         progress = _Progress(settings.progress, settings.progress_every_s, decisions, first)
         started = time.perf_counter()
         # in stretches that each end at a checkpoint: the learner's ``learn`` returns with no
-        # rollout under way, so that what the checkpoint keeps is all there is
+        # rollout under way (with overlap, the next one collected and kept for the next
+        # stretch, so that checkpoints neither stop the overlap nor change what is learned)
         while learner.decisions < decisions:
             learner.learn(min(learner.decisions + every, decisions), progress)
             save_checkpoint(out, {**learner.state_dict(), "steering": steering})

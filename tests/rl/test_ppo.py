@@ -16,7 +16,7 @@ from nanonav.env.arrays import NanoNavArrayEnv
 from nanonav.rl import collect
 from nanonav.rl.collect import Collector, Rollout
 from nanonav.rl.networks import ActorCritic
-from nanonav.rl.ppo import PPO, PPOConfig, gae
+from nanonav.rl.ppo import PPO, PPOConfig, Update, gae
 from nanonav.scenario import preset_scenario
 
 # paper-single, where the rule reaches the cell (docs/explanation/learning.md), in short
@@ -127,6 +127,27 @@ def test_an_overlapped_run_is_the_same_run_each_time(memory_units: int) -> None:
             runs.append(_weights(learner.net))
     for first, second in zip(*runs, strict=True):
         assert torch.equal(first, second)
+
+
+def test_an_overlapped_run_learns_the_same_whether_it_stops_for_checkpoints_or_not() -> None:
+    """Each call of ``learn`` returns with the next rollout collected and the next call learns
+    from it, so only a run's first rollout is collected alone: stretches that end at
+    checkpoints neither cost the overlap nor change what the run learns."""
+    torch.set_num_threads(1)
+    config = PPOConfig(envs=16, rollout=16, minibatch=64, bptt=8, memory_units=4, seed=7,
+                       overlap=True)  # fmt: skip
+    runs, collected = [], []
+    for stretches in ([6], [1, 2, 3, 5, 6]):
+        updates: list[Update] = []
+        with PPO(NanoNavArrayEnv(16, SHORT), config) as learner:
+            for end in stretches:
+                learner.learn(end * config.batch, updates.append)
+                learner.state_dict()  # what a checkpoint reads between stretches
+            runs.append(_weights(learner.net))
+        collected.append(len(updates))
+    assert collected == [6, 6]
+    for whole, stopped in zip(*runs, strict=True):
+        assert torch.equal(whole, stopped)
 
 
 def test_the_collectors_shared_files_are_gone_once_it_has_started(
