@@ -261,9 +261,11 @@ def cases(quick: bool) -> dict[str, tuple[str, Callable[[], dict[str, Any]]]]:
         f"raw env, {small:,} worlds": ("env", lambda: raw_env(small, 0.5 if quick else 3.0)),
         f"raw env, {large:,} worlds": ("env", lambda: raw_env(large, 0.5 if quick else 3.0)),
         f"new, MLP, {small:,} worlds": ("new", new(small, n or 24)),
-        f"new, MLP, {large:,} worlds": ("new", new(large, n or 6)),
+        # eight rollouts or more: a run's first is collected alone, and in a short run it
+        # would weigh as it never does in a long one
+        f"new, MLP, {large:,} worlds": ("new", new(large, n or 12)),
         f"new, GRU-25, {small:,} worlds": ("new", new(small, n or 16, "--algo", "recurrent-ppo")),
-        f"new, GRU-25, {large:,} worlds": ("new", new(large, n or 4, "--algo", "recurrent-ppo")),
+        f"new, GRU-25, {large:,} worlds": ("new", new(large, n or 8, "--algo", "recurrent-ppo")),
         f"new in turn (--no-overlap), MLP, {small:,} worlds": (
             "new", new(small, n or 24, "--no-overlap")),
         f"new in turn (--no-overlap), GRU-25, {small:,} worlds": (

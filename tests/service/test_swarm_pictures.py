@@ -33,12 +33,12 @@ def test_a_swarms_job_lists_and_draws_its_treatment(api: Api, api_settings: Sett
     assert "cells_treated" in api.store.metrics(job_id)["summary"]
     links = api.client.get(f"/jobs/{job_id}").json()["links"]["plots"]
     assert set(links) == {"trajectory", "concentration", "learning", "treatment"}  # rule: no Q
-    assert links["treatment"] == f"/jobs/{job_id}/plots/treatment.png?v=2"
-    assert links["trajectory"] == f"/jobs/{job_id}/plots/trajectory.png?v=3"
+    assert links["treatment"] == f"/jobs/{job_id}/plots/treatment.png?v=3"
+    assert links["trajectory"] == f"/jobs/{job_id}/plots/trajectory.png?v=4"
     served = api.client.get(links["treatment"])
     assert served.status_code == 200 and served.headers["content-type"] == "image/png"
     assert imread(io.BytesIO(served.content), format="png").shape[:2] == (700, 900)
-    assert api.store.plot(job_id, "treatment.v2") == served.content  # kept once drawn
+    assert api.store.plot(job_id, "treatment.v3") == served.content  # kept once drawn
     page = api.client.get(f"/ui/jobs/{job_id}").text
     assert f'<img src="{links["treatment"]}"' in page
     assert "robots that take up space" in page and "signalling by attractant" in page

@@ -64,9 +64,9 @@ OPTIONAL_PICTURES = frozenset({"qtable", "treatment"})
 VERSIONS: dict[str, int] = {
     "learning": 3,
     "qtable": 2,
-    "trajectory": 3,
-    "treatment": 2,
-    "concentration": 2,
+    "trajectory": 4,
+    "treatment": 3,
+    "concentration": 3,
 }
 """The version of each picture's drawing, for the pictures past their first (the others are at
 1). It goes up when a picture drawn before would now be drawn differently, so that a copy kept
@@ -77,7 +77,10 @@ Brownian ``learning`` gives each episode's length in seconds. ``qtable`` 2: each
 area is its action gap, given beside the visits. ``trajectory`` 3, ``treatment`` 2 and
 ``concentration`` 2: lengths in µm (not um), an active Brownian cell drawn to
 scale, a swarm that delivers no payload (robots that only take up space) drawn as the paper's,
-counts in the right number, a payload axis from 0."""
+counts in the right number, a payload axis from 0. ``trajectory`` 4, ``treatment`` 3,
+``concentration`` 3: a run of many evaluation worlds names the one drawn ("evaluation world 1
+of 8"), and the trajectory gives its time to reach beside their mean (the heatmaps name it too,
+their kept copies left as they were drawn)."""
 
 
 def version(name: str) -> int:

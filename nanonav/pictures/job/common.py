@@ -70,6 +70,34 @@ def reach_summary(scenario: Scenario, trajectory: Trajectory) -> str:
     return f"{reached} of {n} reached a cell within {duration(scenario, trajectory.length)}"
 
 
+def recorded_world(result: SimulationResult) -> str:
+    """Which evaluation the pictures of one episode show: the engine records the first of the
+    run's evaluation worlds, so a title names it as one of them ("evaluation world 1 of 8"),
+    not as the evaluation that Table 1 averages."""
+    worlds = len(result.worlds)
+    return "evaluation episode" if worlds <= 1 else f"evaluation world 1 of {worlds}"
+
+
+def beside_the_worlds(result: SimulationResult) -> str:
+    """The drawn world's time to reach a cell (Table 1's ``total_steps``) beside the mean and
+    range over every evaluation world, so that one world is not read as the typical one; empty
+    for a run of one world."""
+    values = [float(w["total_steps"]) for w in result.worlds if "total_steps" in w]
+    if len(values) < 2:
+        return ""
+    ph = result.scenario.physics
+    seconds = ph.model == "active_brownian"
+    scale, unit = (ph.step_s, "s") if seconds else (1.0, "steps")
+
+    def number(steps: float) -> str:
+        return f"{steps * scale:,.3g}" if seconds else f"{steps:,.4g}"
+
+    return (
+        f"time to reach: this world {number(values[0])}, mean of {len(values)} worlds "
+        f"{number(float(np.mean(values)))} ({number(min(values))}-{number(max(values))}) {unit}"
+    )
+
+
 def concentration_unit(scenario: Scenario) -> str:
     """nM in the active Brownian physics, else arbitrary units."""
     return "nM" if scenario.physics.model == "active_brownian" else "a.u."

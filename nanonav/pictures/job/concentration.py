@@ -22,6 +22,7 @@ from nanonav.pictures.job.common import (
     last_row,
     length_unit,
     reach_summary,
+    recorded_world,
     resolve_scale,
     sized_figure,
     step_label,
@@ -101,8 +102,8 @@ def concentration_figure(result: SimulationResult) -> Figure:
     else:
         _draw_searching_swarm(fig, trajectory, log_scale, units)
     fig.suptitle(
-        "Biomarker concentration and distance to the nearest cell, evaluation episode\n"
-        + reach_summary(result.scenario, trajectory)
+        "Biomarker concentration and distance to the nearest cell, "
+        f"{recorded_world(result)}\n{reach_summary(result.scenario, trajectory)}"
     )
     return fig
 

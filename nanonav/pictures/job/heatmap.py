@@ -31,6 +31,7 @@ from nanonav.pictures.job.common import (
     evaluation_trajectory,
     last_row,
     length_unit,
+    recorded_world,
     resolve_scale,
     sized_figure,
     thin,
@@ -279,7 +280,7 @@ def heatmap_figure(
     where = "through the cell nearest to robot 0" if through_target else "at the chosen level"
     fig.suptitle(
         f"Biomarker concentration, {model} field, at the last step ({trajectory.length})\n"
-        f"of the evaluation episode; slice{'' if single else 's'} {where}"
+        f"of {recorded_world(result)}; slice{'' if single else 's'} {where}"
     )
     handles = _heatmap_legend_handles(drawn, trajectory.robots.shape[1])
     fig.legend(

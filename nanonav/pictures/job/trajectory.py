@@ -23,12 +23,14 @@ from nanonav.pictures.job.common import (
     CELL_RED,
     ROBOT_BLUE,
     START_GREEN,
+    beside_the_worlds,
     concentration_unit,
     counted,
     evaluation_trajectory,
     last_row,
     length_unit,
     reach_summary,
+    recorded_world,
     sized_figure,
     thin,
 )
@@ -282,11 +284,13 @@ def trajectory_figure(result: SimulationResult) -> Figure:
     if len(drawn) < cells_total:
         notes.append(f"paths of the {len(drawn)} cells most reached")
     title = (
-        f"Paths of the {who} and the {cells}, evaluation episode\n"
+        f"Paths of the {who} and the {cells}, {recorded_world(result)}\n"
         f"{reach_summary(result.scenario, trajectory)}"
     )
     if notes:
         title += f"; {' and '.join(notes)} drawn"
+    if beside := beside_the_worlds(result):
+        title += f"\n{beside}"
     ax.set_title(title)
     fig.legend(
         handles=_trajectory_handles(
@@ -378,7 +382,7 @@ def _swarm_figure(result: SimulationResult, trajectory: Trajectory, view: SwarmV
     who = "robot" if robots_total == 1 else f"{robots_total} robots"
     cells = "cancer cell" if cells_total == 1 else f"{cells_total} cancer cells"
     title = (
-        f"Paths of the {who} and the {cells}, evaluation episode\n"
+        f"Paths of the {who} and the {cells}, {recorded_world(result)}\n"
         f"{int(delivered.sum())} of {robots_total} delivered "
         f"{'its payload' if robots_total == 1 else 'their payloads'} in "
         f"{counted(trajectory.length, 'step')}{treated_text}"

@@ -24,6 +24,7 @@ from nanonav.pictures.job.common import (
     CELL_RED,
     counted,
     evaluation_trajectory,
+    recorded_world,
     sized_figure,
     step_label,
 )
@@ -221,7 +222,7 @@ def _treatment_title(
     robots = trajectory.robots.shape[1]
     if capacity is None:
         return (
-            f"Payloads delivered to {_the_cells(cells)}, evaluation episode\n"
+            f"Payloads delivered to {_the_cells(cells)}, {recorded_world(result)}\n"
             f"{_payloads(delivered)} from {counted(robots, 'robot')} reached "
             f"{counted(int(counts[-1]), 'cell')} in {counted(trajectory.length, 'step')}"
         )
@@ -233,7 +234,7 @@ def _treatment_title(
     return (
         f"Treatment of {_the_cells(cells)} ({_payloads(capacity)} treat"
         f"{'s' if capacity == 1 else ''} a cell), "
-        "evaluation episode\n"
+        f"{recorded_world(result)}\n"
         f"{treated}; {_payloads(delivered)} from {counted(robots, 'robot')}"
     )
 

@@ -8,7 +8,7 @@ from mpl_toolkits.mplot3d import proj3d
 
 from nanonav.engine import SimulationResult, simulate
 from nanonav.pictures.figure import png
-from nanonav.pictures.job.concentration import concentration_png
+from nanonav.pictures.job.concentration import concentration_figure, concentration_png
 from nanonav.pictures.job.learning import learning_png
 from nanonav.pictures.job.trajectory import (
     COARSE_SPHERES_FROM,
@@ -131,3 +131,35 @@ def test_many_cells_draw_the_paths_of_the_cells_most_reached() -> None:
     red = [line for line in figure.axes[0].get_lines() if line.get_color() == "tab:red"]
     assert len(red) == MAX_CELL_PATHS
     assert "paths of the 4 cells most reached drawn" in figure.axes[0].get_title()
+
+
+def test_a_run_of_many_worlds_names_the_world_drawn_and_its_time_beside_their_mean() -> None:
+    """The engine records the first evaluation world only: the titles say so, and give that
+    world's time to reach beside the mean and range over all of them (Table 1's), so that a
+    short first episode is not read as the run's."""
+    many = simulate(
+        scenario(
+            preset="paper-single", seed=3, learning={"episodes": 0, "max_steps": 80},
+            robots={"policy": "gradient"}, evaluation={"worlds": 5},
+        )
+    )  # fmt: skip
+    steps = [float(w["total_steps"]) for w in many.worlds]
+    title = trajectory_figure(many).axes[0].get_title()
+    assert "evaluation world 1 of 5" in title
+    assert (
+        f"time to reach: this world {steps[0]:,.4g}, mean of 5 worlds {np.mean(steps):,.4g} "
+        f"({min(steps):,.4g}-{max(steps):,.4g}) steps"
+    ) in title
+    assert "evaluation world 1 of 5" in concentration_figure(many).get_suptitle()
+
+
+def test_a_run_of_one_world_draws_its_evaluation_episode() -> None:
+    one = simulate(
+        scenario(
+            preset="paper-single", seed=3, learning={"episodes": 0, "max_steps": 80},
+            robots={"policy": "gradient"}, evaluation={"worlds": 1},
+        )
+    )  # fmt: skip
+    title = trajectory_figure(one).axes[0].get_title()
+    assert "evaluation episode" in title
+    assert "mean of" not in title
