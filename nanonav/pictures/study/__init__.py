@@ -33,7 +33,7 @@ EVERY_STUDYS_PICTURES = (*PAPER_METRICS, "learning")
 """The pictures every study has, whatever its jobs report."""
 SECONDS_PANEL = "time per episode (s)"
 """The first learning panel of a study whose every point is active Brownian: steps x dt_s."""
-VERSION = 5
+VERSION = 6
 """The version of the drawing of every picture of a study: it goes up when a picture drawn
 before would now be drawn differently, so that a copy kept of the older drawing is drawn again.
 2: series and groups named in words (``robots policy: q_learning``, not
@@ -43,7 +43,8 @@ give each episode's length in seconds. 4: a study that sweeps only its compared 
 as a line, a share's axis runs from 0 to 1, episodes are whole numbers, a study without
 training episodes says so, and the wall-clock duration is no metric. 5: a share of trials
 has the interval of its seeds' pooled trials (``nanonav.stats.describe_share``), so a perfect
-column no longer draws the longest bar."""
+column no longer draws the longest bar. 6: a study that compares draws its paired
+differences beside the means (a forest plot, Holm-adjusted p marked)."""
 NO_EPISODES = "no training episodes in this study"
 """What the learning picture of a study whose finished jobs trained for no episode says."""
 
@@ -162,7 +163,28 @@ def metric_png(spec: StudySpec, report: dict[str, Any], metric: str) -> bytes:
     ]
     title = f"{spec.name or 'Study'}: {metric.replace('_', ' ')}, mean with 95% CI"
     x_label = None if axis is None else readable_key(axis)
-    return charts.metric_png(metric, drawn, x_label=x_label, title=title, bounds=RANGES[metric])
+    return charts.metric_png(metric, drawn, x_label=x_label, title=title, bounds=RANGES[metric],
+                             differences=differences(spec, report, metric))  # fmt: skip
+
+
+def differences(spec: StudySpec, report: dict[str, Any], metric: str) -> list[charts.Difference]:
+    """The report's paired comparisons in ``metric``, labelled "method minus baseline" and by the
+    other grid keys' values, in the report's order."""
+    others = [k for k in spec.grid if k != spec.compare]
+    found = []
+    for comparison in report.get("comparisons", []):
+        difference = comparison["metrics"].get(metric)
+        if difference is None:
+            continue
+        method, baseline = comparison["method"], comparison["baseline"]
+        label = f"{_readable_value(method)} vs {_readable_value(baseline)}"
+        where = _label(comparison["values"], others)
+        found.append(charts.Difference(
+            f"{label}\n{where}" if where else label, difference.get("mean_difference"),
+            difference.get("ci_low"), difference.get("ci_high"), difference.get("p_holm"),
+            difference.get("holm_comparisons"),
+        ))  # fmt: skip
+    return found
 
 
 def learning_png(

@@ -32,6 +32,10 @@ from numpy.typing import NDArray
 from nanonav.pictures.figure import new_figure, png
 
 METRIC_FIGSIZE = (8.0, 5.0)
+# with paired comparisons, the means and beside them the differences (a forest plot)
+COMPARED_FIGSIZE = (13.0, 5.0)
+# a Holm-adjusted p below this is marked as a difference the study resolves
+SIGNIFICANT = 0.05
 LEARNING_WIDTH = 8.0
 LEARNING_PANEL_HEIGHT = 3.0
 NO_DATA = "no finished jobs yet"
@@ -93,6 +97,20 @@ class Series:
                 f"series {self.label!r}: x, mean, low and high must have one value per point, "
                 f"not {lengths[0]}, {lengths[1]}, {lengths[2]} and {lengths[3]}"
             )
+
+
+@dataclass(frozen=True)
+class Difference:
+    """One paired comparison in one metric: a method minus its baseline on the seeds both
+    ran, with its 95% interval and its p-value adjusted by Holm's method over ``family``
+    comparisons (``None``: not tested, e.g. fewer than two pairs)."""
+
+    label: str
+    mean: float | None
+    low: float | None
+    high: float | None
+    p_holm: float | None
+    family: int | None
 
 
 @dataclass(frozen=True)
@@ -314,9 +332,11 @@ def metric_png(
     x_label: str | None,
     title: str | None = None,
     bounds: tuple[float, float] | None = None,
+    differences: Sequence[Difference] = (),
 ) -> bytes:
     """``metric_figure`` as a PNG."""
-    return png(metric_figure(metric, series, x_label=x_label, title=title, bounds=bounds))
+    return png(metric_figure(metric, series, x_label=x_label, title=title, bounds=bounds,
+                             differences=differences))  # fmt: skip
 
 
 def metric_figure(
@@ -326,6 +346,7 @@ def metric_figure(
     x_label: str | None,
     title: str | None = None,
     bounds: tuple[float, float] | None = None,
+    differences: Sequence[Difference] = (),
 ) -> Figure:
     """One metric (mean and confidence interval) for each series at each swept value.
 
@@ -336,12 +357,21 @@ def metric_figure(
     say so, and the PNG is still valid and of the same size. A share (``bounds`` (0, 1)) is drawn
     on an axis from exactly 0 to 1, its error bars whole on the frame where they reach it; a
     metric that cannot be negative (``bounds`` from 0) on an axis from 0, to 1 if all is 0.
+
+    With ``differences`` (a study that compares), a second panel beside the means draws each
+    paired difference with its interval around a line at 0, its Holm-adjusted p beside it
+    and marked where it is below ``SIGNIFICANT``: an effect the means' own intervals hide
+    (they vary with the seeds, the paired difference does not) is seen at a glance.
     """
     share = bounds == (0.0, 1.0)
     if share:
         series = _keep_to_share(series)
-    fig = new_figure(*METRIC_FIGSIZE)
-    ax = fig.add_subplot()
+    fig = new_figure(*(COMPARED_FIGSIZE if differences else METRIC_FIGSIZE))
+    if differences:
+        ax, forest = fig.subplots(1, 2, width_ratios=(3, 2))
+        _draw_forest(forest, metric, differences)
+    else:
+        ax = fig.add_subplot()
     handles: list[Artist] = []
     if not any(_has_data(one) for one in series):
         _say_no_data(ax)
@@ -363,9 +393,41 @@ def metric_figure(
     if x_label:
         ax.set_xlabel(x_label, fontsize=_LABEL_SIZE)
     if title:
-        ax.set_title(title, fontsize=_TITLE_SIZE)
+        (fig.suptitle if differences else ax.set_title)(title, fontsize=_TITLE_SIZE)
     _legend(fig, handles)
     return fig
+
+
+def _draw_forest(ax: Axes, metric: str, differences: Sequence[Difference]) -> None:
+    """Each difference a row, top to bottom in the given order: its mean as a dot and its
+    interval as a bar, a line at 0 (no difference), and its Holm-adjusted p on the right."""
+    _style_axes(ax)
+    ax.axvline(0.0, color="0.3", linewidth=1.0, zorder=1)
+    rows = np.arange(len(differences))[::-1].astype(np.float64)
+    mean = _floats([d.mean for d in differences])
+    low, high = _floats([d.low for d in differences]), _floats([d.high for d in differences])
+    marked = np.array([d.p_holm is not None and d.p_holm < SIGNIFICANT for d in differences])
+    whole = np.isfinite(low) & np.isfinite(high) & np.isfinite(mean)
+    ax.hlines(rows[whole], low[whole], high[whole], color="0.2", linewidth=1.6, zorder=2)
+    for chosen, face in ((marked, "0.1"), (~marked, "white")):
+        shown = chosen & np.isfinite(mean)
+        ax.scatter(mean[shown], rows[shown], s=42, facecolors=face, edgecolors="0.1",
+                   linewidths=1.3, zorder=3)  # fmt: skip
+    ax.set_yticks(rows, [d.label for d in differences], fontsize=_TICK_SIZE)
+    ax.set_ylim(-0.7, len(differences) - 0.3)
+    ax.grid(False, axis="y")
+    for row, one in zip(rows, differences, strict=True):
+        if one.p_holm is None:
+            said = "not tested"
+        else:
+            said = f"p Holm {one.p_holm:.2g}" + (" *" if one.p_holm < SIGNIFICANT else "")
+        ax.annotate(said, (1.0, row), xycoords=("axes fraction", "data"), xytext=(6, 0),
+                    textcoords="offset points", va="center", fontsize=_TICK_SIZE)  # fmt: skip
+    family = max((d.family or 0 for d in differences), default=0)
+    ax.set_xlabel(f"{_readable(metric)}, paired difference", fontsize=_LABEL_SIZE)
+    over = f", Holm over {family}" if family else ""
+    ax.set_title(f"method minus baseline, 95% CI{over}\n(filled: p Holm < {SIGNIFICANT:g})",
+                 fontsize=_LABEL_SIZE)  # fmt: skip
 
 
 def bin_average(columns: NDArray[np.float64], limit: int) -> NDArray[np.float64]:

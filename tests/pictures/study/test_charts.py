@@ -9,6 +9,7 @@ from matplotlib.colors import to_rgb
 from matplotlib.image import imread
 from numpy.typing import NDArray
 
+from nanonav.pictures.figure import png
 from nanonav.pictures.study import charts
 from nanonav.pictures.study.charts import SERIES_COLOURS, Series, learning_png, metric_png
 
@@ -279,3 +280,39 @@ def test_every_habit_note_ends_inside_the_frame_and_the_image() -> None:
     assert ax.get_xlim()[0] == 0.0 and ax.get_xlim()[1] >= 1.5
     image = decode(charts.habits_png(rows, title="a study"))
     assert image.shape[1] == 1000
+
+
+def test_paired_differences_are_drawn_beside_the_means_with_holm_marks() -> None:
+    """A +1.3 effect whose means' intervals (tens wide) overlap: the forest panel draws it
+    apart from 0, filled where Holm's p is below 0.05, hollow where not, and 'not tested'
+    where there was no test."""
+    series = [
+        Series("gradient", [1, 15], [85.0, 84.0], [66.0, 66.0], [109.0, 107.0]),
+        Series("q_learning", [1, 15], [86.3, 85.3], [67.0, 67.0], [110.0, 108.0]),
+    ]
+    differences = [
+        charts.Difference("q_learning vs gradient\nrobots count: 1", 1.3, 0.9, 1.7, 0.008, 3),
+        charts.Difference("q_learning vs gradient\nrobots count: 15", 0.4, -0.6, 1.4, 0.4, 3),
+        charts.Difference("random vs gradient", None, None, None, None, None),
+    ]
+    figure = charts.metric_figure("total_steps", series, x_label="robots count",
+                                  differences=differences)  # fmt: skip
+    _, forest = figure.axes
+    labels = [t.get_text() for t in forest.get_yticklabels()]
+    assert labels == [d.label for d in differences]
+    filled, hollow = forest.collections[-2:]  # the dots after the intervals
+    assert filled.get_offsets().tolist() == [[1.3, 2.0]]  # the top row
+    assert hollow.get_offsets().tolist() == [[0.4, 1.0]]
+    said = [t.get_text() for t in forest.texts]
+    assert said == ["p Holm 0.008 *", "p Holm 0.4", "not tested"]
+    assert "Holm over 3" in forest.get_title()
+    low, high = forest.get_xlim()
+    assert low < 0.0 < 1.7 < high
+    assert size(decode(png(figure))) == (1300, 500)  # wider than a metric alone
+
+
+def test_a_metric_without_comparisons_is_one_panel() -> None:
+    figure = charts.metric_figure("total_steps", [Series("a", [1], [2.0], [1.0], [3.0])],
+                                  x_label=None)  # fmt: skip
+    assert len(figure.axes) == 1
+    assert size(decode(png(figure))) == METRIC_SIZE

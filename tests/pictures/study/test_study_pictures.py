@@ -74,7 +74,7 @@ def test_metric_pictures_draw_lines_or_bars() -> None:
     for study in (lines, bars):
         found = report(study, point_values(study), outcomes(study, False))
         image = decode(metric_png(study, found, "total_steps"))
-        assert image.shape[:2] == (500, 800) and image[..., :3].std() > 0.05
+        assert image.shape[:2] == (500, 1300) and image[..., :3].std() > 0.05  # with differences
 
 
 class Received:
@@ -85,6 +85,7 @@ class Received:
         self.labels: list[list[str]] = []
         self.xs: list[list[object]] = []
         self.x_labels: list[str | None] = []
+        self.differences: list[list[str]] = []
         monkeypatch.setattr(charts, "metric_png", self.metric)
         monkeypatch.setattr(charts, "learning_png", self.learning)
 
@@ -96,8 +97,10 @@ class Received:
         x_label: str | None,
         title: str | None = None,
         bounds: tuple[float, float] | None = None,
+        differences: Sequence[charts.Difference] = (),
     ) -> bytes:
         self.labels.append([s.label for s in series])
+        self.differences.append([d.label for d in differences])
         self.xs.append([x for s in series for x in s.x])
         self.x_labels.append(x_label)
         return b""
@@ -119,6 +122,9 @@ def test_series_are_labelled_by_readable_names_and_values(monkeypatch: pytest.Mo
                  "robots.policy")  # fmt: skip
     metric_png(study, report(study, point_values(study), outcomes(study, False)), "total_steps")
     assert received.labels == [["robots policy: q_learning", "robots policy: gradient"]]
+    assert received.differences == [
+        ["gradient vs q_learning\nobstacles count: 0", "gradient vs q_learning\nobstacles count: 5"]
+    ]
     assert received.xs == [[0, 5, 0, 5]]
     assert received.x_labels == ["obstacles count"]
     learning_png(study, point_values(study), outcomes(study, True))
@@ -246,7 +252,7 @@ def test_a_study_that_sweeps_only_its_compared_number_draws_a_line(
     monkeypatch.undo()
     drawn = Drawn(monkeypatch)
     decode(metric_png(study, found, "total_steps"))
-    (ax,) = drawn.figures[0].axes
+    ax = drawn.figures[0].axes[0]  # the means (the paired differences beside them)
     assert not ax.patches  # no bars
     (line,) = [line for line in ax.get_lines() if line.get_linestyle() == "-"]  # not the caps
     assert np.asarray(line.get_xdata()).tolist() == counts
@@ -264,7 +270,7 @@ def test_a_shares_axis_runs_from_0_to_1_and_episodes_are_whole(
     ]  # fmt: skip
     found = report(study, point_values(study), jobs)
     decode(metric_png(study, found, "success_rate"))
-    (ax,) = drawn.figures[-1].axes
+    ax = drawn.figures[-1].axes[0]  # the means
     assert ax.get_ylim() == (0.0, 1.0)
     caps = [c for c in ax.get_children() if isinstance(c, Line2D) and c.get_marker() == "_"]
     assert caps and not any(c.get_clip_on() for c in caps)  # a cap at 1 drawn whole
