@@ -44,7 +44,8 @@ as a line, a share's axis runs from 0 to 1, episodes are whole numbers, a study 
 training episodes says so, and the wall-clock duration is no metric. 5: a share of trials
 has the interval of its seeds' pooled trials (``nanonav.stats.describe_share``), so a perfect
 column no longer draws the longest bar. 6: a study that compares draws its paired
-differences beside the means (a forest plot, Holm-adjusted p marked)."""
+differences beside the means (a forest plot, Holm-adjusted p marked), and a policy that learns
+nothing is a level on the learning curves, not a curve."""
 NO_EPISODES = "no training episodes in this study"
 """What the learning picture of a study whose finished jobs trained for no episode says."""
 
@@ -190,9 +191,12 @@ def differences(spec: StudySpec, report: dict[str, Any], metric: str) -> list[ch
 def learning_png(
     spec: StudySpec, values: Sequence[dict[str, GridValue]], jobs: Sequence[JobOutcome]
 ) -> bytes:
-    """The learning curve of every grid point, averaged over its succeeded seeds, with CIs. When
-    every point is active Brownian, an episode's length is in seconds (each point's steps times
-    its own dt_s), as its scenarios speak."""
+    """The learning curve of every grid point, averaged over its succeeded seeds, with CIs; a
+    point whose policy learns nothing (anything but ``q_learning``) is a level, the mean of its
+    episodes over its seeds with their CI, since its episodes are trials of one behaviour and
+    a curve would make their noise look like learning. When every point is active Brownian,
+    an episode's length is in seconds (each point's steps times its own dt_s), as its
+    scenarios speak."""
     step_s = [p.scenario.physics.step_s if p.scenario.physics.model == "active_brownian" else None
               for p in points(spec)]  # fmt: skip
     seconds = all(dt is not None for dt in step_s)
@@ -201,6 +205,7 @@ def learning_png(
         titles["steps"] = SECONDS_PANEL
     panels: dict[str, list[charts.Series]] = {title: [] for title in titles.values()}
     finished = [job for job in jobs if job.status == "succeeded" and job.curve is not None]
+    fixed = [p.scenario.robots.policy != "q_learning" for p in points(spec)]
     for index, point_values in enumerate(values):
         curves = [job.curve for job in finished if job.point == index and job.curve is not None]
         length = min((len(c["episode"]) for c in curves), default=0)
@@ -212,7 +217,13 @@ def learning_png(
             matrix = np.array([c[key][:length] for c in curves], dtype=np.float64)
             if key == "steps" and seconds:
                 matrix *= step_s[index] or 1.0
-            described = [stats.describe(column.tolist()) for column in matrix.T]
+            if fixed[index]:
+                # its episodes are trials of one behaviour: each seed's mean over them, and
+                # their mean and interval over the seeds, as one level
+                level = stats.describe(np.nanmean(matrix, axis=1).tolist())
+                described = [level] * length
+            else:
+                described = [stats.describe(column.tolist()) for column in matrix.T]
             panels[title].append(
                 charts.Series(
                     label,
@@ -220,6 +231,7 @@ def learning_png(
                     [d.mean for d in described],
                     [d.ci_low for d in described],
                     [d.ci_high for d in described],
+                    level=fixed[index],
                 )
             )
     return charts.learning_png(

@@ -34,6 +34,9 @@ from nanonav.pictures.figure import new_figure, png
 METRIC_FIGSIZE = (8.0, 5.0)
 # with paired comparisons, the means and beside them the differences (a forest plot)
 COMPARED_FIGSIZE = (13.0, 5.0)
+# a share's axis: 0 to 1 with a margin, so that a mean or a cap at 0 or 1 is drawn whole and
+# inside the frame, not on it
+SHARE_LIMITS = (-0.04, 1.04)
 # a Holm-adjusted p below this is marked as a difference the study resolves
 SIGNIFICANT = 0.05
 LEARNING_WIDTH = 8.0
@@ -89,6 +92,9 @@ class Series:
     mean: Sequence[float | None]
     low: Sequence[float | None]
     high: Sequence[float | None]
+    # a policy that learns nothing: on a learning chart, one level (its first mean and
+    # bounds) across the episodes, not a curve whose wiggles would read as learning
+    level: bool = False
 
     def __post_init__(self) -> None:
         lengths = (len(self.x), len(self.mean), len(self.low), len(self.high))
@@ -203,7 +209,7 @@ def _error_bars(
         capthick=1.4,
     )
     for part in (*drawn.lines[1], *drawn.lines[2]):
-        part.set_clip_on(False)  # a cap at a share's 0 or 1 sits on the frame, whole
+        part.set_clip_on(False)  # a cap at a bound is drawn whole
 
 
 def _draw_lines(ax: Axes, series: Sequence[Series], styles: Mapping[str, _Style]) -> list[Artist]:
@@ -320,7 +326,7 @@ def _keep_to_share(series: Sequence[Series]) -> list[Series]:
         return [None if v is None else min(max(float(v), 0.0), 1.0) for v in values]
 
     return [
-        Series(one.label, one.x, inside(one.mean), inside(one.low), inside(one.high))
+        Series(one.label, one.x, inside(one.mean), inside(one.low), inside(one.high), one.level)
         for one in series
     ]
 
@@ -355,7 +361,7 @@ def metric_figure(
     positive and span a factor of 100 or more. Otherwise (policies, field models: names), a
     grouped bar chart, one group per x in first-seen order. Without any mean to draw, the axes
     say so, and the PNG is still valid and of the same size. A share (``bounds`` (0, 1)) is drawn
-    on an axis from exactly 0 to 1, its error bars whole on the frame where they reach it; a
+    on an axis from 0 to 1 with a margin (``SHARE_LIMITS``), so nothing sits on the frame; a
     metric that cannot be negative (``bounds`` from 0) on an axis from 0, to 1 if all is 0.
 
     With ``differences`` (a study that compares), a second panel beside the means draws each
@@ -381,7 +387,7 @@ def metric_figure(
     else:
         handles = _draw_bars(ax, series, _styles(series))
     if share:
-        ax.set_ylim(0.0, 1.0)
+        ax.set_ylim(*SHARE_LIMITS)
     elif bounds is not None and bounds[0] == 0.0 and handles:
         highest = max((v for one in series for v in (*one.mean, *one.high) if v is not None),
                       default=0.0)  # fmt: skip
@@ -453,6 +459,9 @@ def bin_average(columns: NDArray[np.float64], limit: int) -> NDArray[np.float64]
 def _draw_curve(ax: Axes, one: Series, style: _Style) -> None:
     if not all(_is_number(v) for v in one.x):
         raise ValueError(f"series {one.label!r}: a learning curve needs numeric episodes on x")
+    if one.level:
+        _draw_level(ax, one, style)
+        return
     x = np.array([float(v) for v in one.x])
     order = np.argsort(x, kind="stable")
     columns = np.vstack([x[order]] + [_floats(v)[order] for v in (one.mean, one.low, one.high)])
@@ -479,6 +488,19 @@ def _draw_curve(ax: Axes, one: Series, style: _Style) -> None:
     )
 
 
+def _draw_level(ax: Axes, one: Series, style: _Style) -> None:
+    """A fixed policy's level: a dashed line at its mean and its interval as a band, across
+    the episodes it ran."""
+    x = [float(v) for v in one.x]
+    mean, low, high = (_floats(v[:1])[0] for v in (one.mean, one.low, one.high))
+    if not np.isfinite(mean):
+        return
+    span = (min(x), max(x))
+    if np.isfinite(low) and np.isfinite(high):
+        ax.fill_between(span, low, high, color=style.colour, alpha=_BAND_ALPHA, linewidth=0)
+    ax.plot(span, (mean, mean), color=style.colour, linestyle="--", linewidth=1.6)
+
+
 def learning_png(
     panels: Mapping[str, Sequence[Series]],
     *,
@@ -490,14 +512,17 @@ def learning_png(
     panel's y label), stacked on a shared episode axis with whole-numbered ticks.
 
     Curves longer than ``MAX_CURVE_POINTS`` are drawn as bin averages (of the mean and of each
-    bound), so thousands of episodes draw quickly. A panel without data says ``empty`` (why
-    there is none); with no panel at all, one empty panel does. The panels named in ``shares``
-    run from exactly 0 to 1, their bands kept inside.
+    bound), so thousands of episodes draw quickly. A ``level`` series (a policy that learns
+    nothing) is a dashed line with its band, and the legend says so. A panel without data
+    says ``empty`` (why there is none); with no panel at all, one empty panel does. The panels
+    named in ``shares`` run from 0 to 1 with a margin (``SHARE_LIMITS``), their bands kept
+    inside 0 to 1.
     """
     count = max(len(panels), 1)
     fig = new_figure(LEARNING_WIDTH, LEARNING_PANEL_HEIGHT * count)
     axes = fig.subplots(count, 1, sharex=True, squeeze=False)[:, 0]
     styles = _styles([one for group in panels.values() for one in group])
+    levels = {one.label for group in panels.values() for one in group if one.level}
     drawn = False
     if not panels:
         _say_no_data(axes[0], empty)
@@ -511,7 +536,7 @@ def learning_png(
         for one in _keep_to_share(group) if share else group:
             _draw_curve(ax, one, styles[one.label])
         if share:
-            ax.set_ylim(0.0, 1.0)
+            ax.set_ylim(*SHARE_LIMITS)
         drawn = True
     axes[-1].set_xlabel("episode", fontsize=_LABEL_SIZE)
     axes[-1].xaxis.set_major_locator(MaxNLocator(integer=True))
@@ -521,7 +546,14 @@ def learning_png(
         _legend(
             fig,
             [
-                Line2D([], [], color=s.colour, linestyle=s.line_style, linewidth=2.2, label=label)
+                Line2D(
+                    [],
+                    [],
+                    color=s.colour,
+                    linewidth=2.2,
+                    linestyle="--" if label in levels else s.line_style,
+                    label=f"{label} (fixed: its mean)" if label in levels else label,
+                )
                 for label, s in styles.items()
             ],
         )

@@ -271,13 +271,35 @@ def test_a_shares_axis_runs_from_0_to_1_and_episodes_are_whole(
     found = report(study, point_values(study), jobs)
     decode(metric_png(study, found, "success_rate"))
     ax = drawn.figures[-1].axes[0]  # the means
-    assert ax.get_ylim() == (0.0, 1.0)
+    assert ax.get_ylim() == charts.SHARE_LIMITS
     caps = [c for c in ax.get_children() if isinstance(c, Line2D) and c.get_marker() == "_"]
     assert caps and not any(c.get_clip_on() for c in caps)  # a cap at 1 drawn whole
     decode(metric_png(study, found, "total_steps"))
     assert drawn.figures[-1].axes[0].get_ylim()[1] > 1.0  # only shares are kept to [0, 1]
     decode(learning_png(study, point_values(study), jobs))
     steps, success, _ = drawn.figures[-1].axes
-    assert success.get_ylim() == (0.0, 1.0)
+    assert success.get_ylim() == charts.SHARE_LIMITS
     ticks = [t for t in steps.get_xticks() if steps.get_xlim()[0] <= t <= steps.get_xlim()[1]]
     assert ticks and all(float(t).is_integer() for t in ticks)
+
+
+def test_a_policy_that_learns_nothing_is_a_level_on_the_learning_curves(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The gradient rule's episodes are trials of one behaviour: one dashed level at the mean
+    over its seeds of each seed's mean, not a curve; the learner keeps its curve."""
+    drawn = Drawn(monkeypatch)
+    study = spec({"robots.policy": ["q_learning", "gradient"]}, "robots.policy")
+    jobs = outcomes(study, True)
+    decode(learning_png(study, point_values(study), jobs))
+    steps = drawn.figures[-1].axes[0]
+    learner, rule = steps.get_lines()
+    rule_seeds = [j.curve["steps"] for j in jobs if j.point == 1 and j.curve is not None]
+    level = float(np.mean([np.mean(c) for c in rule_seeds]))
+    assert rule.get_linestyle() == "--"
+    assert list(rule.get_ydata()) == pytest.approx([level, level])
+    assert list(rule.get_xdata()) == [0.0, 2.0]  # across the episodes it ran
+    learned = [j.curve["steps"] for j in jobs if j.point == 0 and j.curve is not None]
+    assert list(learner.get_ydata()) == pytest.approx(np.mean(learned, axis=0).tolist())
+    legend = [t.get_text() for t in drawn.figures[-1].legends[0].get_texts()]
+    assert legend == ["robots policy: q_learning", "robots policy: gradient (fixed: its mean)"]
