@@ -98,7 +98,8 @@ def test_the_default_heatmap_is_stored_whether_or_not_its_resolution_is_named(
         params={"plane": "yz", "resolution": pictures.HEATMAP_RESOLUTION},
     )
     assert default.status_code == named.status_code == 200
-    assert named.content == default.content == api.store.plot(job_id, "heatmap_yz")
+    kept = kept_name("heatmap_yz", pictures.version("heatmap_yz"))
+    assert named.content == default.content == api.store.plot(job_id, kept)
     assert drawn == ["heatmap_yz"]
 
 

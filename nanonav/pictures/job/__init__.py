@@ -67,6 +67,10 @@ VERSIONS: dict[str, int] = {
     "trajectory": 4,
     "treatment": 3,
     "concentration": 3,
+    "heatmap_xy": 2,
+    "heatmap_xz": 2,
+    "heatmap_yz": 2,
+    "heatmap_all": 2,
 }
 """The version of each picture's drawing, for the pictures past their first (the others are at
 1). It goes up when a picture drawn before would now be drawn differently, so that a copy kept
@@ -79,8 +83,9 @@ area is its action gap, given beside the visits. ``trajectory`` 3, ``treatment``
 scale, a swarm that delivers no payload (robots that only take up space) drawn as the paper's,
 counts in the right number, a payload axis from 0. ``trajectory`` 4, ``treatment`` 3,
 ``concentration`` 3: a run of many evaluation worlds names the one drawn ("evaluation world 1
-of 8"), and the trajectory gives its time to reach beside their mean (the heatmaps name it too,
-their kept copies left as they were drawn)."""
+of 8"), and the trajectory gives its time to reach beside their mean. The heatmaps' 2: the
+colour scale chosen from the slices' values (``heatmap.SCALE_QUANTILES``), not topped by the
+concentration at a cell, and the world named."""
 
 
 def version(name: str) -> int:

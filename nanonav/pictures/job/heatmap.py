@@ -43,9 +43,13 @@ Plane = Literal["xy", "xz", "yz", "all"]
 HEATMAP_RESOLUTION = 120
 MIN_HEATMAP_RESOLUTION = 20
 MAX_HEATMAP_RESOLUTION = 400
-# A log colour scale shows this many decades below the maximum, at most: the inverse-square and
-# diffusion fields diverge (softened) at their sources and would otherwise squash everything else.
+# A log colour scale shows this many decades below its top, at most.
 LOG_DECADES = 5.0
+# The colour scale runs between these quantiles of the drawn slices' values (a linear one from
+# 0): the concentration at a cell is decades above the field the robots climb elsewhere, and a
+# scale topped by it drew the whole cube in the darkest colour. What lies beyond is drawn in
+# the end colours, and the colour bar's arrows say so.
+SCALE_QUANTILES = (0.005, 0.995)
 # Fewer paths than in 3-D, so that they do not hide the field.
 MAX_HEATMAP_PATHS = 10
 
@@ -70,15 +74,12 @@ def _target_cell(trajectory: Trajectory) -> int:
 @dataclass(frozen=True)
 class Slice:
     """The true concentration in one plane: ``grid[row, column]`` at the centre of the pixel
-    ``(u, v) = (axis[column], axis[row])``, where the plane cuts its normal axis at ``level``;
-    ``peak`` is the largest concentration at the cells themselves, which tops the colour
-    scale, so that a slice away from the cells reads darker than one through them."""
+    ``(u, v) = (axis[column], axis[row])``, where the plane cuts its normal axis at ``level``."""
 
     plane: str
     level: float
     axis: NDArray[np.float64]
     grid: NDArray[np.float64]
-    peak: float
 
 
 def check_heatmap(size: float, at: float | None, resolution: int) -> None:
@@ -121,27 +122,35 @@ def heatmap_slices(
         blocks.append(block)
         levels.append(level)
     cells = trajectory.cells[-1]
-    points = np.concatenate([*blocks, cells])
     concentration, _ = field_and_gradient(
-        biomarker_of(result.scenario), cells, trajectory.emitter_offsets, points
+        biomarker_of(result.scenario), cells, trajectory.emitter_offsets, np.concatenate(blocks)
     )
-    peak = float(concentration[-len(cells) :].max())
-    grids = concentration[: -len(cells)].reshape(len(planes), resolution, resolution)
-    return {plane: Slice(plane, levels[i], axis, grids[i], peak) for i, plane in enumerate(planes)}
+    grids = concentration.reshape(len(planes), resolution, resolution)
+    return {plane: Slice(plane, levels[i], axis, grids[i]) for i, plane in enumerate(planes)}
 
 
 def _norm(slices: list[Slice], scale: Literal["linear", "log"]) -> Normalize:
-    """One colour scale for the slices, topped by the concentration at the cells (or the
-    slices' own maximum, were it larger); a log scale spans at most ``LOG_DECADES``."""
-    values = [s.grid for s in slices]
-    top = max(max(float(v.max()) for v in values), slices[0].peak)
+    """One colour scale for the slices, chosen from their values (``SCALE_QUANTILES``): a
+    linear one from 0, a log one over the positive values and at most ``LOG_DECADES``."""
+    values = np.concatenate([s.grid.ravel() for s in slices])
+    values = values[np.isfinite(values)]
     if scale == "linear":
+        top = float(np.quantile(values, SCALE_QUANTILES[1])) if values.size else 0.0
         return Normalize(vmin=0.0, vmax=top if top > 0 else 1.0)
-    positive = [v[v > 0] for v in values]
-    low = min((float(p.min()) for p in positive if p.size), default=top)
-    top = top if top > 0 else 1.0
+    positive = values[values > 0]
+    if not positive.size:
+        return LogNorm(vmin=0.1, vmax=1.0)
+    low, top = (float(q) for q in np.quantile(positive, SCALE_QUANTILES))
     low = max(low, top * 10.0**-LOG_DECADES)
     return LogNorm(vmin=low if low < top else top / 10.0, vmax=top)
+
+
+def _extend(slices: list[Slice], norm: Normalize) -> Literal["neither", "both", "min", "max"]:
+    """Which ends of the colour bar get an arrow: where some value lies beyond the scale."""
+    values = np.concatenate([s.grid.ravel() for s in slices])
+    above = bool((values > (norm.vmax or 0.0)).any())
+    below = isinstance(norm, LogNorm) and bool((values < (norm.vmin or 0.0)).any())
+    return "both" if above and below else "max" if above else "min" if below else "neither"
 
 
 @dataclass(frozen=True)
@@ -271,7 +280,8 @@ def heatmap_figure(
     axes = fig.subplots(1, len(planes), squeeze=False)[0]
     norm = _norm(list(slices.values()), scale)
     drawn = [_draw_slice(ax, result, slices[p], norm) for ax, p in zip(axes, planes, strict=True)]
-    colourbar = fig.colorbar(drawn[0].image, ax=list(axes), shrink=0.9)
+    colourbar = fig.colorbar(drawn[0].image, ax=list(axes), shrink=0.9,
+                             extend=_extend(list(slices.values()), norm))  # fmt: skip
     unit = concentration_unit(result.scenario)
     colourbar.set_label(
         f"biomarker concentration ({unit}{', log scale' if scale == 'log' else ''})"

@@ -1,6 +1,5 @@
 """The heatmap (Figure 5): the field in a plane, where and as finely as it is asked for."""
 
-import matplotlib
 import numpy as np
 import pytest
 from matplotlib.figure import Figure
@@ -11,6 +10,7 @@ from nanonav.pictures.figure import png
 from nanonav.pictures.job.common import ColourScale, resolve_scale
 from nanonav.pictures.job.heatmap import (
     MAX_HEATMAP_PATHS,
+    SCALE_QUANTILES,
     Plane,
     heatmap_figure,
     heatmap_png,
@@ -126,19 +126,39 @@ def test_the_heatmap_resolution_sets_the_size_of_its_pixels(swarm: SimulationRes
     assert fine < medium / 1.5
 
 
-def test_a_slice_far_from_the_cells_is_darker(single: SimulationResult) -> None:
+def test_the_colour_scale_is_chosen_from_the_drawn_values(
+    single: SimulationResult, swarm: SimulationResult
+) -> None:
+    """Topped by the concentration at a cell, a field that falls over decades drew the whole
+    cube in the darkest colour: the scale runs between quantiles of the slices' values, and
+    the colour bar's arrows say what lies beyond."""
+    for result, scale in ((single, "linear"), (swarm, "log")):
+        slices = heatmap_slices(result, ("xy",), 60)
+        figure = heatmap_figure(result, slices, scale)
+        image = figure.axes[0].get_images()[0]
+        values = slices["xy"].grid
+        positive = values[values > 0] if scale == "log" else values
+        low, high = np.quantile(positive, SCALE_QUANTILES)
+        assert image.norm.vmax == pytest.approx(high)
+        assert image.norm.vmin == pytest.approx(low if scale == "log" else 0.0)
+        colourbar = figure.axes[-1]
+        assert colourbar.get_ylabel().startswith("biomarker concentration")
+    # the inverse-square field, decades below its cells nearly everywhere, spans the colour
+    # map: neither all dark (as it was) nor all bright
+    shades = np.asarray(image.norm(values)).clip(0, 1)
+    assert np.mean(shades < 0.1) < 0.5 and np.quantile(shades, 0.9) > 0.5
+
+
+def test_a_slice_far_from_the_cells_reads_its_own_values(single: SimulationResult) -> None:
     trajectory = single.trajectory
     assert trajectory is not None
     half = single.scenario.space.size / 2
     far = -half if trajectory.cells[-1, 0, 2] > 0 else half
-
-    def brightness(at: float | None) -> float:
-        slices = heatmap_slices(single, ("xy",), 60, at=at)
-        figure = heatmap_figure(single, slices, "linear", through_target=at is None)
-        return float(heatmap_pixels(figure).mean())
-
-    through, away = brightness(None), brightness(far)
-    assert away < through - 0.05
-    # Scaled to the concentration at the cell, the far slice is the colour map's darkest.
-    darkest = float(np.mean(matplotlib.colormaps["viridis"](0.0)[:3]))
-    assert away == pytest.approx(darkest, abs=0.01)
+    through = heatmap_slices(single, ("xy",), 60)["xy"].grid
+    away = heatmap_slices(single, ("xy",), 60, at=far)["xy"].grid
+    assert away.max() < through.max()
+    figure = heatmap_figure(single, {"xy": heatmap_slices(single, ("xy",), 60, at=far)["xy"]},
+                            "linear", through_target=False)  # fmt: skip
+    assert figure.axes[0].get_images()[0].norm.vmax == pytest.approx(
+        np.quantile(away, SCALE_QUANTILES[1])
+    )
