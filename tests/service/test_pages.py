@@ -14,13 +14,13 @@ import httpx
 import numpy as np
 import pytest
 
-from nanonav.engine import qlearning
+from nanonav.engine import qlearning, simulate
 from nanonav.scenario import Scenario
 from nanonav.settings import Settings
 from nanonav.store import JobStatus, StudyJob, StudyStore
 from tests.conftest import SCRIPTED, Api
 from tests.service.test_security import KEY_A, KEY_B, bearer, served
-from worker.job import run_job
+from worker.job import outcome, run_job
 
 TINY = {"robots": {"count": 2}, "learning": {"episodes": 1, "max_steps": 40},
         "evaluation": {"worlds": 2}}  # fmt: skip
@@ -390,3 +390,21 @@ def test_the_jobs_list_names_the_policy_a_job_evaluates(api: Api) -> None:
     page = api.client.get("/ui/jobs").text
     assert f'<a href="/ui/policies/{sent["id"]}">{sent["policy_from"]}</a>, sent' in page
     assert "q_learning (behaviors)" not in page
+
+
+def test_a_cancelled_jobs_page_shows_the_learning_curve_it_had(api: Api) -> None:
+    """A job cancelled while it trained keeps the episodes it finished: its page draws their
+    learning curve, and says there is no evaluation, rather than showing nothing."""
+    scenario = Scenario.model_validate({"learning": {"episodes": 20_000, "max_steps": 200}})
+    job = api.store.enqueue(scenario.model_dump(mode="json"), robot_steps=1, episodes=20_020)
+    claim = api.store.claim("test", lease_s=30)
+    assert claim is not None
+    api.store.finish(claim, outcome(simulate(scenario, lambda progress: False)))
+    page = api.client.get(f"/ui/jobs/{job.id}")
+    assert page.status_code == 200
+    learning = api.client.get(f"/jobs/{job.id}").json()["links"]["plots"]["learning"]
+    assert f'<img src="{learning}"' in page.text
+    assert "Learning curve, until the cancel" in page.text
+    assert "there is no evaluation to show, only the training episodes it finished" in page.text
+    assert "/plots/trajectory.png" not in page.text
+    assert api.client.get(learning).content.startswith(b"\x89PNG")
