@@ -48,6 +48,7 @@
     else source.onerror = () => { if (source.readyState === EventSource.CLOSED) { source = null; poll(); } };
     const cancel = document.getElementById("cancel");
     cancel.addEventListener("click", async () => {
+      if (!window.confirm(`Cancel job #${jobId}? It stops without an evaluation; the training episodes it finished are kept.`)) return;
       cancel.disabled = true;
       const answer = await nanonav.send("POST", `/jobs/${jobId}/cancel`);
       if (answer.ok) showProgress(answer.document);

@@ -61,6 +61,7 @@
     const cancel = document.getElementById("cancel");
     if (cancel) {
       cancel.addEventListener("click", async () => {
+        if (!window.confirm(`Cancel study #${studyId}? Its queued jobs are cancelled and its running ones stopped; the jobs that finished are kept.`)) return;
         cancel.disabled = true;
         const answer = await nanonav.send("POST", `/studies/${studyId}/cancel`);
         if (answer.ok) refresh();

@@ -12,8 +12,8 @@ from typing import Any
 import httpx
 import numpy as np
 import pytest
+from playwright.sync_api import Dialog, Page, Route, expect
 from playwright.sync_api import Error as BrowserError
-from playwright.sync_api import Page, Route, expect
 
 from nanonav.engine import qlearning
 from tests.browser.conftest import Site, screenshot
@@ -126,9 +126,48 @@ def test_a_running_job_is_cancelled_from_its_page(page: Page, site: Site) -> Non
     job = httpx.post(f"{site.url}/jobs", json=LONG).json()
     page.goto(f"{site.url}/ui/jobs/{job['id']}")
     expect(page.locator("#job-status")).to_have_text("running", timeout=60_000)
+    asked: list[str] = []
+
+    def answer(dialog: Dialog, accept: bool) -> None:
+        asked.append(dialog.message)
+        if accept:
+            dialog.accept()
+        else:
+            dialog.dismiss()
+
+    page.once("dialog", lambda dialog: answer(dialog, False))
+    page.click("#cancel")  # asked, and not confirmed: the job runs on
+    page.wait_for_timeout(1_000)
+    assert httpx.get(f"{site.url}/jobs/{job['id']}").json()["cancel_requested"] is False
+    page.once("dialog", lambda dialog: answer(dialog, True))
     page.click("#cancel")
     expect(page.locator("#job-status")).to_have_text("cancelled", timeout=30_000)
+    assert asked == [f"Cancel job #{job['id']}? It stops without an evaluation; the training "
+                     "episodes it finished are kept."] * 2  # fmt: skip
     assert httpx.get(f"{site.url}/jobs/{job['id']}").json()["status"] == "cancelled"
+
+
+def test_a_study_is_cancelled_from_its_page_once_confirmed(page: Page, site: Site) -> None:
+    study = {"name": "to cancel", "base": LONG, "grid": {"robots.policy": ["random"]},
+             "seeds": [1, 2]}  # fmt: skip
+    study_id = httpx.post(f"{site.url}/studies", json=study).json()["id"]
+    page.goto(f"{site.url}/ui/studies/{study_id}")
+    expect(page.locator("#cancel")).to_be_visible()
+    page.once("dialog", lambda dialog: dialog.dismiss())
+    page.click("#cancel")  # not confirmed: nothing is cancelled
+    page.wait_for_timeout(1_000)
+    assert httpx.get(f"{site.url}/studies/{study_id}").json()["status"] in ("queued", "running")
+    asked: list[str] = []
+
+    def accept(dialog: Dialog) -> None:
+        asked.append(dialog.message)
+        dialog.accept()
+
+    page.once("dialog", accept)
+    page.click("#cancel")
+    expect(page.locator("#delete")).to_be_visible(timeout=60_000)  # shown once it has ended
+    assert httpx.get(f"{site.url}/studies/{study_id}").json()["status"] == "cancelled"
+    assert asked and asked[0].startswith(f"Cancel study #{study_id}?")
 
 
 def test_a_link_followed_as_the_job_ends_is_not_undone_by_the_page(page: Page, site: Site) -> None:
