@@ -258,9 +258,11 @@ def get_trajectory(
     if format == "npz":
         return Response(pack(strided), media_type="application/octet-stream", headers=download)
     if format == "csv":
+        delivers = pictures.treatment_drawn(store.get(job_id).scenario)
         return StreamingResponse(
-            _csv_lines(strided), media_type="text/csv; charset=utf-8", headers=download
-        )
+            _csv_lines(strided, loads=delivers), media_type="text/csv; charset=utf-8",
+            headers=download,
+        )  # fmt: skip
     if format == "xyz":
         scenario = Scenario.model_validate(store.get(job_id).scenario)
         frames = xyz_frames(arrays, scenario, rows)
@@ -523,15 +525,17 @@ def _rows(arrays: dict[str, NDArray[Any]], stride: int) -> NDArray[np.int64]:
     return rows
 
 
-def _csv_lines(arrays: dict[str, NDArray[Any]]) -> Iterator[str]:
-    """The trajectory as CSV, a recorded step at a time, so a large one is never held whole."""
+def _csv_lines(arrays: dict[str, NDArray[Any]], *, loads: bool) -> Iterator[str]:
+    """The trajectory as CSV, a recorded step at a time, so a large one is never held whole;
+    ``loads``: the cells' payloads as a column, for a swarm that delivers them (every run
+    records them, but elsewhere they are all 0 and mean nothing)."""
     out = io.StringIO()
     writer = csv.writer(out, lineterminator="\n")
     # the active Brownian physics adds each robot's heading and its (noisy) sensed reading
     swimming = "headings" in arrays and "sensed" in arrays
     extra = ["heading_x", "heading_y", "heading_z", "sensed"] if swimming else []
     # the swarm: each cell's payloads so far, and each robot's net signal with communication
-    loads = "cell_loads" in arrays
+    loads = loads and "cell_loads" in arrays
     signals = "signals" in arrays
     extra += ["load"] if loads else []
     extra += ["signal"] if signals else []
