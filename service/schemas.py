@@ -467,7 +467,7 @@ class Workers(BaseModel):
     preparing: int = Field(
         0,
         description="Worker processes alive lately that still prepare the engine before they "
-        "take a job: on a first start a worker compiles it, which takes a minute or two.",
+        "take a job: on a first start a worker compiles it, which takes about a minute.",
     )
     window_s: float = Field(description="How far back 'lately' reaches, in seconds.")
 

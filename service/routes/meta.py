@@ -93,7 +93,7 @@ def workers_note(census: Census) -> str | None:
     if census.preparing:
         workers = "1 worker is" if census.preparing == 1 else f"{census.preparing} workers are"
         return (
-            f"{workers} preparing the engine (a first start compiles it: a minute or two); "
+            f"{workers} preparing the engine (a first start compiles it: about a minute); "
             "queued jobs wait for it"
         )
     if census.queued:
