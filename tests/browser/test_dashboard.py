@@ -223,11 +223,28 @@ def test_a_finished_job_and_study_are_deleted_from_their_pages(page: Page, site:
     assert httpx.get(f"{site.url}/studies/{study_id}").status_code == 404
 
 
+def test_the_study_form_starts_as_the_first_study_tutorial_fills_it_in(
+    page: Page, site: Site
+) -> None:
+    """docs/tutorials/first-study.md: paper-single, 20 training episodes, 5 seeds, the policy
+    swept over gradient and q_learning (the rule first: the baseline), compared, nothing else."""
+    page.goto(site.url + "/ui/studies/new")
+    expect(page.locator("select[name='base.preset']")).to_have_value("paper-single")
+    expect(page.locator("input[name='base.learning.episodes']")).to_have_value("20")
+    expect(page.locator("input[name=replicates]")).to_have_value("5")
+    expect(page.locator("select[name=key1]")).to_have_value("robots.policy")
+    expect(page.locator("input[name=values1]")).to_have_value("gradient, q_learning")
+    expect(page.locator("select[name=key2]")).to_have_value("")
+    expect(page.locator("select[name=compare]")).to_have_value("1")
+
+
 def test_a_study_launched_from_the_form_fills_in_its_table(page: Page, site: Site) -> None:
     page.goto(site.url + "/ui/studies/new")
     page.fill("input[name=name]", "browser study")
     page.fill("input[name='base.learning.episodes']", "3")
     page.fill("input[name=replicates]", "3")
+    page.fill("input[name=values1]", "q_learning, gradient")
+    page.select_option("select[name=key2]", "obstacles.count")
     page.fill("input[name=values2]", "0, 20")
     screenshot(page, "new-study")
     page.click("button[type=submit]")
