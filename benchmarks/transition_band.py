@@ -17,7 +17,9 @@ a run that was stopped (a session's end, a kill) goes on from its last checkpoin
   torso. Both observe what the rule reads: the count, its change, and the gradient of the
   counts averaged over the rule's own gradient memory at that radius. ``gru-counts``: the GRU
   given the last count's gradient alone (no gradient memory), as Alonso & Kirkegaard's
-  recurrent policy read its counts: its memory must do the averaging.
+  recurrent policy read its counts: its memory must do the averaging. ``gru-anchor``: Alonso &
+  Kirkegaard's recurrent network (a GRU of 25, then an actor of 2x64 and a critic of 2x128 of
+  their own, tanh), observing what ``gru`` does.
 - Training worlds are drawn from seed 100,000 on (world k of ``--envs`` from 100,000 + k), far
   from every seed evaluated here.
 - The rule: ``gradient`` with the gradient memory the design seeds chose at each radius
@@ -58,7 +60,10 @@ TIME_LIMIT_S = 25.6
 RADII = (0.5, 1.0, 2.0)
 # the strongest rule's gradient memory, s, at each radius (design seeds; see the docstring)
 RULE_MEMORY_S = {0.5: 2.0, 1.0: 2.0, 2.0: 0.5}
-LEARNERS = ("gru", "mlp", "gru-counts")
+LEARNERS = ("gru", "mlp", "gru-counts", "gru-anchor")
+# Alonso & Kirkegaard's recurrent network: a GRU of 25, then an actor of 2x64 and a critic of
+# 2x128 of their own, tanh
+ANCHOR_NETWORK = {"layers": (), "actor": (64, 64), "critic": (128, 128), "activation": "tanh"}
 TRAINING_SEED = 100_000
 CURVE_SEEDS = 8000
 REPORT_FROM = (7100, 7200)
@@ -103,11 +108,12 @@ def config(learner: str, quick: bool, overlap: bool = False) -> Any:
     from nanonav.rl.ppo import PPOConfig
 
     units = 0 if learner == "mlp" else 25
+    network: dict[str, Any] = ANCHOR_NETWORK if learner == "gru-anchor" else {}
     if quick:
         return PPOConfig(envs=32, rollout=16, minibatch=256, bptt=8, memory_units=units,
-                         seed=TRAINING_SEED)  # fmt: skip
+                         seed=TRAINING_SEED, **network)  # fmt: skip
     # in turn unless asked, as the tables in docs/explanation/learning.md were trained
-    return PPOConfig(memory_units=units, seed=TRAINING_SEED, overlap=overlap)
+    return PPOConfig(memory_units=units, seed=TRAINING_SEED, overlap=overlap, **network)
 
 
 class Counted:
