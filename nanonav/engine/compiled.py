@@ -66,7 +66,7 @@ _F = TypeVar("_F", bound=Callable[..., Any])
 ENGINE = Path(__file__).resolve().parent
 # The sources compiled code depends on: the engine's, and the scenario's (the engine's only
 # import of the rest of NanoNav)
-SOURCES = (ENGINE, ENGINE.parent / "scenario.py")
+SOURCES = (ENGINE, ENGINE.parent / "scenario", ENGINE.parent / "physics.py")
 CACHE_PREFIX = "compiled-"
 
 
