@@ -30,7 +30,9 @@ a run that was stopped (a session's end, a kill) goes on from its last checkpoin
 ``report`` evaluates every finished run in ``--out`` on two sets of fresh seeds (7100.. and
 7200.., ``--seeds`` x ``--worlds`` worlds each), beside the rule in the same worlds: the share
 of episodes that reach the source, each learner minus the rule paired by seed with its 95 %
-interval and Wilcoxon's p, Holm over every comparison of the set; and draws ``curves.png``:
+interval and Wilcoxon's p, Holm over every comparison of the set; what each learner's
+decisions were and what it steers by (each observation shuffled across its decisions in turn,
+the share of them the network then makes otherwise: ``reads``); and draws ``curves.png``:
 each run's success on the curve seeds against the decisions it was trained for, with the
 rule's level on the same seeds.
 """
@@ -132,6 +134,93 @@ class Counted:
         chosen = self.decide(observations)
         self.counts += np.bincount(chosen, minlength=self.counts.size)
         return chosen
+
+
+class Recorded:
+    """A network's decisions with what it was given: every call's observations and answers, in
+    order, and where its memory was started afresh (``forget``), so that they can be replayed."""
+
+    def __init__(self, decide: Any) -> None:
+        self.decide = decide
+        self.remembers = decide.remembers
+        self.calls: list[tuple[Any, Any]] = []
+        self.fresh: set[int] = {0}
+
+    def forget(self) -> None:
+        self.fresh.add(len(self.calls))
+        self.decide.forget()
+
+    def __call__(self, observations: Any) -> Any:
+        chosen = self.decide(observations)
+        self.calls.append((np.array(observations, dtype=np.float32), np.array(chosen)))
+        return chosen
+
+
+def replayed(run: Path, recorded: Recorded, calls: list[Any], actions: int) -> Any:
+    """The greedy actions of the run's network (``model.pt``, as exported) for the calls'
+    observations in order, its memory carried row by row as the service carries it (afresh
+    where the recording forgot, or where the number of rows changed)."""
+    import torch
+
+    from nanonav.rl.networks import ActorCritic, Greedy
+    from nanonav.rl.ppo import PPOConfig
+
+    kept = torch.load(run / "model.pt", map_location="cpu", weights_only=True)
+    config = PPOConfig.of_json(kept["config"])
+    net = ActorCritic(calls[0].shape[1], actions, memory_units=config.memory_units,
+                      layers=config.layers, actor=config.actor, critic=config.critic,
+                      activation=config.activation)  # fmt: skip
+    net.load_state_dict(kept["net"])
+    greedy = Greedy(net).eval()
+    answers = []
+    memory = None
+    with torch.no_grad():
+        for k, rows in enumerate(calls):
+            x = torch.from_numpy(rows)
+            if k in recorded.fresh or memory is None or memory.shape[0] != len(rows):
+                memory = torch.zeros(len(rows), config.memory_units)
+            if config.memory_units:
+                head, memory = greedy(x, memory)
+            else:
+                head = greedy(x)
+            answers.append(head.argmax(dim=1).numpy())
+    return answers
+
+
+def reads(run: Path, radius: float, learner: str, seeds: range, worlds: int) -> str:
+    """What the policy steers by, read from its decisions: each observation shuffled across all
+    its decisions in turn (its values kept, their link to the moment broken), the share of
+    decisions the replayed network then makes otherwise. A large share: the choice rests on
+    it."""
+    from nanonav.rl.evaluate import evaluate
+    from nanonav.rl.onnx_policy import NetworkPolicy
+
+    memory = observed_memory_s(radius, learner)
+    shown = scenario(radius, seeds.start, worlds, gradient_memory_s=memory)
+    model = (run / "policy.onnx").read_bytes()
+    width, labels = observation_of(shown).columns.size, action_labels(shown)
+    with NetworkPolicy(model, width, len(labels), max_bytes=len(model)) as network:
+        recorded = Recorded(network)
+        for seed in seeds:
+            evaluate(scenario(radius, seed, worlds, gradient_memory_s=memory), recorded)
+    given = [rows for rows, _ in recorded.calls]
+    made = np.concatenate([chosen for _, chosen in recorded.calls])
+    same = np.concatenate(replayed(run, recorded, given, len(labels)))
+    names = observation_of(shown).labels
+    rng = np.random.default_rng(0)
+    said = [f"replay agrees with the sandbox in {np.mean(same == made):.3f} of {made.size:,}"]
+    for column, name in enumerate(names):
+        pooled = np.concatenate([rows[:, column] for rows in given])
+        shuffled = rng.permutation(pooled)
+        changed, at = [], 0
+        for rows in given:
+            copy = rows.copy()
+            copy[:, column] = shuffled[at : at + len(rows)]
+            at += len(rows)
+            changed.append(copy)
+        other = np.concatenate(replayed(run, recorded, changed, len(labels)))
+        said.append(f"{name} shuffled: {np.mean(other != same):.2f} of its decisions change")
+    return "; ".join(said)
 
 
 def success(
@@ -293,6 +382,9 @@ def report(out: Path, seeds: int, worlds: int, sets: tuple[int, ...],
             total = max(sum(made), 1)
             shares = (f"{label} {n / total:.2f}" for label, n in zip(labels, made, strict=True))
             print("    its decisions: " + ", ".join(shares))
+            if start == sets[0]:  # what it steers by, on the first five seeds of the first set
+                run = folder(out, r, learner)
+                print("    what it reads: " + reads(run, r, learner, chosen[:5], worlds))
     print(f"\ncurves: {draw(out, every, curve)}")
     print(f"({time.perf_counter() - started:.0f} s)")
     return 0

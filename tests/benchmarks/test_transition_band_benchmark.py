@@ -34,6 +34,14 @@ def test_a_smoke_run_trains_both_learners_and_reports_them(
     assert len(made) == 2 * len(transition_band.LEARNERS), out
     assert all(abs(sum(float(x) for x in row) - 1.0) < 0.02 for row in made)
     assert f"Holm over the {len(transition_band.LEARNERS)} comparisons of this set" in out
+    # what each steers by: its network replayed outside the sandbox makes the same decisions,
+    # and each observation shuffled in turn changes a share of them
+    reads = re.findall(r"^    what it reads: replay agrees with the sandbox in ([\d.]+) of [\d,]+; "
+                       r"reading shuffled: ([\d.]+) .*; reading_change shuffled: ([\d.]+) .*; "
+                       r"obstacle shuffled: ([\d.]+) ", out, re.M)  # fmt: skip
+    assert len(reads) == len(transition_band.LEARNERS), out  # the first seed set only
+    assert all(float(row[0]) == 1.0 for row in reads), reads
+    assert all(0.0 <= float(x) <= 1.0 for row in reads for x in row[1:])
     picture = image.imread(tmp_path / "curves.png")
     assert picture.shape[0] > 100 and picture.shape[1] > 100
 
