@@ -256,18 +256,25 @@ def _one_of(args: argparse.Namespace) -> None:
 
 
 def _fetch(args: argparse.Namespace) -> int:
+    """Each file said as it is written (a picture the server has not drawn yet takes seconds,
+    and a study has a dozen), then how many."""
     _one_of(args)
     with connect(args) as api:
         if args.study is not None:
-            found = _study_files(api, args.study)
+            what, found = f"study {args.study}", _study_files(api, args.study)
         elif args.policy is not None:
-            found = _policy_files(api, args.policy)
+            what, found = f"policy {args.policy}", _policy_files(api, args.policy)
         else:
-            found = _job_files(api, args.id)
-        written = _write(args.out, found)
-    print(f"Wrote {plural(len(written), 'file')} to {args.out}:")
-    for path in written:
-        print(f"  {path.name:<28} {_size(path.stat().st_size):>9}")
+            what, found = f"job {args.id}", _job_files(api, args.id)
+
+        def each(path: Path) -> None:
+            print(f"  {path.name:<28} {_size(path.stat().st_size):>9}", flush=True)
+
+        def first() -> None:
+            print(f"Fetching {what} into {args.out}:", flush=True)
+
+        written = _write(args.out, found, each, first)
+    print(f"Wrote {plural(len(written), 'file')} to {args.out}")
     return EXIT_OK
 
 
@@ -351,9 +358,15 @@ def _study_files(api: Client, study_id: int) -> Iterator[tuple[str, bytes]]:
         yield f"{name}.png", api.study_picture(study_id, name)
 
 
-def _write(out: Path, files: Iterator[tuple[str, bytes]]) -> list[Path]:
-    """Each file as it comes, the directory made once the first one has downloaded (so a job
-    without results leaves no empty directory behind)."""
+def _write(
+    out: Path,
+    files: Iterator[tuple[str, bytes]],
+    each: Callable[[Path], None] = lambda _: None,
+    first: Callable[[], None] = lambda: None,
+) -> list[Path]:
+    """Each file as it comes, told to ``each`` once written; the directory made once the first
+    one has downloaded (so a job without results leaves no empty directory behind), when
+    ``first`` is told."""
     written: list[Path] = []
     for name, content in files:
         if not written:
@@ -361,12 +374,14 @@ def _write(out: Path, files: Iterator[tuple[str, bytes]]) -> list[Path]:
                 out.mkdir(parents=True, exist_ok=True)
             except OSError as error:
                 raise UsageError([f"cannot create {out}: {error}"]) from error
+            first()
         path = out / name
         try:
             path.write_bytes(content)
         except OSError as error:
             raise UsageError([f"cannot write {path}: {error}"]) from error
         written.append(path)
+        each(path)
     return written
 
 

@@ -235,8 +235,9 @@ def test_fetch_writes_a_jobs_results(
              *(f"{n}.png" for n in drawn)]  # fmt: skip
     assert sorted(p.name for p in out_dir.iterdir()) == sorted(names)
     lines = out.splitlines()
-    assert lines[0] == f"Wrote {len(names)} files to {out_dir}:"
-    assert [line.split()[0] for line in lines[1:]] == names
+    assert lines[0] == f"Fetching job {job.id} into {out_dir}:"
+    assert [line.split()[0] for line in lines[1:-1]] == names  # each said as it was written
+    assert lines[-1] == f"Wrote {len(names)} files to {out_dir}"
     assert json.loads((out_dir / "metrics.json").read_text()) == api.metrics(job.id)
     assert json.loads((out_dir / "qtable.json").read_text()) == api.qtable(job.id)
     with np.load(out_dir / "trajectory.npz", allow_pickle=False) as arrays:
@@ -282,8 +283,9 @@ def test_fetch_of_a_table_policy_writes_one_file_and_says_file(
     args = ["fetch", "--policy", str(policy.id), "--out", str(tmp_path), "--url", live_api.url]
     assert main(args) == 0
     lines = capsys.readouterr().out.splitlines()
-    assert lines[0] == f"Wrote 1 file to {tmp_path}:"
-    assert [line.split()[0] for line in lines[1:]] == ["policy.json"]
+    assert lines[0] == f"Fetching policy {policy.id} into {tmp_path}:"
+    assert [line.split()[0] for line in lines[1:-1]] == ["policy.json"]
+    assert lines[-1] == f"Wrote 1 file to {tmp_path}"
     assert json.loads((tmp_path / "policy.json").read_text())["states"] == states
 
 
@@ -302,7 +304,8 @@ def test_fetch_writes_a_studys_table_and_pictures(
     assert "learning.png" in pictures and "total_steps.png" in pictures
     tables = ["results.csv", "results.parquet", "comparisons.csv", "comparisons.parquet"]
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted([*tables, "study.json", *pictures])
-    assert out.startswith(f"Wrote {5 + len(pictures)} files to {tmp_path}:\n")
+    assert out.startswith(f"Fetching study {study.id} into {tmp_path}:\n")
+    assert out.endswith(f"Wrote {5 + len(pictures)} files to {tmp_path}\n")
     assert (tmp_path / "results.csv").read_bytes() == api.study_csv(study.id)
     assert (tmp_path / "comparisons.csv").read_bytes() == api.study_comparisons_csv(study.id)
     compared = pq.read_table(tmp_path / "comparisons.parquet").to_pylist()
