@@ -220,6 +220,46 @@ def _cube_axes(ax: Any, result: SimulationResult) -> None:
     ax.set_zlabel(f"z ({length})")
 
 
+def _paths_axes(fig: Figure, result: SimulationResult) -> Any:
+    """The 3-D axes of the paths; with several evaluation worlds, a strip below them with each
+    world's time to reach (``draw_worlds``), so that the world drawn is seen among them all."""
+    times = _world_times(result)
+    if len(times) < 2:
+        return fig.add_subplot(projection="3d", computed_zorder=False)
+    grid = fig.add_gridspec(2, 1, height_ratios=(9, 1))
+    ax = fig.add_subplot(grid[0], projection="3d", computed_zorder=False)
+    draw_worlds(fig.add_subplot(grid[1]), result, times)
+    return ax
+
+
+def _world_times(result: SimulationResult) -> list[float]:
+    return [float(w["total_steps"]) for w in result.worlds if "total_steps" in w]
+
+
+def draw_worlds(ax: Any, result: SimulationResult, steps: list[float]) -> None:
+    """Every evaluation world's time to reach a cell (Table 1's total steps) as a dot, the
+    world the paths show (the first, the one recorded) as a blue ring, and their mean as a
+    line: which world is drawn, among how many, and how typical it is."""
+    ph = result.scenario.physics
+    scale = ph.step_s if ph.model == "active_brownian" else 1.0
+    unit = "s" if ph.model == "active_brownian" else "steps"
+    times = np.array(steps) * scale
+    rows = np.zeros_like(times)
+    ax.scatter(times[1:], rows[1:], s=22, color="0.55", zorder=2, clip_on=False)
+    ax.scatter(times[:1], rows[:1], s=70, facecolors="none", edgecolors=ROBOT_BLUE,
+               linewidths=2.0, zorder=3, clip_on=False)  # fmt: skip
+    ax.axvline(float(times.mean()), color="0.2", linestyle="--", linewidth=1.0, zorder=1)
+    ax.set_yticks([])
+    for side in ("left", "right", "top"):
+        ax.spines[side].set_visible(False)
+    ax.tick_params(labelsize="small")
+    ax.set_xlabel(
+        f"time to reach, each of the {len(times)} worlds ({unit}); ring: the one drawn; "
+        "dashed: mean",
+        fontsize="small",
+    )
+
+
 def trajectory_figure(result: SimulationResult) -> Figure:
     """Figure 3: the robots' paths (blue, each up to the step it stopped) and the cells' random
     walks (red) in the evaluation episode, with the obstacles to scale (spheres of their radius)
@@ -245,7 +285,7 @@ def trajectory_figure(result: SimulationResult) -> Figure:
     fig = sized_figure("trajectory")
     # Explicit draw order (spheres, then paths, then markers) reads better than matplotlib's
     # depth sorting, which hides markers and whole paths behind spheres.
-    ax: Any = fig.add_subplot(projection="3d", computed_zorder=False)
+    ax = _paths_axes(fig, result)
     _draw_obstacles(ax, trajectory.obstacles_at(-1), trajectory.obstacle_radius)
     width, alpha = (1.6, 0.9) if shown == 1 else (1.0, 0.85) if shown <= 10 else (0.8, 0.7)
     ends = np.empty((shown, 3))
@@ -334,7 +374,7 @@ def _swarm_figure(result: SimulationResult, trajectory: Trajectory, view: SwarmV
     cells_total = trajectory.cells.shape[1]
     shown = min(robots_total, MAX_ROBOT_PATHS)
     fig = sized_figure("trajectory")
-    ax: Any = fig.add_subplot(projection="3d", computed_zorder=False)
+    ax = _paths_axes(fig, result)
     _draw_obstacles(ax, trajectory.obstacles_at(-1), trajectory.obstacle_radius)
     width, alpha = (1.6, 0.9) if shown == 1 else (1.0, 0.85) if shown <= 10 else (0.8, 0.7)
     for i in range(shown):

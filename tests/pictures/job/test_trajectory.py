@@ -144,7 +144,13 @@ def test_a_run_of_many_worlds_names_the_world_drawn_and_its_time_beside_their_me
         )
     )  # fmt: skip
     steps = [float(w["total_steps"]) for w in many.worlds]
-    title = trajectory_figure(many).axes[0].get_title()
+    figure = trajectory_figure(many)
+    title = figure.axes[0].get_title()
+    # below the paths, every world's time: the others as dots, the one drawn as a ring
+    others, drawn = figure.axes[1].collections
+    assert others.get_offsets()[:, 0].tolist() == steps[1:]
+    assert drawn.get_offsets()[:, 0].tolist() == steps[:1]
+    assert "each of the 5 worlds (steps)" in figure.axes[1].get_xlabel()
     assert "evaluation world 1 of 5" in title
     assert (
         f"time to reach: this world {steps[0]:,.4g}, mean of 5 worlds {np.mean(steps):,.4g} "
@@ -160,6 +166,8 @@ def test_a_run_of_one_world_draws_its_evaluation_episode() -> None:
             robots={"policy": "gradient"}, evaluation={"worlds": 1},
         )
     )  # fmt: skip
-    title = trajectory_figure(one).axes[0].get_title()
+    figure = trajectory_figure(one)
+    title = figure.axes[0].get_title()
+    assert len(figure.axes) == 1  # no strip of worlds
     assert "evaluation episode" in title
     assert "mean of" not in title
