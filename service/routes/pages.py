@@ -23,6 +23,7 @@ from fastapi.templating import Jinja2Templates
 from pydantic import BaseModel, ConfigDict, Field
 
 from nanonav import table1
+from nanonav.pictures import job as job_pictures
 from nanonav.policy import evaluation_scenario
 from nanonav.scenario import (
     PRESETS,
@@ -286,6 +287,8 @@ def job_page(request: Request, job_id: PageId, store: StoreDep, caller: CallerDe
         if metrics else [],
         stride=stride, scenario_json=json.dumps(job.scenario, indent=2),
         network=_network_of(job.scenario, metrics),
+        # the drawing's version in the URL, so that no browser keeps an older drawing
+        heatmap_version=job_pictures.version("heatmap_xy"),
     )  # fmt: skip
 
 

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 from nanonav.engine import qlearning, simulate
+from nanonav.pictures import job as job_pictures
 from nanonav.scenario import Scenario
 from nanonav.settings import Settings
 from nanonav.store import JobStatus, StudyJob, StudyStore
@@ -46,7 +47,8 @@ def test_a_finished_jobs_page_reads_without_javascript(api: Api, api_settings: S
                   "Average Distance (length units)", "Success Rate"):  # fmt: skip
         assert f'<th scope="row">{label}</th>' in html, label
     assert "mean over 2 evaluation worlds" in html
-    for picture in ("plots/learning.png", "heatmap.png?plane=xy", "plots/qtable.png"):
+    heatmap = f"heatmap.png?plane=xy&amp;v={job_pictures.version('heatmap_xy')}"
+    for picture in ("plots/learning.png", heatmap, "plots/qtable.png"):
         assert f"/jobs/{job_id}/{picture}" in html
     assert 'id="progress-card"' not in html  # nothing left to follow
 
