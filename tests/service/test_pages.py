@@ -377,8 +377,8 @@ def test_the_banner_says_what_the_workers_do_in_words_that_count(api: Api) -> No
     assert banner() == ("1 job is queued but no worker has been seen in the last 30 s: start "
                         "one with `nanonav worker`.")  # fmt: skip
     api.store.worker_seen("box:1", started_at=datetime.now(UTC), ready=False)
-    assert banner() == ("1 worker is preparing the engine (a first start compiles it: a minute "
-                        "or two); queued jobs wait for it.")  # fmt: skip
+    assert banner() == ("1 worker is preparing the engine (a first start compiles it: about a "
+                        "minute); queued jobs wait for it.")  # fmt: skip
     assert "1 preparing" in api.client.get("/ui/jobs").text
     api.store.worker_seen("box:1", started_at=datetime.now(UTC))
     assert '<p class="note warn">' not in api.client.get("/ui/jobs").text
