@@ -15,7 +15,7 @@ export HOST PORT
 # a test process's collection).
 unexport PYTHONDONTWRITEBYTECODE
 
-.PHONY: run test compile-ahead lint typecheck pytest docs docs-check bench clean clean-compiled
+.PHONY: run test test-fast format compile-ahead lint typecheck pytest docs docs-check bench clean clean-compiled
 
 PIP := $(BIN)/python -m pip install --quiet
 
@@ -69,6 +69,16 @@ typecheck: $(VENV)/.installed-test
 
 pytest: $(VENV)/.installed-test
 	$(BIN)/python -m pytest -q -n $(TEST_PROCESSES)
+
+# The tests without real processes end to end, a browser or a benchmark's run: a few minutes
+# while working (make test, and CI, run them all).
+test-fast: $(VENV)/.installed-test
+	$(BIN)/python -m pytest -q -n $(TEST_PROCESSES) -m "not e2e and not browser and not benchmark"
+
+# Formats the code and applies ruff's safe fixes, as `make test`'s lint then expects.
+format: $(VENV)/.installed-test
+	$(BIN)/ruff format .
+	$(BIN)/ruff check --fix .
 
 # The documentation site: the reference pages are written from the code, then built into site/.
 $(VENV)/.installed-docs: $(VENV)/.installed

@@ -62,6 +62,23 @@ def pytest_configure(config: pytest.Config) -> None:
                 report.write_line(f"compiled ahead: {line}")
 
 
+# The suite's slow kinds, marked by the folder they live in: real processes end to end, a real
+# browser, and the benchmarks' smoke runs. ``make test-fast`` leaves them out; ``make test``
+# (and CI) runs everything.
+FOLDER_MARKS = {"e2e": "e2e", "browser": "browser", "benchmarks": "benchmark"}
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Each test under ``tests/e2e``, ``tests/browser`` or ``tests/benchmarks`` gets its
+    folder's mark (``FOLDER_MARKS``), so that ``-m "not e2e"`` and the like choose by kind."""
+    root = Path(__file__).resolve().parent
+    for item in items:
+        parts = Path(str(item.path)).resolve().relative_to(root).parts
+        mark = FOLDER_MARKS.get(parts[0]) if len(parts) > 1 else None
+        if mark is not None:
+            item.add_marker(mark)
+
+
 def in_ci() -> bool:
     """Whether this is CI, where what could run must: a missing service fails, not skips."""
     return os.environ.get("CI", "").lower() in {"1", "true", "yes"}
