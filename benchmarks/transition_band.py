@@ -32,7 +32,9 @@ a run that was stopped (a session's end, a kill) goes on from its last checkpoin
 of episodes that reach the source, each learner minus the rule paired by seed with its 95 %
 interval and Wilcoxon's p, Holm over every comparison of the set; what each learner's
 decisions were and what it steers by (each observation shuffled across its decisions in turn,
-the share of them the network then makes otherwise: ``reads``); and draws ``curves.png``:
+the share of them the network then makes otherwise: ``reads``); as a second look outside the
+Holm family, the same network sampling its actions as in training (``Sampled``: the greedy
+export can do otherwise, as the 1 um GRU did at 3 x 10^8); and draws ``curves.png``:
 each run's success on the curve seeds against the decisions it was trained for, with the
 rule's level on the same seeds.
 """
@@ -248,6 +250,59 @@ def success(
     return found
 
 
+class Sampled:
+    """The run's network (``model.pt``) deciding as it was trained, by sampling its actions
+    (the exported network, as the service runs it, takes the likeliest), its memory carried row
+    by row as the service carries it; seeded, so that an evaluation is the same each time."""
+
+    def __init__(self, run: Path, width: int, actions: int, seed: int) -> None:
+        import torch
+
+        from nanonav.rl.networks import ActorCritic
+        from nanonav.rl.ppo import PPOConfig
+
+        kept = torch.load(run / "model.pt", map_location="cpu", weights_only=True)
+        config = PPOConfig.of_json(kept["config"])
+        self.net = ActorCritic(width, actions, memory_units=config.memory_units,
+                               layers=config.layers, actor=config.actor, critic=config.critic,
+                               activation=config.activation)  # fmt: skip
+        self.net.load_state_dict(kept["net"])
+        self.net.eval()
+        self.generator = torch.Generator().manual_seed(seed)
+        self.remembers = config.memory_units > 0
+        self.memory: Any = None
+
+    def forget(self) -> None:
+        self.memory = None
+
+    def __call__(self, observations: Any) -> Any:
+        import torch
+
+        rows = torch.from_numpy(np.ascontiguousarray(observations, dtype=np.float32))
+        if self.memory is None or self.memory.shape[0] != rows.shape[0]:
+            self.memory = self.net.blank_memory(rows.shape[0])
+        decision = self.net.act(rows, self.memory, self.generator)
+        self.memory = decision.memory
+        return decision.action.numpy().astype(np.int64)
+
+
+def sampled_success(run: Path, radius: float, learner: str, seeds: range,
+                    worlds: int) -> list[float]:  # fmt: skip
+    """``success``, the network deciding by sampling its actions as in training (``Sampled``,
+    seeded by each seed)."""
+    from nanonav.rl.evaluate import evaluate
+
+    memory = observed_memory_s(radius, learner)
+    shown = scenario(radius, seeds.start, worlds, gradient_memory_s=memory)
+    width, actions = observation_of(shown).columns.size, len(action_labels(shown))
+    found = []
+    for seed in seeds:
+        decide = Sampled(run, width, actions, seed)
+        result = evaluate(scenario(radius, seed, worlds, gradient_memory_s=memory), decide)
+        found.append(float(result.summary["success_rate"]))
+    return found
+
+
 def rule_success(radius: float, seeds: range, worlds: int) -> list[float]:
     """The rule's share of episodes that reach the source, a seed each, in the same worlds."""
     return [
@@ -382,8 +437,17 @@ def report(out: Path, seeds: int, worlds: int, sets: tuple[int, ...],
             total = max(sum(made), 1)
             shares = (f"{label} {n / total:.2f}" for label, n in zip(labels, made, strict=True))
             print("    its decisions: " + ", ".join(shares))
+            run = folder(out, r, learner)
+            # a second look, outside the set's Holm family: the same network sampling its
+            # actions as it did in training, where the greedy export may differ
+            drawn = sampled_success(run, r, learner, chosen, worlds)
+            other = stats.paired(drawn, rules[r])
+            low, high, p = other.ci_low, other.ci_high, other.p_value
+            if other.mean_difference is not None and None not in (low, high, p):
+                print(f"    sampled as trained: {mean_ci(drawn)}, minus the rule "
+                      f"{other.mean_difference:+.2f} [{low:+.2f}, {high:+.2f}] p {p:.3g} "
+                      "(not in the Holm family)")  # fmt: skip
             if start == sets[0]:  # what it steers by, on the first five seeds of the first set
-                run = folder(out, r, learner)
                 print("    what it reads: " + reads(run, r, learner, chosen[:5], worlds))
     print(f"\ncurves: {draw(out, every, curve)}")
     print(f"({time.perf_counter() - started:.0f} s)")

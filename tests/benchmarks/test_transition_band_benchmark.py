@@ -42,6 +42,10 @@ def test_a_smoke_run_trains_both_learners_and_reports_them(
     assert len(reads) == len(transition_band.LEARNERS), out  # the first seed set only
     assert all(float(row[0]) == 1.0 for row in reads), reads
     assert all(0.0 <= float(x) <= 1.0 for row in reads for x in row[1:])
+    # and a second look: the same networks sampling their actions as in training
+    sampled = re.findall(r"^    sampled as trained: .* minus the rule [+-]\d\.\d\d \[.*\] p .* "
+                         r"\(not in the Holm family\)$", out, re.M)  # fmt: skip
+    assert len(sampled) == 2 * len(transition_band.LEARNERS), out
     picture = image.imread(tmp_path / "curves.png")
     assert picture.shape[0] > 100 and picture.shape[1] > 100
 
