@@ -158,21 +158,31 @@ class Recorded:
         return chosen
 
 
+def trained_network(run: Path, width: int, actions: int) -> tuple[Any, int]:
+    """The run's network as trained (``model.pt``), in eval mode, and its memory's units."""
+    import torch
+
+    from nanonav.rl.networks import ActorCritic
+    from nanonav.rl.ppo import PPOConfig
+
+    kept = torch.load(run / "model.pt", map_location="cpu", weights_only=True)
+    config = PPOConfig.of_json(kept["config"])
+    net = ActorCritic(width, actions, memory_units=config.memory_units, layers=config.layers,
+                      actor=config.actor, critic=config.critic,
+                      activation=config.activation)  # fmt: skip
+    net.load_state_dict(kept["net"])
+    return net.eval(), config.memory_units
+
+
 def replayed(run: Path, recorded: Recorded, calls: list[Any], actions: int) -> Any:
     """The greedy actions of the run's network (``model.pt``, as exported) for the calls'
     observations in order, its memory carried row by row as the service carries it (afresh
     where the recording forgot, or where the number of rows changed)."""
     import torch
 
-    from nanonav.rl.networks import ActorCritic, Greedy
-    from nanonav.rl.ppo import PPOConfig
+    from nanonav.rl.networks import Greedy
 
-    kept = torch.load(run / "model.pt", map_location="cpu", weights_only=True)
-    config = PPOConfig.of_json(kept["config"])
-    net = ActorCritic(calls[0].shape[1], actions, memory_units=config.memory_units,
-                      layers=config.layers, actor=config.actor, critic=config.critic,
-                      activation=config.activation)  # fmt: skip
-    net.load_state_dict(kept["net"])
+    net, units = trained_network(run, calls[0].shape[1], actions)
     greedy = Greedy(net).eval()
     answers = []
     memory = None
@@ -180,8 +190,8 @@ def replayed(run: Path, recorded: Recorded, calls: list[Any], actions: int) -> A
         for k, rows in enumerate(calls):
             x = torch.from_numpy(rows)
             if k in recorded.fresh or memory is None or memory.shape[0] != len(rows):
-                memory = torch.zeros(len(rows), config.memory_units)
-            if config.memory_units:
+                memory = torch.zeros(len(rows), units)
+            if units:
                 head, memory = greedy(x, memory)
             else:
                 head = greedy(x)
@@ -258,18 +268,9 @@ class Sampled:
     def __init__(self, run: Path, width: int, actions: int, seed: int) -> None:
         import torch
 
-        from nanonav.rl.networks import ActorCritic
-        from nanonav.rl.ppo import PPOConfig
-
-        kept = torch.load(run / "model.pt", map_location="cpu", weights_only=True)
-        config = PPOConfig.of_json(kept["config"])
-        self.net = ActorCritic(width, actions, memory_units=config.memory_units,
-                               layers=config.layers, actor=config.actor, critic=config.critic,
-                               activation=config.activation)  # fmt: skip
-        self.net.load_state_dict(kept["net"])
-        self.net.eval()
+        self.net, units = trained_network(run, width, actions)
         self.generator = torch.Generator().manual_seed(seed)
-        self.remembers = config.memory_units > 0
+        self.remembers = units > 0
         self.memory: Any = None
 
     def forget(self) -> None:

@@ -78,11 +78,17 @@ def recorded_world(result: SimulationResult) -> str:
     return "evaluation episode" if worlds <= 1 else f"evaluation world 1 of {worlds}"
 
 
+def world_times(result: SimulationResult) -> list[float]:
+    """Every evaluation world's time to reach a cell (Table 1's ``total_steps``), in steps, the
+    recorded (drawn) world first."""
+    return [float(w["total_steps"]) for w in result.worlds if "total_steps" in w]
+
+
 def beside_the_worlds(result: SimulationResult) -> str:
     """The drawn world's time to reach a cell (Table 1's ``total_steps``) beside the mean and
     range over every evaluation world, so that one world is not read as the typical one; empty
     for a run of one world."""
-    values = [float(w["total_steps"]) for w in result.worlds if "total_steps" in w]
+    values = world_times(result)
     if len(values) < 2:
         return ""
     ph = result.scenario.physics

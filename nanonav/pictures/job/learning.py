@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, get_args
 
 import numpy as np
 from matplotlib.artist import Artist
@@ -18,6 +18,7 @@ from numpy.typing import NDArray
 from nanonav.engine import SimulationResult
 from nanonav.pictures.figure import png
 from nanonav.pictures.job.common import ROBOT_BLUE, sized_figure
+from nanonav.scenario import Policy
 
 _POLICY_NAMES = {
     "q_learning": "Q-learning",
@@ -32,19 +33,7 @@ _POLICY_NAMES = {
     "blind_tumble": "the blind tumbler",
 }
 # Policies that learn nothing: their episodes are independent trials of the same behaviour.
-BASELINES = frozenset(
-    {
-        "gradient",
-        "run_and_tumble",
-        "rule",
-        "simple_rule",
-        "random",
-        "uncontrolled",
-        "exact_gradient",
-        "steer_and_tumble",
-        "blind_tumble",
-    }
-)
+BASELINES = frozenset(get_args(Policy)) - {"q_learning"}
 # The moving mean spans about an eighth of the episodes, within these bounds; runs shorter than
 # SMOOTH_FROM episodes show the raw values only.
 SMOOTH_FROM = 4

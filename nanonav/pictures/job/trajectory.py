@@ -33,6 +33,7 @@ from nanonav.pictures.job.common import (
     recorded_world,
     sized_figure,
     thin,
+    world_times,
 )
 from nanonav.pictures.job.treatment import delivers_payloads
 
@@ -223,17 +224,13 @@ def _cube_axes(ax: Any, result: SimulationResult) -> None:
 def _paths_axes(fig: Figure, result: SimulationResult) -> Any:
     """The 3-D axes of the paths; with several evaluation worlds, a strip below them with each
     world's time to reach (``draw_worlds``), so that the world drawn is seen among them all."""
-    times = _world_times(result)
+    times = world_times(result)
     if len(times) < 2:
         return fig.add_subplot(projection="3d", computed_zorder=False)
     grid = fig.add_gridspec(2, 1, height_ratios=(9, 1))
     ax = fig.add_subplot(grid[0], projection="3d", computed_zorder=False)
     draw_worlds(fig.add_subplot(grid[1]), result, times)
     return ax
-
-
-def _world_times(result: SimulationResult) -> list[float]:
-    return [float(w["total_steps"]) for w in result.worlds if "total_steps" in w]
 
 
 def draw_worlds(ax: Any, result: SimulationResult, steps: list[float]) -> None:
