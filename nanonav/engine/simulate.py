@@ -667,8 +667,15 @@ def simulate(
     (``completed`` False). The evaluation's history (``Trajectory``) takes at most
     ``record_bytes``: rows are thinned to every ``stride`` steps to fit, which changes what is
     recorded, never the run. A scenario whose start and end rows alone exceed it raises
-    ``ScenarioError`` before any work.
+    ``ScenarioError`` before any work. A network the scenario trains (``ppo``,
+    ``recurrent_ppo``) is not the engine's to train: ``nanonav.rl.job`` trains it.
     """
+    if scenario.trains:
+        raise ScenarioError(
+            "robots.policy",
+            f"'{scenario.robots.policy}' is a network trained outside the engine "
+            "(nanonav.rl.job, a worker that trains); the engine runs its network as policy_from",
+        )
     params = kernel_params(scenario, record_bytes)
     _warm_up()
     learning = scenario.learning

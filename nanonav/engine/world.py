@@ -27,6 +27,7 @@ NO_ROOM_TO_START_APART = -2  # robots that take up space found no free start
 WORLD_STREAM = 0
 DYNAMICS_STREAM = 1
 EVALUATION_STREAM = 2  # the evaluation's worlds: the same for every policy run with a seed
+TRAINING_STREAM = 3  # a trainer's worlds in a job: apart from every seed's evaluation worlds
 
 
 def stream(seed: int, which: int, *more: int) -> np.random.Generator:

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from nanonav.engine.world import DYNAMICS_STREAM, EVALUATION_STREAM, stream
+from nanonav.engine.world import DYNAMICS_STREAM, EVALUATION_STREAM, TRAINING_STREAM, stream
 from nanonav.engine.worlds import (
     Worlds,
     action_labels,
@@ -49,12 +49,20 @@ class NanoNavArrayEnv:
     ``(num_envs,)``, or steering continuously turns ``(num_envs, 2)`` (side, up; clipped to
     -1 .. 1). A finished world is drawn afresh within the step that ended it, as
     Stable-Baselines3's ``NanoNavVecEnv`` does, and the same worlds: ``reset(seed=s)`` draws
-    world k from seed s + k. Actions are not checked one by one: a trainer's sampled actions
-    are in the action set by construction, and a turn that is not finite is taken as none.
+    world k from seed s + k. ``apart`` draws them instead from streams of their own, which no
+    evaluation of any seed draws from (a job trains on them and is evaluated on its seed's
+    evaluation worlds, as tabular learning is). Actions are not checked one by one: a
+    trainer's sampled actions are in the action set by construction, and a turn that is not
+    finite is taken as none.
     """
 
     def __init__(
-        self, num_envs: int, scenario: ScenarioLike = None, *, steering: Steering = "discrete"
+        self,
+        num_envs: int,
+        scenario: ScenarioLike = None,
+        *,
+        steering: Steering = "discrete",
+        apart: bool = False,
     ) -> None:
         if num_envs < 1:
             raise ValueError("num_envs must be at least 1")
@@ -76,6 +84,7 @@ class NanoNavArrayEnv:
         self._world_rngs: list[np.random.Generator] = []
         self._rngs: list[np.random.Generator] = []
         self.seed = self.scenario.seed
+        self.apart = apart
 
     def reset(self, seed: int | None = None) -> NDArray[np.float32]:
         """Every world drawn afresh: world k from seed ``seed`` + k (the scenario's seed when
@@ -89,8 +98,12 @@ class NanoNavArrayEnv:
         """World k's generators made anew from seed ``seed`` + k, and kept here."""
         self.seed = seed
         count = range(self.num_envs)
-        self._world_rngs = [stream(seed + k, EVALUATION_STREAM) for k in count]
-        self._rngs = [stream(seed + k, DYNAMICS_STREAM) for k in count]
+        if self.apart:
+            self._world_rngs = [stream(seed, TRAINING_STREAM, k, 0) for k in count]
+            self._rngs = [stream(seed, TRAINING_STREAM, k, 1) for k in count]
+        else:
+            self._world_rngs = [stream(seed + k, EVALUATION_STREAM) for k in count]
+            self._rngs = [stream(seed + k, DYNAMICS_STREAM) for k in count]
         for k in count:
             self._worlds.use_generators(k, self._world_rngs[k], self._rngs[k])
 

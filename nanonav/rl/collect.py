@@ -30,7 +30,7 @@ import weakref
 from dataclasses import dataclass, fields
 from multiprocessing.connection import Connection
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import torch
@@ -82,6 +82,14 @@ class Rollout:
         return Rollout(*(tensor.to(device) for tensor in self.tensors()))
 
 
+class Ended(NamedTuple):
+    """The episodes that ended in a rollout: their returns, and how many of them reached a
+    cell (the rest ran out of time)."""
+
+    returns: list[float]
+    reached: int
+
+
 class Collector:
     """Steps ``env``'s worlds with ``net``'s decisions, ``steps`` decisions a world a rollout,
     carrying each world's observation, memory and episode from one rollout to the next. Its
@@ -110,14 +118,15 @@ class Collector:
         one.reset()
         one.step(np.zeros((1, 2)) if one.continuous else np.zeros(1, dtype=np.int64))
 
-    def collect(self, r: Rollout) -> list[float]:
-        """Fill ``r`` with the next rollout: the returns of the episodes that ended in it."""
+    def collect(self, r: Rollout) -> Ended:
+        """Fill ``r`` with the next rollout: what the episodes that ended in it did."""
         env, net, device = self.env, self.net, self.device
         recurrent = net.memory_units > 0
         if self.obs is None:
             self.obs = torch.from_numpy(env.reset()).to(device)
         obs, memory, starting = self.obs, self._memory, self._starting
         returns: list[float] = []
+        reached = 0
         for t in range(self.steps):
             r.obs[t] = obs
             r.starts[t] = starting
@@ -138,6 +147,7 @@ class Collector:
             self._returns += step.reward
             if done.any():
                 returns.extend(self._returns[done].tolist())
+                reached += int(step.terminated.sum())
                 self._returns[done] = 0.0
             r.actions[t] = decision.action
             r.log_probs[t] = decision.log_prob
@@ -149,7 +159,7 @@ class Collector:
             memory = decision.memory
         self.obs, self._memory, self._starting = obs, memory, starting
         r.next_value.copy_(net.value(obs, memory * (~starting).unsqueeze(-1)))
-        return returns
+        return Ended(returns, reached)
 
     def state_dict(self) -> dict[str, Any]:
         """The random streams: the sampling's, and each world's two generators with the seed
@@ -185,6 +195,7 @@ class _Spec:
     bptt: int
     gamma: float
     seed: int
+    apart: bool
 
 
 # where the shared tensors' files are made: memory, where the system has it as a folder
@@ -233,7 +244,7 @@ def _receive(conn: Connection) -> Any:
 class CollectorProcess:
     """A ``Collector`` in a process of its own: ``start(k, net)`` has it fill rollout k (of
     ``rollouts``, the two both processes map) with ``net``'s weights as they are then;
-    ``wait`` gives the returns of the episodes that ended in it and its seconds. Its streams
+    ``wait`` gives what the episodes that ended in it did, and its seconds. Its streams
     are read and set (``state_dict``, ``load_state_dict``) when no rollout is under way."""
 
     def __init__(self, env: NanoNavArrayEnv, net: ActorCritic, *, steps: int, bptt: int,
@@ -247,7 +258,7 @@ class CollectorProcess:
             self.weights = _mapped_weights(folder, net)
             spec = _Spec(
                 env.num_envs, env.scenario.model_dump_json(), env.steering, net.arguments(),
-                steps, bptt, gamma, seed,
+                steps, bptt, gamma, seed, env.apart,
             )  # fmt: skip
             ours, theirs = socket.socketpair()
             self._process = subprocess.Popen(
@@ -316,13 +327,13 @@ class CollectorProcess:
         self._tell(("collect", which))
         self._busy = True
 
-    def wait(self) -> tuple[list[float], float]:
-        """The returns of the episodes that ended in the rollout under way, and its seconds."""
+    def wait(self) -> tuple[Ended, float]:
+        """What the episodes that ended in the rollout under way did, and its seconds."""
         if not self._busy:
             raise RuntimeError("no rollout is under way")
         self._busy = False
-        returns, seconds = self._answer()
-        return list(returns), float(seconds)
+        (returns, reached), seconds = self._answer()
+        return Ended(list(returns), int(reached)), float(seconds)
 
     def state_dict(self) -> dict[str, Any]:
         state: dict[str, Any] = self._ask("state")
@@ -370,7 +381,7 @@ def _serve(conn: Connection) -> None:
     try:
         spec, folder = _receive(conn)
         scenario = Scenario.model_validate_json(spec.scenario_json)
-        env = NanoNavArrayEnv(spec.worlds, scenario, steering=spec.steering)
+        env = NanoNavArrayEnv(spec.worlds, scenario, steering=spec.steering, apart=spec.apart)
         net = ActorCritic(**spec.net_kwargs)
         like = Rollout.allocated(spec.steps, spec.worlds, env, net.memory_units, spec.bptt,
                                  torch.device("cpu"))  # fmt: skip
@@ -393,8 +404,8 @@ def _serve(conn: Connection) -> None:
             if kind == "collect":
                 began = time.perf_counter()
                 net.load_state_dict(weights)
-                returns = collector.collect(rollouts[value])
-                _send(conn, ("ok", (returns, time.perf_counter() - began)))
+                ended = collector.collect(rollouts[value])
+                _send(conn, ("ok", (tuple(ended), time.perf_counter() - began)))
             elif kind == "state":
                 _send(conn, ("ok", collector.state_dict()))
             elif kind == "restore":

@@ -23,7 +23,7 @@ import torch
 from torch import Tensor
 
 from nanonav.env.arrays import NanoNavArrayEnv
-from nanonav.rl.collect import Collector, CollectorProcess, Rollout
+from nanonav.rl.collect import Collector, CollectorProcess, Ended, Rollout
 from nanonav.rl.networks import ACTIVATIONS, Activation, ActorCritic
 
 CHECKPOINT_FORMAT = 1
@@ -115,6 +115,7 @@ class Update:
     approx_kl: float
     rollout_s: float
     update_s: float
+    reached: int = 0  # of the episodes that ended, those that reached a cell
 
 
 class PPO:
@@ -152,7 +153,7 @@ class PPO:
         self._away: CollectorProcess | None = None
         # with overlap, the rollout collected for the next update: its slot in the collector's
         # two, the returns of the episodes that ended in it, and its seconds
-        self._pending: tuple[int, list[float], float] | None = None
+        self._pending: tuple[int, Ended, float] | None = None
         self.collector_peak_memory_mb = 0.0  # the collector's process's, once it has ended
         self._rollout = Rollout.allocated(
             config.rollout, config.envs, env, config.memory_units, config.bptt, self.device
@@ -210,10 +211,10 @@ class PPO:
         rollout = self._rollout
         while self.decisions < decisions:
             started = time.perf_counter()
-            returns = self._collector.collect(rollout)
+            ended = self._collector.collect(rollout)
             collected = time.perf_counter()
             losses = self._update(rollout)
-            self._learned(returns, losses, collected - started, time.perf_counter() - collected,
+            self._learned(ended, losses, collected - started, time.perf_counter() - collected,
                           after)  # fmt: skip
 
     def _learn_overlapped(self, decisions: int, after: Callable[[Update], None] | None) -> None:
@@ -231,23 +232,24 @@ class PPO:
             away.start(0, self.net)
             self._pending = (0, *away.wait())
         for _ in range(left):
-            which, returns, collect_s = self._pending
+            which, ended, collect_s = self._pending
             away.start(1 - which, self.net)
             started = time.perf_counter()
             losses = self._update(away.rollouts[which].to(self.device))
             update_s = time.perf_counter() - started
-            self._learned(returns, losses, collect_s, update_s, after)
+            self._learned(ended, losses, collect_s, update_s, after)
             self._pending = (1 - which, *away.wait())
 
-    def _learned(self, returns: list[float], losses: tuple[float, float, float, float],
+    def _learned(self, ended: Ended, losses: tuple[float, float, float, float],
                  rollout_s: float, update_s: float,
                  after: Callable[[Update], None] | None) -> None:  # fmt: skip
         self.decisions += self.config.batch
         self.updates += 1
+        returns = ended.returns
         if after is not None:
             after(Update(
                 self.decisions, len(returns), float(np.mean(returns)) if returns else None,
-                *losses, rollout_s, update_s,
+                *losses, rollout_s, update_s, ended.reached,
             ))  # fmt: skip
 
     def _update(self, r: Rollout) -> tuple[float, float, float, float]:

@@ -17,6 +17,7 @@ import json
 import resource
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TextIO
@@ -46,6 +47,21 @@ class RunSettings:
     checkpoint_every: int | None = None
     progress_every_s: float = 5.0
     progress: TextIO | None = sys.stdout
+
+
+class TrainingStopped(Exception):
+    """Raised by a hook to end a run between two rollouts (a cancel, a time limit, a
+    shutdown); the run's folder keeps its last checkpoint."""
+
+
+@dataclass(frozen=True)
+class Hooks:
+    """What a run tells the program that runs it (a worker's job): ``after`` each rollout's
+    update (it may raise ``TrainingStopped``), and ``checkpointed`` with the file and the
+    decisions done each time a checkpoint before the run's end is written."""
+
+    after: Callable[[Update], None] | None = None
+    checkpointed: Callable[[Path, int], None] | None = None
 
 
 def device_of(name: str) -> torch.device:
@@ -138,11 +154,14 @@ def train(
     resume: bool = False,
     settings: RunSettings | None = None,
     labels: dict[str, Any] | None = None,
+    apart: bool = False,
+    hooks: Hooks | None = None,
 ) -> dict[str, Any]:
     """Train in ``out`` until ``decisions`` are done in all, and return what
     ``training.json`` says. A new run takes ``scenario``, ``config`` and ``steering`` (and
     writes ``scenario.json``); ``resume`` takes them from ``out`` and its checkpoint, and
-    goes on from the decisions it holds. ``labels`` are written into the report as given."""
+    goes on from the decisions it holds. ``labels`` are written into the report as given.
+    ``apart``: the worlds drawn apart from every evaluation's (``NanoNavArrayEnv``)."""
     began = time.perf_counter()
     settings = settings or RunSettings()
     torch.set_num_threads(settings.threads)
@@ -154,12 +173,14 @@ def train(
         scenario = Scenario.model_validate_json((out / SCENARIO).read_text())
         config = PPOConfig.of_json(state["config"])
         steering = state["steering"]
+        apart = bool(state.get("apart", False))
     if scenario is None or config is None:
         raise ValueError("a new run needs its scenario and its config")
     out.mkdir(parents=True, exist_ok=True)
     if not resume:
         (out / SCENARIO).write_text(scenario.model_dump_json(indent=1) + "\n")
-    env = NanoNavArrayEnv(config.envs, scenario, steering=steering)
+    env = NanoNavArrayEnv(config.envs, scenario, steering=steering, apart=apart)
+    hooks = hooks or Hooks()
     with PPO(env, config, device=device) as learner:
         if state is not None:
             learner.load_state_dict(state)
@@ -167,13 +188,25 @@ def train(
         every = settings.checkpoint_every or max(decisions // 4, config.batch)
         learner.prepare()
         progress = _Progress(settings.progress, settings.progress_every_s, decisions, first)
+        told = hooks.after
+
+        def after(update: Update) -> None:
+            progress(update)
+            if told is not None:
+                told(update)
+
         started = time.perf_counter()
         # in stretches that each end at a checkpoint: the learner's ``learn`` returns with no
         # rollout under way (with overlap, the next one collected and kept for the next
         # stretch, so that checkpoints neither stop the overlap nor change what is learned)
         while learner.decisions < decisions:
-            learner.learn(min(learner.decisions + every, decisions), progress)
-            save_checkpoint(out, {**learner.state_dict(), "steering": steering})
+            learner.learn(min(learner.decisions + every, decisions), after)
+            state = {**learner.state_dict(), "steering": steering}
+            if apart:  # written only where it is true: older checkpoints load as they were
+                state["apart"] = True
+            path = save_checkpoint(out, state)
+            if hooks.checkpointed is not None and learner.decisions < decisions:
+                hooks.checkpointed(path, learner.decisions)
         seconds = time.perf_counter() - started
         if progress.last is not None:
             progress(progress.last, last=True)

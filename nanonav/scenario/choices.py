@@ -36,6 +36,8 @@ Policy = Literal[
     "exact_gradient",
     "steer_and_tumble",
     "blind_tumble",
+    "ppo",
+    "recurrent_ppo",
 ]
 AlphaSchedule = Literal["constant", "visits"]
 ActionSet = Literal["behaviors", "directions", "steering"]
@@ -44,9 +46,13 @@ Sensor = Literal["each_step", "counted"]
 
 
 CommunicationModel = Literal["none", "attractant", "attractant_repellent", "broadcast"]
+# The deep learners a job trains (a worker that trains, ``nanonav worker --train``), in either
+# physics: ``ppo`` a network without memory, ``recurrent_ppo`` one with a GRU before it.
+TRAINED_POLICIES = frozenset({"ppo", "recurrent_ppo"})
 # What each physics runs: the paper's lattice moves choose a direction; an active Brownian robot
 # can only steer its own diffusing heading.
 LATTICE_POLICIES = frozenset({"q_learning", "gradient", "run_and_tumble", "rule", "simple_rule",
-                              "random"})  # fmt: skip
+                              "random", *TRAINED_POLICIES})  # fmt: skip
 BROWNIAN_POLICIES = frozenset({"q_learning", "uncontrolled", "run_and_tumble", "gradient",
-                               "exact_gradient", "steer_and_tumble", "blind_tumble"})  # fmt: skip
+                               "exact_gradient", "steer_and_tumble", "blind_tumble",
+                               *TRAINED_POLICIES})  # fmt: skip

@@ -20,6 +20,12 @@ BROWNIAN_SIGNAL = ("diffusion_um2_s", "decay_rate_s", "release_molecules_s")
 # (a double, as I-JSON, RFC 7493, advises), so what a client sends is what is stored.
 MAX_EXACT_INT = 2**53 - 1
 MAX_STEPS = 1_000_000  # learning.max_steps: the longest episode
+# learning.decisions of a network a job trains: the most, and the default (10^6: a few seconds
+# of the trainer, ``docs/explanation/speed.md``)
+MAX_TRAINING_DECISIONS = 10_000_000_000
+TRAINING_DECISIONS = 1_000_000
+# learning.checkpoint_decisions by default: about a minute of the trainer at its measured rate
+CHECKPOINT_DECISIONS = 5_000_000
 # The active Brownian learner's defaults, chosen on design seeds 5000-5007 at robot radii 0.5, 1,
 # 2 and 5 µm (benchmarks/decision_interval.py; docs/explanation/learning.md, "Decisions in
 # physical time"): a decision every second, and the visits schedule's exponent 0.6 (1 left the

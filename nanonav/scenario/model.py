@@ -18,11 +18,17 @@ from pydantic_core import PydanticCustomError
 from nanonav.physics import MOLECULES_PER_UM3_PER_NM, time_limit_steps
 from nanonav.scenario import work as work_model
 from nanonav.scenario.base import Part, admits, field_error, whole
-from nanonav.scenario.choices import BROWNIAN_POLICIES, LATTICE_POLICIES, PresetName
+from nanonav.scenario.choices import (
+    BROWNIAN_POLICIES,
+    LATTICE_POLICIES,
+    TRAINED_POLICIES,
+    PresetName,
+)
 from nanonav.scenario.limits import (
     BROWNIAN_ALPHA_EXPONENT,
     BROWNIAN_DECISION_INTERVAL_S,
     BROWNIAN_SIGNAL,
+    CHECKPOINT_DECISIONS,
     DENSEST_PACKING,
     LARGEST_DECAY_RATE,
     LATTICE_SIGNAL,
@@ -30,6 +36,7 @@ from nanonav.scenario.limits import (
     MAX_OBSTACLE_VOLUME_FRACTION,
     MAX_ROBOT_VOLUME_FRACTION,
     MAX_SIGNAL_EVERY,
+    TRAINING_DECISIONS,
 )
 from nanonav.scenario.parts import (
     Biomarker,
@@ -85,6 +92,20 @@ def _steering_by_default(data: Any) -> Any:
         if admits(Learning, "max_steps", steps):
             learning = {"max_steps": steps, **learning}
     return {**data, "physics": physics, "learning": learning}
+
+
+def _trained_by_default(data: Any) -> Any:
+    """A network the job trains is trained for learning.decisions, not episodes: left out,
+    learning.episodes is 0 for it (given, as a study's base may give it for its tabular
+    learners, it is left unused)."""
+    if not isinstance(data, dict):
+        return data
+    robots, learning = data.get("robots"), data.get("learning", {})
+    if not isinstance(robots, dict) or robots.get("policy") not in TRAINED_POLICIES:
+        return data
+    if not isinstance(learning, dict) or "episodes" in learning:
+        return data
+    return {**data, "learning": {**learning, "episodes": 0}}
 
 
 class Scenario(Part):
@@ -192,7 +213,7 @@ class Scenario(Part):
             base = PRESETS.get(data["preset"])
             if base is not None:
                 data = deep_merge(base, data)
-        return _steering_by_default(data)
+        return _trained_by_default(_steering_by_default(data))
 
     @model_validator(mode="after")
     def _one_physics(self) -> Scenario:
@@ -426,6 +447,33 @@ class Scenario(Part):
             )  # fmt: skip
         return self
 
+    @property
+    def trains(self) -> bool:
+        """Whether the job trains a network (ppo, recurrent_ppo): a worker that trains runs it."""
+        return self.robots.policy in TRAINED_POLICIES
+
+    @property
+    def training_decisions(self) -> int:
+        """The decisions a network the job trains is trained for (0 when it trains none)."""
+        if not self.trains:
+            return 0
+        return self.learning.decisions or TRAINING_DECISIONS
+
+    @property
+    def checkpoint_every(self) -> int:
+        """Decisions between two checkpoints of a network's training."""
+        return self.learning.checkpoint_decisions or CHECKPOINT_DECISIONS
+
+    def network_scenario(self) -> Scenario:
+        """The scenario a network is trained and evaluated in: its robots take their actions
+        from outside, as a network given by policy_from does (robots.policy q_learning, no
+        episodes of tabular learning, none of the trainer's fields)."""
+        data = self.model_dump()
+        data["preset"] = None
+        data["robots"]["policy"] = "q_learning"
+        data["learning"].update(episodes=0, decisions=None, checkpoint_decisions=None)
+        return Scenario.model_validate(data)
+
     @model_validator(mode="after")
     def _fits_in_space(self) -> Scenario:
         half = self.space.size / 2
@@ -484,12 +532,16 @@ class Scenario(Part):
     @property
     def robot_steps_budget(self) -> int:
         """The most robot-steps this scenario can cost: robots x max_steps x (training episodes
-        + evaluation worlds)."""
-        return self.robots.count * self.learning.max_steps * self.episodes
+        + evaluation worlds), and a trained network's decisions x the steps each holds."""
+        training = self.training_decisions * self.decision_steps
+        return self.robots.count * self.learning.max_steps * self.episodes + training
 
     @property
     def episodes(self) -> int:
-        """Episodes a run has in all: training, then evaluation."""
+        """Episodes a run has in all: training, then evaluation (a network the job trains
+        trains for decisions, not episodes: its evaluation alone)."""
+        if self.trains:
+            return self.evaluation.worlds
         return self.learning.episodes + self.evaluation.worlds
 
     @property

@@ -19,7 +19,7 @@ from nanonav.scenario.choices import (
     RobotStart,
     Schedule,
 )
-from nanonav.scenario.limits import MAX_STEPS
+from nanonav.scenario.limits import MAX_STEPS, MAX_TRAINING_DECISIONS
 
 
 class Space(Part):
@@ -245,7 +245,12 @@ class Robots(Part):
         "gradient and tumbles as run_and_tumble does; 'blind_tumble' tumbles at "
         "physics.tumble_rate_s whatever it reads, a searcher that uses no information (the "
         "baseline that tells steering from reorienting); 'exact_gradient' steers up the true "
-        "gradient (an upper bound no robot has).",
+        "gradient (an upper bound no robot has). In either physics, 'ppo' (a network of 64x64) "
+        "and 'recurrent_ppo' (a GRU of 25 before it, as Alonso & Kirkegaard's) are trained in "
+        "the job by NanoNav's PPO trainer for learning.decisions, on worlds of one robot apart "
+        "from the evaluation's, then evaluated greedily as a network given by policy_from, "
+        "every robot deciding with it; a worker that trains runs them (`nanonav worker "
+        "--train`), and the network is kept as the job's trained_policy.",
     )
     exclusion: bool = Field(
         False,
@@ -369,6 +374,28 @@ class Learning(Part):
         "decisions only. Fixed rules decide every step. null: 1 s (chosen by measurement: "
         "benchmarks/decision_interval.py), or the whole episode if it is shorter; physics.dt_s "
         "decides every step. The lattice decides every step and refuses it.",
+    )
+
+    decisions: int | None = Field(
+        None,
+        ge=1,
+        le=MAX_TRAINING_DECISIONS,
+        description="robots.policy 'ppo' or 'recurrent_ppo': the decisions the network is "
+        "trained for before it is evaluated, counted over all the trainer's worlds of one "
+        "robot (1,024 at once; rounded up to whole rollouts of 65,536). null: 1,000,000. "
+        "Other policies leave it unused (their training is learning.episodes), and a network "
+        "leaves learning.episodes unused, so that a study's grid may mix learners and rules "
+        "over one base scenario.",
+    )
+    checkpoint_decisions: int | None = Field(
+        None,
+        ge=65_536,
+        le=MAX_TRAINING_DECISIONS,
+        description="robots.policy 'ppo' or 'recurrent_ppo': decisions between two "
+        "checkpoints of the trainer's state (networks, optimiser, random streams), kept in "
+        "the store so that a job whose worker dies resumes from the last one; rounded up to "
+        "whole rollouts. null: 5,000,000, about a minute of training. Other policies leave "
+        "it unused.",
     )
 
     @model_validator(mode="after")

@@ -32,6 +32,11 @@ WORK_SIGNAL_READ = 60
 WORK_RELIST = 15
 WORK_NODE = 1.5
 WORK_RELEASE = 4
+# A network the job trains: the trainer's own work a decision besides the engine's steps (the
+# forward pass that decides, the rollout kept, its share of the update), from
+# ``python benchmarks/train_speed.py`` at 1,024 worlds on two cores: 2 core-s over 219,000 (MLP)
+# and 105,000 (GRU-25) decisions a second, less the 2,000 units the raw env took a decision.
+WORK_TRAINING_DECISION = {"ppo": 7_000, "recurrent_ppo": 17_000}
 
 
 def swarm_robot_step(scenario: Scenario) -> float:
@@ -76,7 +81,21 @@ def most_work(scenario: Scenario) -> int:
     episodes = scenario.episodes
     steps = scenario.learning.max_steps * episodes
     evaluation_steps = scenario.learning.max_steps * scenario.evaluation.worlds
-    return work_for(scenario, scenario.robots.count * steps, steps, episodes, evaluation_steps)
+    run = work_for(scenario, scenario.robots.count * steps, steps, episodes, evaluation_steps)
+    return run + training_work(scenario)
+
+
+def training_work(scenario: Scenario) -> int:
+    """What training a network costs (0 for a policy that trains none): the trainer's work a
+    decision, and the engine's steps of its worlds of one robot, each an episode's share of a
+    world's draw."""
+    decisions = scenario.training_decisions
+    if not decisions:
+        return 0
+    steps = decisions * scenario.decision_steps
+    episodes = math.ceil(steps / scenario.learning.max_steps)
+    engine = work_for(scenario, steps, steps, episodes, 0)
+    return engine + decisions * WORK_TRAINING_DECISION[scenario.robots.policy]
 
 
 def work_for(

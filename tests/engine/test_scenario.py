@@ -132,3 +132,57 @@ def test_a_capacity_more_robots_than_fit_at_a_cell_is_refused_by_name() -> None:
     assert "at most 19 robots" in str(refused.value)
     Scenario.model_validate({"robots": {"exclusion": True}, "cells": {"capacity": 19}})
     Scenario.model_validate({"cells": {"capacity": 10**5}})  # points pass through each other
+
+
+@pytest.mark.parametrize("preset", ["alonso-kirkegaard", "paper-swarm"])
+@pytest.mark.parametrize("policy", ["ppo", "recurrent_ppo"])
+def test_a_network_the_job_trains_takes_decisions_not_episodes(preset: str, policy: str) -> None:
+    s = preset_scenario(preset, robots={"policy": policy}, learning={"decisions": 200_000})
+    assert s.trains and s.learning.episodes == 0 and s.training_decisions == 200_000
+    assert preset_scenario(preset, robots={"policy": policy}).training_decisions == 1_000_000
+    # its training counts in the budgets: every decision holds decision_steps robot-steps
+    untrained = preset_scenario(preset, robots={"policy": "gradient"}, learning={"episodes": 0})
+    extra = s.robot_steps_budget - untrained.robot_steps_budget
+    assert extra == 200_000 * s.decision_steps
+    assert s.work > untrained.work
+    # it is trained and evaluated as a network given by policy_from is run
+    learned = s.network_scenario()
+    assert (learned.robots.policy, learned.learning.episodes) == ("q_learning", 0)
+    assert learned.learning.decisions is None and learned.seed == s.seed
+    # a resolved scenario validates again as it was
+    assert Scenario.model_validate(s.model_dump()) == s
+
+
+def test_a_study_base_may_give_both_trainings_and_each_policy_uses_its_own() -> None:
+    base = {"preset": "alonso-kirkegaard", "learning": {"episodes": 40, "decisions": 200_000}}
+    network = Scenario.model_validate({**base, "robots": {"policy": "ppo"}})
+    table = Scenario.model_validate({**base, "robots": {"policy": "q_learning"}})
+    assert (network.training_decisions, network.episodes) == (200_000, 20)
+    assert (table.training_decisions, table.episodes) == (0, 60)
+    untrained = Scenario.model_validate({**base, "robots": {"policy": "gradient"}})
+    assert untrained.robot_steps_budget < network.robot_steps_budget
+
+
+@pytest.mark.parametrize(
+    ("data", "says"),
+    [
+        ({"robots": {"policy": "ppo"}, "learning": {"decisions": 0}},
+         "greater than or equal to 1"),
+        ({"robots": {"policy": "ppo"}, "learning": {"checkpoint_decisions": 1000}},
+         "greater than or equal to 65536"),
+        ({"robots": {"policy": "ppo"}, "learning": {"decisions": 10**11}},
+         "less than or equal to 10000000000"),
+    ],
+)  # fmt: skip
+def test_the_trainers_fields_are_bounded(data: dict[str, object], says: str) -> None:
+    with pytest.raises(ValidationError) as caught:
+        Scenario.model_validate({"preset": "alonso-kirkegaard", **data})
+    [error] = caught.value.errors()
+    assert says in error["msg"]
+
+
+def test_the_engine_does_not_train_a_network() -> None:
+    from nanonav.engine import simulate
+
+    with pytest.raises(ScenarioError, match="trained outside the engine"):
+        simulate(preset_scenario("alonso-kirkegaard", robots={"policy": "ppo"}))

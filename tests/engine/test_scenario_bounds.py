@@ -188,7 +188,8 @@ def assert_physical(s: Scenario) -> None:
     assert every >= 1 and substeps >= 1
     assert isinstance(s.work, int) and s.work > 0
     assert s.robot_steps_budget > 0
-    params = kernel_params(s, NO_RECORD_CAP)
+    # a network the job trains runs in the engine as a network given by policy_from does
+    params = kernel_params(s.network_scenario() if s.trains else s, NO_RECORD_CAP)
     for name, value in params._asdict().items():
         assert _finite(value), (name, value)
     assert Scenario.model_validate(s.model_dump(mode="json")) == s

@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 from nanonav.engine import SimulationResult
 from nanonav.pictures.figure import png
 from nanonav.pictures.job.common import ROBOT_BLUE, sized_figure
-from nanonav.scenario import Policy
+from nanonav.scenario import TRAINED_POLICIES, Policy
 
 _POLICY_NAMES = {
     "q_learning": "Q-learning",
@@ -31,9 +31,11 @@ _POLICY_NAMES = {
     "exact_gradient": "steering by the exact gradient",
     "steer_and_tumble": "steering and tumbling",
     "blind_tumble": "the blind tumbler",
+    "ppo": "PPO",
+    "recurrent_ppo": "recurrent PPO",
 }
 # Policies that learn nothing: their episodes are independent trials of the same behaviour.
-BASELINES = frozenset(get_args(Policy)) - {"q_learning"}
+BASELINES = frozenset(get_args(Policy)) - {"q_learning"} - TRAINED_POLICIES
 # The moving mean spans about an eighth of the episodes, within these bounds; runs shorter than
 # SMOOTH_FROM episodes show the raw values only.
 SMOOTH_FROM = 4
@@ -272,6 +274,9 @@ def _learning_title(result: SimulationResult, trials: int, planned: int, trial_n
     actions = result.scenario.learning.actions
     if trials == 0:
         source = result.scenario.policy_from
+        if policy in TRAINED_POLICIES:
+            decisions = result.scenario.training_decisions
+            return f"{name}: a network trained in the job for {decisions:,} decisions, evaluated"
         if "decide_calls" in result.work:  # decided from outside: a network
             return f"A network ({actions}), sent as {source}: evaluated, it does not learn"
         if isinstance(source, str):
