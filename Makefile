@@ -38,16 +38,21 @@ $(VENV)/.installed-test: $(VENV)/.installed $(VENV)/.installed-torch
 	$(PIP) -e '.[test,rl]'
 	touch $@
 
-# A PostgreSQL DATABASE_URL needs the driver of the `postgres` extra.
+# A PostgreSQL DATABASE_URL needs the driver of the `postgres` extra; `make run TRAIN=1` the
+# `rl` extra, for a worker that also trains networks (jobs of robots.policy ppo, recurrent_ppo).
 RUN_DATABASE_URL := $(or $(NANONAV_DATABASE_URL),$(DATABASE_URL))
-RUN_NEEDS := $(VENV)/.installed $(if $(filter postgres%,$(RUN_DATABASE_URL)),$(VENV)/.installed-postgres)
+RUN_NEEDS := $(VENV)/.installed $(if $(filter postgres%,$(RUN_DATABASE_URL)),$(VENV)/.installed-postgres) $(if $(TRAIN),$(VENV)/.installed-rl)
+
+$(VENV)/.installed-rl: $(VENV)/.installed $(VENV)/.installed-torch
+	$(PIP) -e '.[rl]'
+	touch $@
 
 $(VENV)/.installed-postgres: $(VENV)/.installed
 	$(PIP) -e '.[postgres]'
 	touch $@
 
 run: $(RUN_NEEDS)
-	$(BIN)/python -m nanonav.run_local
+	$(if $(TRAIN),NANONAV_WORKER_TRAINS=true) $(BIN)/python -m nanonav.run_local
 
 # The checks side by side (each uses one core), then the tests (which use them all). The
 # engine's kernels compile meanwhile, from as soon as NanoNav itself is installed: pip, which

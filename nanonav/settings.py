@@ -142,6 +142,28 @@ class Settings(BaseSettings):
         validation_alias=_aliases("worker_concurrency"),
         description="Worker processes `nanonav worker` starts unless --concurrency says otherwise.",
     )
+    worker_trains: bool = Field(
+        False,
+        validation_alias=_aliases("worker_trains"),
+        description="Workers also claim the jobs that train a network (robots.policy ppo or "
+        "recurrent_ppo), as `nanonav worker --train` does; they need the rl extra (torch). "
+        "Without it a worker never claims one.",
+    )
+    training_device: str = Field(
+        "auto",
+        pattern=r"^(auto|cpu|cuda(:[0-9]{1,2})?)$",
+        validation_alias=_aliases("training_device"),
+        description="Where a worker that trains learns: 'auto' (a GPU where torch sees one, "
+        "else the CPU), 'cpu', 'cuda' or 'cuda:N'. The worlds are stepped on the CPU.",
+    )
+    training_threads: int = Field(
+        1,
+        ge=1,
+        le=256,
+        validation_alias=_aliases("training_threads"),
+        description="Torch threads of a worker that trains (its collector takes one more "
+        "core): one, because on a shared machine two collapsed to a fraction of one's speed.",
+    )
 
     retention_days: float | None = Field(
         None,

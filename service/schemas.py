@@ -22,8 +22,8 @@ from nanonav.engine import qlearning
 from nanonav.engine.worlds import OBSERVATION_LABELS
 from nanonav.pictures import job as job_pictures
 from nanonav.policy import MAX_ACTIONS, MAX_Q, MAX_STATES, MAX_TABLES, UNVISITED
-from nanonav.scenario import ActionSet, CommunicationModel
-from nanonav.store import JobRecord, JobStatus, PolicyRecord
+from nanonav.scenario import TRAINING_DECISIONS, ActionSet, CommunicationModel
+from nanonav.store import JobRecord, JobStatus, PolicyRecord, policy_name
 from service.paging import CURSOR_PATTERN
 
 Status = Literal["queued", "running", "succeeded", "failed", "cancelled"]
@@ -74,6 +74,22 @@ class Progress(BaseModel):
     training_episodes: int = Field(0, description="Of them, the training episodes.")
     evaluation_worlds: int = Field(0, description="Of them, the greedy evaluation worlds.")
     fraction: float = Field(ge=0.0, le=1.0, description="Share of the run's work done.")
+    decisions: int | None = Field(
+        None,
+        description="A network the job trains (robots.policy ppo, recurrent_ppo): the "
+        "decisions trained so far (written every few seconds and at each checkpoint); null "
+        "for other policies.",
+    )
+    training_decisions: int | None = Field(
+        None, description="Of a network the job trains, the decisions it trains for in all."
+    )
+
+
+def training_decisions(scenario: Mapping[str, Any]) -> int:
+    """The decisions a stored scenario's network trains for (learning.decisions, or the
+    default where it gave none)."""
+    given = (scenario.get("learning") or {}).get("decisions")
+    return int(given) if given is not None else TRAINING_DECISIONS
 
 
 def offers_qtable(job: JobRecord) -> bool:
@@ -98,6 +114,9 @@ class JobLinks(BaseModel):
     heatmap: str | None
     plots: dict[str, str]
     study: str | None = Field(None, description="The study the job belongs to, if any.")
+    trained_policy: str | None = Field(
+        None, description="The network the job trained, kept as a policy, once it succeeded."
+    )
 
 
 class Callback(BaseModel):
@@ -140,16 +159,35 @@ class Job(BaseModel):
     attempts: int = Field(description="How many times a worker claimed the job.")
     cancel_requested: bool
     study_id: int | None = Field(None, description="The study the job is part of.")
+    trained_policy: str | None = Field(
+        None,
+        description="Once a job that trains a network (robots.policy ppo, recurrent_ppo) "
+        "succeeded, the policy its network was kept as, 'policy-<id>', owned by the job's "
+        "key: another job or a study evaluates it as policy_from (with robots.policy "
+        "q_learning and learning.episodes 0).",
+    )
+    resumed_from_decisions: int | None = Field(
+        None,
+        description="A job that trains, taken up by another worker after its first died: the "
+        "decisions of the checkpoint it resumed from (the work after it was lost).",
+    )
+    waiting_for: str | None = Field(
+        None,
+        description="A queued job that no running worker can take, what it waits for (a job "
+        "that trains a network waits for a worker that trains, `nanonav worker --train`); "
+        "null otherwise.",
+    )
     links: JobLinks
 
     @classmethod
-    def of(cls, job: JobRecord) -> Job:
+    def of(cls, job: JobRecord, *, waiting_for: str | None = None) -> Job:
         base = f"/jobs/{job.id}"
         done = job.status is JobStatus.SUCCEEDED
         # a job cancelled while it ran keeps the episodes it finished
         kept = job.status is JobStatus.CANCELLED and job.started_at is not None
         table = offers_qtable(job)
         swarm = job_pictures.treatment_drawn(job.scenario)
+        trained = job.trained_policy_id if done else None
         return cls(
             id=job.id,
             status=job.status.value,
@@ -159,6 +197,8 @@ class Job(BaseModel):
                 training_episodes=int((job.scenario.get("learning") or {}).get("episodes", 0)),
                 evaluation_worlds=int((job.scenario.get("evaluation") or {}).get("worlds", 0)),
                 fraction=job.fraction,
+                decisions=job.decisions if job.trains else None,
+                training_decisions=training_decisions(job.scenario) if job.trains else None,
             ),
             scenario=job.scenario,
             created_at=job.created_at,
@@ -168,6 +208,9 @@ class Job(BaseModel):
             attempts=job.attempts,
             cancel_requested=job.cancel_requested,
             study_id=job.study_id,
+            trained_policy=None if trained is None else policy_name(trained),
+            resumed_from_decisions=job.resumed_from_decisions,
+            waiting_for=waiting_for,
             links=JobLinks(
                 self_=base,
                 cancel=f"{base}/cancel",
@@ -183,6 +226,7 @@ class Job(BaseModel):
                     and (swarm or name != "treatment")
                 },
                 study=None if job.study_id is None else f"/studies/{job.study_id}",
+                trained_policy=None if trained is None else f"/policies/{trained}",
             ),
         )
 

@@ -6,13 +6,14 @@ costs what its simulation costs."""
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import enum
 import logging
 import math
 import threading
 import time
 from collections.abc import Callable, Iterator
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -21,15 +22,26 @@ from sqlalchemy.exc import SQLAlchemyError
 
 from nanonav.engine import Progress, SimulationResult, simulate
 from nanonav.finite import finite
-from nanonav.policy import Network, UnusablePolicy, learned_policy, steering_of
+from nanonav.policy import (
+    Network,
+    UnusablePolicy,
+    learned_policy,
+    network_layout,
+    steering_of,
+)
 from nanonav.rl.evaluate import PolicyFailed, Stopped, evaluate
 from nanonav.rl.graph import InvalidModel
 from nanonav.rl.onnx_policy import Limits, NetworkPolicy
 from nanonav.scenario import Scenario
+from nanonav.scenario.work import training_work
 from nanonav.settings import Settings
 from nanonav.store import Claim, JobRecord, JobStore, LeaseLost, Outcome
 from nanonav.store.faults import is_permanent, is_transient, reason
+from nanonav.store.policies import Network as StoredNetwork
 from nanonav.studies.report import learning_curve, study_metrics
+
+if TYPE_CHECKING:  # the trainer needs torch, which only a worker that trains has
+    from nanonav.rl.job import Trained
 
 logger = logging.getLogger(__name__)
 
@@ -82,6 +94,11 @@ class Watch:
         self.last_write = -math.inf
         self.stop: Stop | None = None
         self.progress = Progress(0, 1, 0, 1)
+        # a network's training: the decisions done (None: the job trains none), and the
+        # share of the job's work before its evaluation, which then fills the rest
+        self.decisions: int | None = None
+        self.before = 0.0
+        self.share = 1.0
 
     def poll(self) -> bool:
         """Whether the run goes on, asked while a network decides (between progress reports):
@@ -102,8 +119,9 @@ class Watch:
                     self.claim,
                     episode=progress.episode,
                     episodes=progress.episodes,
-                    fraction=progress.fraction,
+                    fraction=self.before + self.share * progress.fraction,
                     lease_s=self.settings.lease_s,
+                    decisions=self.decisions,
                 ):
                     self.stop = Stop.CANCELLED
             except LeaseLost:
@@ -132,9 +150,13 @@ def run_job(
         return store.fail(claim, f"the stored scenario is no longer valid: {error}")
     watch = Watch(store, claim, settings, shutdown)
     started = time.perf_counter()
+    trained: Trained | None = None
     try:
         with heartbeat(store, claim, settings):
-            result = _run(scenario, store, settings, watch)
+            if scenario.trains:
+                result, trained = _train_and_evaluate(scenario, store, claim, settings, watch)
+            else:
+                result = _run(scenario, store, settings, watch)
     except (UnusablePolicy, InvalidModel) as error:
         return _fail(store, claim, f"policy_from: {error}")
     except PolicyFailed as error:
@@ -159,7 +181,9 @@ def run_job(
     stored = time.perf_counter()
     try:
         with heartbeat(store, claim, settings):
-            record = retrying(lambda: store.finish(claim, outcome(result)), settings)
+            record = retrying(
+                lambda: store.finish(claim, outcome(result, trained, job_id)), settings
+            )
     except LeaseLost:
         logger.warning("job %d: lease lost before its result was stored", job_id)
         return None
@@ -204,8 +228,69 @@ def _run(scenario: Scenario, store: JobStore, settings: Settings, watch: Watch) 
         return evaluate(scenario, network, watch, steering=network.steering)
 
 
-def outcome(result: SimulationResult) -> Outcome:
-    """What the store keeps of a run: metrics as JSON, trajectory and Q-table as arrays."""
+def _train_and_evaluate(
+    scenario: Scenario, store: JobStore, claim: Claim, settings: Settings, watch: Watch
+) -> tuple[SimulationResult, Trained | None]:
+    """Train the network the scenario asks for (from the job's last checkpoint, if a worker
+    before this one kept one), keeping a checkpoint in the store every
+    ``learning.checkpoint_decisions``; then evaluate it on the job's evaluation worlds as a
+    network given by ``policy_from`` is, checked and run in its own process. Stopped (a
+    cancel, the time limit, a shutdown, a lost lease), the result is not completed and no
+    network is kept."""
+    from nanonav.rl.job import Checkpoint, train_network
+    from nanonav.rl.training import TrainingStopped
+
+    stopped = SimulationResult(scenario, {}, [], [], {}, None, None, completed=False)
+    job_id, token = claim.job.id, claim.token
+    kept = store.training.last(job_id)
+    resume = None if kept is None else Checkpoint(kept.decisions, kept.data, kept.curve)
+    if resume is not None:
+        store.training.resumed(job_id, token, resume.decisions)
+        logger.info("job %d: training resumed from %d decisions", job_id, resume.decisions)
+    goal = scenario.training_decisions
+    watch.share = training_work(scenario) / max(scenario.work, 1)
+    watch.decisions = 0 if resume is None else resume.decisions
+
+    def keep_going(decisions: int) -> bool:
+        watch.decisions = decisions
+        return watch(Progress(0, 1, decisions, goal))
+
+    def keep(checkpoint: Checkpoint) -> None:
+        try:
+            retrying(lambda: store.training.keep(
+                job_id, token, decisions=checkpoint.decisions, data=checkpoint.data,
+                curve=checkpoint.curve,
+            ), settings)  # fmt: skip
+        except LeaseLost:
+            watch.stop = Stop.LEASE_LOST
+            raise TrainingStopped from None
+
+    trained = train_network(
+        scenario, keep_going=keep_going, keep=keep, resume=resume,
+        threads=settings.training_threads, device=settings.training_device,
+    )  # fmt: skip
+    if trained is None:
+        return stopped, None
+    watch.before, watch.share = watch.share, 1.0 - watch.share
+    try:
+        network = NetworkPolicy(
+            trained.model, len(trained.observation), len(trained.actions),
+            max_bytes=settings.policy_model_max_bytes, limits=Limits.of(settings),
+            keep_going=watch.poll,
+        )  # fmt: skip
+    except Stopped:
+        return stopped, None
+    with network:
+        result = evaluate(scenario.network_scenario(), network, watch, steering=network.steering)
+    return dataclasses.replace(result, scenario=scenario), trained
+
+
+def outcome(
+    result: SimulationResult, trained: Trained | None = None, job_id: int | None = None
+) -> Outcome:
+    """What the store keeps of a run: metrics as JSON, trajectory and Q-table as arrays; of a
+    network the job trained, its training curve and figures in the metrics, and the network
+    itself, to keep as a policy of the job's owner."""
     arrays = result.arrays()
     trajectory = {k: arrays[k] for k in TRAJECTORY_KEYS if k in arrays}
     qtable: dict[str, NDArray[Any]] | None = None
@@ -217,6 +302,15 @@ def outcome(result: SimulationResult) -> Outcome:
             "visits": result.qtable.visits,
         }
     metrics = finite(result.to_dict())
+    network: StoredNetwork | None = None
+    if trained is not None:
+        metrics["training_curve"] = finite(trained.curve)
+        metrics["training"] = finite(trained.summary())
+        layout = network_layout(trained.observation, trained.actions)
+        network = StoredNetwork(
+            layout.actions, layout.communication, trained.observation, trained.actions,
+            trained.model, trained.memory, name=f"{result.scenario.robots.policy} of job {job_id}",
+        )  # fmt: skip
     return Outcome(
         completed=result.completed,
         metrics=metrics,
@@ -224,6 +318,7 @@ def outcome(result: SimulationResult) -> Outcome:
         qtable=qtable,
         study_metrics=study_metrics(metrics) if result.completed else None,
         curve=learning_curve(metrics) if result.completed else None,
+        trained=network if result.completed else None,
     )
 
 

@@ -138,7 +138,7 @@ def work(settings: Settings, shutdown: threading.Event, *, max_jobs: int | None 
     stopped = threading.Event()
     housekeeping = [
         threading.Thread(target=_announce, args=(store, owner, stopped), name="presence",
-                         daemon=True),
+                         kwargs={"trains": settings.worker_trains}, daemon=True),
         threading.Thread(target=_sweep, args=(store, settings, stopped), name="sweeper",
                          daemon=True),
     ]  # fmt: skip
@@ -155,7 +155,7 @@ def work(settings: Settings, shutdown: threading.Event, *, max_jobs: int | None 
     try:
         while not shutdown.is_set() and (max_jobs is None or ran < max_jobs):
             try:
-                claim = store.claim(owner, lease_s=settings.lease_s)
+                claim = store.claim(owner, lease_s=settings.lease_s, trains=settings.worker_trains)
             except SQLAlchemyError as error:
                 logger.warning("the store is unavailable (%s); retrying", reason(error))
                 shutdown.wait(max(settings.poll_interval_s, 1.0))
@@ -194,13 +194,20 @@ def join_within(threads: list[threading.Thread], timeout_s: float) -> None:
         logger.warning("stopping without waiting for %s", ", ".join(late))
 
 
-def _announce(store: JobStore, owner: str, stopped: threading.Event, *, ready: bool = True) -> None:
+def _announce(
+    store: JobStore,
+    owner: str,
+    stopped: threading.Event,
+    *,
+    ready: bool = True,
+    trains: bool = False,
+) -> None:
     """Say every few seconds that this worker is alive, whether it runs a job or waits (or,
-    not ``ready``, prepares the engine)."""
+    not ``ready``, prepares the engine), and whether it trains networks."""
     started = datetime.now(UTC)
     while True:
         try:
-            store.worker_seen(owner, started_at=started, ready=ready)
+            store.worker_seen(owner, started_at=started, ready=ready, trains=trains)
         except SQLAlchemyError:
             logger.warning("could not record that this worker is alive; retrying")
         if stopped.wait(PRESENCE_INTERVAL_S):

@@ -78,6 +78,12 @@ def add_worker(subcommands: Subcommands) -> None:
         metavar="N",
         help="worker processes (default: $NANONAV_WORKER_CONCURRENCY or 1)",
     )
+    worker.add_argument(
+        "--train",
+        action="store_true",
+        help="also claim the jobs that train a network (robots.policy ppo, recurrent_ppo); "
+        "needs the rl extra (default: $NANONAV_WORKER_TRAINS)",
+    )
     worker.set_defaults(handler=_worker)
 
 
@@ -88,7 +94,8 @@ def _worker(args: argparse.Namespace) -> int:
     concurrency = settings.worker_concurrency if args.concurrency is None else args.concurrency
     if concurrency < 1:
         raise UsageError([f"--concurrency must be at least 1, not {concurrency}"])
-    importlib.import_module("worker.__main__").main(["--concurrency", str(concurrency)])
+    argv = ["--concurrency", str(concurrency), *(["--train"] if args.train else [])]
+    importlib.import_module("worker.__main__").main(argv)
     return EXIT_OK
 
 

@@ -9,6 +9,7 @@ processes were seen lately. ``deliveries`` is the outbox of webhooks: a row per 
 that named a ``callback_url``, from its submit until the receiver took it or it was given up.
 ``policies`` holds the Q-tables clients made elsewhere and sent, for scenarios to evaluate.
 ``revoked_sessions`` names the dashboard sessions a logout ended, until they would have expired.
+``job_checkpoints`` keeps the last checkpoint of a job that trains a network, until it ends.
 A claim gives a job a lease: ``lease_token`` names the claim, ``lease_expires_at`` says until when
 it holds (every progress write renews it) and every later write by the worker is fenced by the
 token, so a worker that lost its lease can neither report progress nor store a result.
@@ -160,6 +161,28 @@ class Job(Base):
     )
     study_point: Mapped[int | None] = mapped_column(Integer)  # index of its grid point
     study_seed: Mapped[int | None] = mapped_column(BigInteger)
+    # It trains a network (robots.policy ppo, recurrent_ppo): only a worker that trains
+    # claims it. While it trains, the decisions done; once resumed from a checkpoint, the
+    # decisions it took up from; once it succeeded, the policy its network was kept as.
+    trains: Mapped[bool] = mapped_column(Boolean, default=False, server_default="0")
+    decisions: Mapped[int | None] = mapped_column(BigInteger)
+    resumed_from_decisions: Mapped[int | None] = mapped_column(BigInteger)
+    trained_policy_id: Mapped[int | None] = mapped_column(RowId)
+
+
+class JobCheckpoint(Base):
+    """The last checkpoint of a job's training (the trainer's state at ``decisions``, and its
+    curve so far), from which a job whose worker died resumes; gone when the job ends."""
+
+    __tablename__ = "job_checkpoints"
+
+    job_id: Mapped[int] = mapped_column(
+        RowId, ForeignKey("jobs.id", ondelete="CASCADE"), primary_key=True
+    )
+    decisions: Mapped[int] = mapped_column(BigInteger)
+    data: Mapped[bytes] = mapped_column(LargeBinary)
+    curve: Mapped[list[dict[str, Any]]] = mapped_column(JSON)
+    written_at: Mapped[datetime] = mapped_column(UTCDateTime())
 
 
 class JobResult(Base):
@@ -208,6 +231,8 @@ class Worker(Base):
     ready_at: Mapped[datetime | None] = mapped_column(UTCDateTime())
     # when its webhook sender last made progress (a pass, or a try within one); null without one
     webhooks_passed_at: Mapped[datetime | None] = mapped_column(UTCDateTime())
+    # it claims jobs that train a network (``nanonav worker --train``)
+    trains: Mapped[bool] = mapped_column(Boolean, default=False, server_default="0")
 
 
 class DeliveryState(enum.StrEnum):

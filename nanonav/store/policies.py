@@ -9,7 +9,7 @@ is given: the labels and values were checked by whoever sent them (``nanonav.pol
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from datetime import datetime
 from functools import partial
 from typing import Any
@@ -98,6 +98,44 @@ class PolicyPage:
     next_before_id: int | None
 
 
+@dataclass(frozen=True)
+class Network:
+    """A network to keep as a policy: an ONNX ``model`` checked already, that decides among
+    ``actions`` from the ``observation`` columns it names (a recurrent one with ``memory``
+    inputs), and what its check counted of its ``cost`` (``nanonav.rl.graph.Cost``)."""
+
+    action_set: str
+    communication: tuple[str, ...]
+    observation: list[str]
+    actions: list[str]
+    model: bytes
+    memory: int = 0
+    cost: dict[str, int] = field(default_factory=dict)
+    name: str | None = None
+
+    def row(self, **columns: Any) -> Policy:
+        """Its row, with the other ``columns`` given (owner, keys, created_at)."""
+        arrays = {
+            "observation": np.array(self.observation, dtype=np.str_),
+            "actions": np.array(self.actions, dtype=np.str_),
+            "model": np.frombuffer(self.model, dtype=np.uint8),
+            "memory": np.array(self.memory),
+        }
+        arrays.update({f"cost_{key}": np.array(value) for key, value in self.cost.items()})
+        return Policy(
+            name=self.name,
+            kind=NETWORK,
+            action_set=self.action_set,
+            communication=list(self.communication),
+            states=len(self.observation),
+            actions=len(self.actions),
+            tables=1,
+            per_robot=False,
+            table=pack(arrays),
+            **columns,
+        )
+
+
 class PolicyStore:
     """The policies on one database."""
 
@@ -164,28 +202,9 @@ class PolicyStore:
         from the ``observation`` columns it names (a recurrent one with ``memory`` inputs), and
         what its check counted of its ``cost`` (``nanonav.rl.graph.Cost``, as a dict); keys and
         limits as ``add``."""
-        arrays = {
-            "observation": np.array(observation, dtype=np.str_),
-            "actions": np.array(actions, dtype=np.str_),
-            "model": np.frombuffer(model, dtype=np.uint8),
-            "memory": np.array(memory),
-        }
-        arrays.update({f"cost_{key}": np.array(value) for key, value in (cost or {}).items()})
-        blob = pack(arrays)
-        row = partial(
-            Policy,
-            name=name,
-            owner=owner,
-            kind=NETWORK,
-            action_set=action_set,
-            communication=list(communication),
-            states=len(observation),
-            actions=len(actions),
-            tables=1,
-            per_robot=False,
-            table=blob,
-        )
-        return self._insert(row, owner, idempotency, limit)
+        network = Network(action_set, tuple(communication), list(observation), list(actions),
+                          model, memory, cost or {}, name)  # fmt: skip
+        return self._insert(partial(network.row, owner=owner), owner, idempotency, limit)
 
     def _insert(
         self,

@@ -44,6 +44,7 @@ from nanonav.store.errors import JobAlreadyFinished, JobNotFound, LeaseLost, Res
 from nanonav.store.idempotency import Idempotency, insert_once
 from nanonav.store.models import Job, JobPlot, JobResult, JobStatus, UTCDateTime, Worker
 from nanonav.store.policies import (
+    Network,
     PolicySource,
     PolicyStore,
     evaluated_policies,
@@ -52,6 +53,7 @@ from nanonav.store.policies import (
 )
 from nanonav.store.quotas import Quota, check_quota
 from nanonav.store.retention import delete_job
+from nanonav.store.training import TrainingStore, drop_checkpoints, trains_network
 from nanonav.store.wakeups import announce
 
 # A worker says it is alive this often; it counts as present for PRESENCE_WINDOW_S after.
@@ -83,6 +85,10 @@ class JobRecord:
     attempts: int
     study_id: int | None = None
     owner: str = ""
+    trains: bool = False  # it trains a network: only a worker that trains claims it
+    decisions: int | None = None  # while it trains, the decisions done
+    resumed_from_decisions: int | None = None  # the checkpoint it was taken up from
+    trained_policy_id: int | None = None  # the policy its trained network was kept as
     # Whether the store keeps a Q-table for the job (its run ended with one): read with the
     # record by :data:`_RECORDS`; a record of an ORM row says False.
     has_qtable: bool = False
@@ -107,6 +113,10 @@ class JobRecord:
             attempts=row.attempts,
             study_id=row.study_id,
             owner=row.owner,
+            trains=bool(row.trains),
+            decisions=row.decisions,
+            resumed_from_decisions=row.resumed_from_decisions,
+            trained_policy_id=row.trained_policy_id,
             has_qtable=isinstance(row, Row) and bool(row.has_qtable),
         )
 
@@ -125,6 +135,7 @@ _RECORDS: Select[Any] = select(*RECORD_COLUMNS, _HAS_QTABLE)
 _RECORD_BY_ID = _RECORDS.where(Job.id == bindparam("job_id"))
 # Whether anything waits: read without a lock before a claim takes one.
 _ANY_QUEUED = select(Job.id).where(Job.status == JobStatus.QUEUED).limit(1)
+_ANY_QUEUED_UNTRAINED = _ANY_QUEUED.where(Job.trains.is_(False))
 
 
 @dataclass(frozen=True)
@@ -152,6 +163,7 @@ class Outcome:
     qtable: Mapping[str, NDArray[Any]] | None
     study_metrics: dict[str, Any] | None = None  # what a study reads of the job
     curve: dict[str, Any] | None = None  # its learning curve, binned, for a study's pictures
+    trained: Network | None = None  # the network it trained, kept as a policy of its owner
 
 
 @dataclass(frozen=True)
@@ -163,6 +175,7 @@ class Census:
     workers: int  # worker processes seen within the window asked for, ready for jobs
     oldest_queued_at: datetime | None
     preparing: int = 0  # and those seen that still prepare the engine
+    trainers: int = 0  # of the ready ones, those that train networks (``worker --train``)
 
 
 class JobStore:
@@ -172,6 +185,7 @@ class JobStore:
         self.engine = engine
         self._sessions = make_sessionmaker(engine)
         self.policies = PolicyStore(engine)
+        self.training = TrainingStore(engine)
 
     @classmethod
     def from_url(cls, url: str, *, busy_timeout_s: float = BUSY_TIMEOUT_S) -> JobStore:
@@ -216,6 +230,7 @@ class JobStore:
                 fraction=0.0,
                 cancel_requested=False,
                 attempts=0,
+                trains=trains_network(scenario),
             )
             session.add(row)
             session.flush()
@@ -298,6 +313,7 @@ class JobStore:
             if row.status == JobStatus.QUEUED:
                 row.status = JobStatus.CANCELLED
                 row.finished_at = now
+                drop_checkpoints(session, [job_id])
             elif row.status == JobStatus.RUNNING:
                 row.cancel_requested = True
             elif row.status != JobStatus.CANCELLED:
@@ -416,9 +432,9 @@ class JobStore:
             .group_by(Job.status)
         )
         seen = (
-            select(Worker.ready_at.is_not(None), func.count())
+            select(Worker.ready_at.is_not(None), Worker.trains, func.count())
             .where(Worker.seen_at >= now - timedelta(seconds=seen_within_s))
-            .group_by(Worker.ready_at.is_not(None))
+            .group_by(Worker.ready_at.is_not(None), Worker.trains)
         )
         if host is not None:  # a worker is named host:pid
             seen = seen.where(Worker.name.startswith(f"{host}:", autoescape=True))
@@ -426,15 +442,18 @@ class JobStore:
             found = {
                 JobStatus(status): (n, oldest) for status, n, oldest in session.execute(counts)
             }
-            ready = {bool(is_ready): n for is_ready, n in session.execute(seen)}
+            ready: dict[tuple[bool, bool], int] = {
+                (bool(is_ready), bool(trains)): n for is_ready, trains, n in session.execute(seen)
+            }
         queued, oldest_queued = found.get(JobStatus.QUEUED, (0, None))
         running, _ = found.get(JobStatus.RUNNING, (0, None))
         return Census(
             queued=queued,
             running=running,
-            workers=ready.get(True, 0),
+            workers=ready.get((True, False), 0) + ready.get((True, True), 0),
             oldest_queued_at=None if oldest_queued is None else aware(oldest_queued),
-            preparing=ready.get(False, 0),
+            preparing=ready.get((False, False), 0) + ready.get((False, True), 0),
+            trainers=ready.get((True, True), 0),
         )
 
     # -- the worker's side ------------------------------------------------------------------
@@ -445,10 +464,11 @@ class JobStore:
         *,
         started_at: datetime,
         ready: bool = True,
+        trains: bool = False,
         now: datetime | None = None,
     ) -> None:
-        """Record that the worker ``name`` is alive (it calls this every few seconds), and
-        whether it is ready for jobs or still prepares the engine."""
+        """Record that the worker ``name`` is alive (it calls this every few seconds), whether
+        it is ready for jobs or still prepares the engine, and whether it trains networks."""
         now = now or utcnow()
         with unit_of_work(self._sessions, write=True) as session:
             row = session.get(Worker, name)
@@ -456,6 +476,7 @@ class JobStore:
                 row = Worker(name=name, started_at=started_at, seen_at=now)
                 session.add(row)
             row.seen_at = now
+            row.trains = trains
             if ready and row.ready_at is None:
                 row.ready_at = now
 
@@ -464,18 +485,22 @@ class JobStore:
         with unit_of_work(self._sessions) as session:
             session.execute(delete(Worker).where(Worker.name == name))
 
-    def claim(self, owner: str, *, lease_s: float, now: datetime | None = None) -> Claim | None:
-        """The oldest queued job, now running under a new lease, or None if nothing waits."""
+    def claim(
+        self, owner: str, *, lease_s: float, trains: bool = False, now: datetime | None = None
+    ) -> Claim | None:
+        """The oldest queued job, now running under a new lease, or None if nothing waits;
+        a job that trains a network only if the worker ``trains``."""
         # An idle worker polls often: it looks first, so that it takes SQLite's write lock only
         # when there is a job to claim (a worker frozen while it holds it stalls every write).
         with self.engine.connect() as connection:
-            if connection.execute(_ANY_QUEUED).first() is None:
+            if connection.execute(_ANY_QUEUED if trains else _ANY_QUEUED_UNTRAINED).first() is None:
                 return None
         now = now or utcnow()
         token = secrets.token_hex(16)
+        queued = Job.status == JobStatus.QUEUED
         oldest = (
             select(Job.id)
-            .where(Job.status == JobStatus.QUEUED)
+            .where(queued if trains else queued & Job.trains.is_(False))
             .order_by(Job.id)
             .limit(1)
             .with_for_update(skip_locked=True)
@@ -510,10 +535,13 @@ class JobStore:
         episodes: int,
         fraction: float,
         lease_s: float,
+        decisions: int | None = None,
         now: datetime | None = None,
     ) -> bool:
-        """Write the progress, renew the lease; True if a client asked to cancel the job."""
+        """Write the progress (and a training's ``decisions`` done, when given), renew the
+        lease; True if a client asked to cancel the job."""
         now = now or utcnow()
+        values: dict[str, Any] = {} if decisions is None else {"decisions": decisions}
         statement = (
             _fenced(claim)
             .values(
@@ -521,6 +549,7 @@ class JobStore:
                 episodes=episodes,
                 fraction=min(max(fraction, 0.0), 1.0),
                 lease_expires_at=now + timedelta(seconds=lease_s),
+                **values,
             )
             .returning(Job.cancel_requested)
         )
@@ -560,8 +589,14 @@ class JobStore:
             curve=outcome.curve,
         )
         with unit_of_work(self._sessions, write=True) as session:
+            if outcome.trained is not None and outcome.completed:
+                policy = outcome.trained.row(owner=claim.job.owner, created_at=now)
+                session.add(policy)
+                session.flush()
+                values["trained_policy_id"] = policy.id
             row = _write_fenced(session, claim, values)
             session.add(result)
+            drop_checkpoints(session, [claim.job.id])
             return JobRecord.of(row)
 
     def fail(self, claim: Claim, error: str, *, now: datetime | None = None) -> JobRecord:
@@ -569,7 +604,9 @@ class JobStore:
         now = now or utcnow()
         values = {"status": JobStatus.FAILED, "finished_at": now, "error": error}
         with unit_of_work(self._sessions) as session:
-            return JobRecord.of(_write_fenced(session, claim, {**values, **_lease_cleared()}))
+            row = _write_fenced(session, claim, {**values, **_lease_cleared()})
+            drop_checkpoints(session, [claim.job.id])
+            return JobRecord.of(row)
 
     def release(self, claim: Claim) -> JobRecord:
         """Give the job back to the queue untouched, as if this claim had never happened."""
@@ -610,11 +647,14 @@ class JobStore:
             update(Job)
             .where(Job.status == JobStatus.RUNNING, Job.lease_expires_at < now)
             .values(status=status, error=error, finished_at=finished, **_lease_cleared())
-            .returning(Job.status)
+            .returning(Job.id, Job.status)
             .execution_options(synchronize_session=False)
         )
         with unit_of_work(self._sessions, write=True) as session:
-            statuses = session.scalars(statement).all()
+            found = session.execute(statement).all()
+            statuses = [JobStatus(status) for _, status in found]
+            ended = [job_id for job_id, status in found if JobStatus(status).finished]
+            drop_checkpoints(session, ended)
             if JobStatus.QUEUED in statuses:
                 announce(session)
             return len(statuses)

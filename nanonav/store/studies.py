@@ -26,6 +26,7 @@ from nanonav.store.policies import evaluated_policies, hold_policies
 from nanonav.store.queue import aware, utcnow
 from nanonav.store.quotas import Quota, check_quota
 from nanonav.store.retention import delete_study
+from nanonav.store.training import trains_network
 from nanonav.store.wakeups import announce
 
 
@@ -158,6 +159,7 @@ class StudyStore:
                         "study_id": study.id,
                         "study_point": job.point,
                         "study_seed": job.seed,
+                        "trains": trains_network(job.scenario),
                     }
                     for job in jobs
                 ],

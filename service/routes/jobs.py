@@ -51,6 +51,7 @@ from service.schemas import (
     offers_qtable,
 )
 from service.security import SCRIPTED_ONLY, CallerDep, owned_tables, quota_of
+from service.waiting import waiting_for
 
 router = APIRouter(prefix="/jobs", tags=["jobs"])
 
@@ -121,7 +122,7 @@ def submit_job(
             quota=quota,
         )
     response.headers["Location"] = f"/jobs/{job.id}"
-    return Job.of(job)
+    return Job.of(job, waiting_for=waiting_for(job, store))
 
 
 @router.get("", response_model=JobPage, responses=problems(404, 422))
@@ -171,7 +172,10 @@ async def get_job(job_id: JobId, store: StoreDep) -> Job:
     """A job's state and progress."""
     # What clients poll most: only the read goes to the thread pool (a plain ``def`` route
     # would also send the answer's validation there, a second hop per request).
-    return Job.of(await run_in_threadpool(store.get, job_id))
+    job = await run_in_threadpool(store.get, job_id)
+    if job.trains and job.status is JobStatus.QUEUED:
+        return Job.of(job, waiting_for=await run_in_threadpool(waiting_for, job, store))
+    return Job.of(job)
 
 
 @router.post(

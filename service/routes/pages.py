@@ -63,6 +63,7 @@ from service.security import (
     presented_session,
 )
 from service.sessions import cleared_cookie, same_site_path, session_cookie
+from service.waiting import waiting_for
 
 router = APIRouter(include_in_schema=False)
 templates = Jinja2Templates(directory=Path(__file__).resolve().parents[1] / "templates")
@@ -129,7 +130,7 @@ def _visible_job(store: JobStore, caller: Caller, job_id: int) -> Job | None:
         return None
     if caller.scoped and record.owner != caller.owner:
         return None
-    return Job.of(record)
+    return Job.of(record, waiting_for=waiting_for(record, store))
 
 
 @router.get("/", response_class=HTMLResponse)

@@ -13,8 +13,12 @@
     if (!bar) return;
     const fraction = job.progress.fraction;
     bar.style.width = `${(100 * fraction).toFixed(1)}%`;
-    document.getElementById("progress-text").textContent =
-      `${Math.round(100 * fraction)}% · episode ${job.progress.episode} of ${job.progress.episodes}`;
+    const p = job.progress;
+    const training = p.training_decisions && p.decisions !== null && p.decisions < p.training_decisions;
+    const done = training
+      ? `${p.decisions.toLocaleString("en")} of ${p.training_decisions.toLocaleString("en")} decisions trained`
+      : `episode ${p.episode} of ${p.episodes}`;
+    document.getElementById("progress-text").textContent = `${Math.round(100 * fraction)}% · ${done}`;
     const eta = document.getElementById("eta");
     if (job.started_at && fraction > 0 && fraction < 1) {
       const elapsed = (Date.now() - Date.parse(job.started_at)) / 1000;

@@ -54,7 +54,8 @@ def next_id_after(store: JobStore, table: str, last: int) -> None:
 def test_every_id_column_is_bigint_on_postgresql_and_the_rowid_on_sqlite() -> None:
     assert id_columns() == [
         ("deliveries", "id"), ("deliveries", "job_id"), ("deliveries", "study_id"),
-        ("job_plots", "job_id"), ("job_results", "job_id"), ("jobs", "id"), ("jobs", "study_id"),
+        ("job_checkpoints", "job_id"), ("job_plots", "job_id"), ("job_results", "job_id"),
+        ("jobs", "id"), ("jobs", "study_id"),
         ("policies", "id"), ("studies", "id"), ("study_plots", "study_id"),
     ]  # fmt: skip
     postgresql, sqlite = (make_url(url).get_dialect()() for url in ("postgresql://", "sqlite://"))

@@ -13,7 +13,12 @@ from tests.store.test_deliveries import URL
 from tests.store.test_ids import id_columns
 from tests.store.test_queue import claim, outcome
 
-ID_COLUMNS = id_columns()
+# the id columns 0013 made BIGINT: those of the tables that stood then (later ones are made so)
+ID_COLUMNS = [
+    (table, column)
+    for table, column in id_columns()
+    if table != "job_checkpoints" and column != "trained_policy_id"
+]
 
 
 def tables(url: str) -> set[str]:
@@ -37,6 +42,7 @@ def test_migrations_and_models_agree_both_ways(database_url: str) -> None:
         "deliveries",
         "policies",
         "revoked_sessions",
+        "job_checkpoints",
     }
     downgrade(database_url, "base")
     assert tables(database_url) == set()
@@ -87,6 +93,8 @@ def test_postgresql_ids_become_bigint_and_keep_their_rows(postgres_url: str) -> 
     names = [f"{table}.{column}" for table, column in ID_COLUMNS] + SEQUENCES
     upgrade(postgres_url, "0012")
     assert id_types(postgres_url) == dict.fromkeys(names, "integer")
+    # the rows are written by today's models, at the head, and taken back to 0012 with it
+    upgrade(postgres_url)
     store = JobStore.from_url(postgres_url)
     try:
         studies = StudyStore(store.engine)
@@ -104,7 +112,9 @@ def test_postgresql_ids_become_bigint_and_keep_their_rows(postgres_url: str) -> 
     finally:
         store.close()
 
-    upgrade(postgres_url)
+    downgrade(postgres_url, "0012")
+    assert id_types(postgres_url) == dict.fromkeys(names, "integer")
+    upgrade(postgres_url, "0013")
     assert id_types(postgres_url) == dict.fromkeys(names, "bigint")
     downgrade(postgres_url, "0012")
     assert id_types(postgres_url) == dict.fromkeys(names, "integer")
@@ -130,7 +140,7 @@ def test_sqlite_keeps_its_tables_as_they_were(sqlite_url: str) -> None:
     try:
         with engine.connect() as connection:
             before = connection.execute(schema).all()
-        upgrade(sqlite_url)
+        upgrade(sqlite_url, "0013")
         with engine.connect() as connection:
             assert connection.execute(schema).all() == before
     finally:
