@@ -391,7 +391,7 @@ def draw(out: Path, every: list[tuple[float, str, Path]], curve: tuple[int, int]
                 continue
             points = json.loads((run / "curve.json").read_text())
             ax.plot([p["decisions"] for p in points], [p["success"] for p in points],
-                    marker="o", label=learner)  # fmt: skip
+                    marker="o", label=f"{learner}, greedy (as the service runs it)")  # fmt: skip
         ax.set_xscale("log")
         ax.set_ylim(0, 1.05)  # a share of 1 drawn inside the frame, not on it
         ax.set_xlabel("decisions trained")
