@@ -352,6 +352,13 @@ class CollectorProcess:
             pass
         self._stop()
 
+    def kill(self) -> None:
+        """Kill the process without waiting for a rollout under way."""
+        process = getattr(self, "_process", None)
+        if process is not None and process.poll() is None:
+            process.kill()
+        self._stop()
+
     def _stop(self) -> None:
         finalizer = getattr(self, "_finalizer", None)
         if finalizer is not None:

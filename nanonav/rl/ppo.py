@@ -162,8 +162,19 @@ class PPO:
     def __enter__(self) -> PPO:
         return self
 
-    def __exit__(self, *_: object) -> None:
-        self.close()
+    def __exit__(self, kind: type[BaseException] | None, *_: object) -> None:
+        if kind is None:
+            self.close()
+        else:  # a run stopped or failed: its collector's streams are not wanted, only its end
+            self.abandon()
+
+    def abandon(self) -> None:
+        """End the collector's process at once, a rollout under way or not (the streams it
+        holds are lost: a stopped run takes up again from its last checkpoint)."""
+        if self._away is not None:
+            self._away.kill()
+            self._pending = None
+            self._away = None
 
     def close(self) -> None:
         """End the collector's process, if there is one."""
