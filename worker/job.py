@@ -223,9 +223,14 @@ def _run(scenario: Scenario, store: JobStore, settings: Settings, watch: Watch) 
             keep_going=watch.poll,
         )
     except Stopped:  # told to stop while it was checked
-        return SimulationResult(scenario, {}, [], [], {}, None, None, completed=False)
+        return _stopped(scenario)
     with network:
         return evaluate(scenario, network, watch, steering=network.steering)
+
+
+def _stopped(scenario: Scenario) -> SimulationResult:
+    """The result of a run told to stop before it had anything to keep."""
+    return SimulationResult(scenario, {}, [], [], {}, None, None, completed=False)
 
 
 def _train_and_evaluate(
@@ -240,7 +245,6 @@ def _train_and_evaluate(
     from nanonav.rl.job import Checkpoint, train_network
     from nanonav.rl.training import TrainingStopped
 
-    stopped = SimulationResult(scenario, {}, [], [], {}, None, None, completed=False)
     job_id, token = claim.job.id, claim.token
     kept = store.training.last(job_id)
     resume = None if kept is None else Checkpoint(kept.decisions, kept.data, kept.curve)
@@ -270,7 +274,7 @@ def _train_and_evaluate(
         threads=settings.training_threads, device=settings.training_device,
     )  # fmt: skip
     if trained is None:
-        return stopped, None
+        return _stopped(scenario), None
     watch.before, watch.share = watch.share, 1.0 - watch.share
     try:
         network = NetworkPolicy(
@@ -279,7 +283,7 @@ def _train_and_evaluate(
             keep_going=watch.poll,
         )  # fmt: skip
     except Stopped:
-        return stopped, None
+        return _stopped(scenario), None
     with network:
         result = evaluate(scenario.network_scenario(), network, watch, steering=network.steering)
     return dataclasses.replace(result, scenario=scenario), trained
