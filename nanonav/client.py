@@ -667,6 +667,11 @@ class Client:
         """Cancel a study's unfinished jobs (409 if it has already finished)."""
         return Study.of(self._json("POST", f"/studies/{study_id}/cancel"))
 
+    def retry_study(self, study_id: int) -> Study:
+        """Queue the study's failed jobs again, on their scenarios and seeds (409 if none
+        failed)."""
+        return Study.of(self._json("POST", f"/studies/{study_id}/retry"))
+
     def delete_study(self, study_id: int) -> None:
         """Delete an ended study with its jobs and their results (409 while any of its jobs is
         queued or running; 404 if there is no such study, or no more)."""

@@ -124,6 +124,12 @@ class StudyFinished(ProblemError):
     title = "Study already finished"
 
 
+class NothingToRetry(ProblemError):
+    status = 409
+    slug = "nothing-to-retry"
+    title = "Nothing to retry"
+
+
 class NoQTable(ProblemError):
     status = 404
     slug = "no-qtable"

@@ -61,6 +61,22 @@ JOB_EXAMPLE: dict[str, Any] = {
 }
 
 
+class TrainingRow(BaseModel):
+    """A row of a network's training curve: the training episodes that ended since the row
+    before (their actions sampled, as the trainer takes them)."""
+
+    decisions: int = Field(description="Decisions trained when the row was closed.")
+    episodes: int = Field(description="Training episodes that ended since the row before.")
+    success_rate: float | None = Field(
+        description="The share of them whose robot reached a cell (null: none ended)."
+    )
+    return_: float | None = Field(
+        alias="return", description="Their mean return (null: none ended)."
+    )
+
+    model_config = ConfigDict(populate_by_name=True, serialize_by_alias=True)
+
+
 class Progress(BaseModel):
     """How far the run is: it trains its episodes, then plays its evaluation worlds, and both
     count as episodes here."""
@@ -82,6 +98,12 @@ class Progress(BaseModel):
     )
     training_decisions: int | None = Field(
         None, description="Of a network the job trains, the decisions it trains for in all."
+    )
+    training_curve: list[TrainingRow] | None = Field(
+        None,
+        description="Of a network the job trains, its training curve so far: a row about "
+        "every twentieth of its decisions, written as it trains (the metrics' training_curve "
+        "once it has ended); null for other policies.",
     )
 
 
@@ -199,6 +221,7 @@ class Job(BaseModel):
                 fraction=job.fraction,
                 decisions=job.decisions if job.trains else None,
                 training_decisions=training_decisions(job.scenario) if job.trains else None,
+                training_curve=job.training_curve if job.trains else None,
             ),
             scenario=job.scenario,
             created_at=job.created_at,

@@ -97,6 +97,9 @@ class Watch:
         # a network's training: the decisions done (None: the job trains none), and the
         # share of the job's work before its evaluation, which then fills the rest
         self.decisions: int | None = None
+        # and its training curve, written with the progress when it has grown
+        self.curve: list[dict[str, Any]] | None = None
+        self._curve_written: list[dict[str, Any]] | None = None
         self.before = 0.0
         self.share = 1.0
 
@@ -114,6 +117,7 @@ class Watch:
             self.stop = Stop.TIME_LIMIT
         elif now - self.last_write >= self.settings.progress_interval_s:
             self.last_write = now
+            curve = self.curve if self.curve is not self._curve_written else None
             try:
                 if self.store.report_progress(
                     self.claim,
@@ -122,8 +126,10 @@ class Watch:
                     fraction=self.before + self.share * progress.fraction,
                     lease_s=self.settings.lease_s,
                     decisions=self.decisions,
+                    curve=curve,
                 ):
                     self.stop = Stop.CANCELLED
+                self._curve_written = self.curve
             except LeaseLost:
                 self.stop = Stop.LEASE_LOST
             except SQLAlchemyError as error:
@@ -249,7 +255,7 @@ def _train_and_evaluate(
     kept = store.training.last(job_id)
     resume = None if kept is None else Checkpoint(kept.decisions, kept.data, kept.curve)
     if resume is not None:
-        store.training.resumed(job_id, token, resume.decisions)
+        store.training.resumed(job_id, token, resume.decisions, resume.curve)
         logger.info("job %d: training resumed from %d decisions", job_id, resume.decisions)
     goal = scenario.training_decisions
     watch.share = training_work(scenario) / max(scenario.work, 1)
@@ -258,6 +264,9 @@ def _train_and_evaluate(
     def keep_going(decisions: int) -> bool:
         watch.decisions = decisions
         return watch(Progress(0, 1, decisions, goal))
+
+    def grew(rows: list[dict[str, Any]]) -> None:
+        watch.curve = finite(rows)
 
     def keep(checkpoint: Checkpoint) -> None:
         try:
@@ -271,7 +280,7 @@ def _train_and_evaluate(
 
     trained = train_network(
         scenario, keep_going=keep_going, keep=keep, resume=resume,
-        threads=settings.training_threads, device=settings.training_device,
+        threads=settings.training_threads, device=settings.training_device, grew=grew,
     )  # fmt: skip
     if trained is None:
         return _stopped(scenario), None

@@ -171,13 +171,17 @@ def add_study(subcommands: Subcommands) -> None:
         description="Queue a study on a running API: FILE is a JSON object with 'name', "
         "'base' (a scenario), 'grid' (scenario fields by dotted name, each with the values to "
         "try), 'seeds' or 'replicates', and optionally 'compare' (a grid key whose values are "
-        "compared seed by seed with the first). With --id, show an existing study instead. "
+        "compared seed by seed with the first). With --id, show an existing study instead; "
+        "with --id and --retry, queue its failed jobs again first. "
         "The table gives, per grid point and metric, n, the mean and its 95% CI, and with "
         "'compare' the paired differences with their CI and p-value. With --wait, exit 1 "
         "unless every job succeeded.",
     )
     study.add_argument("file", nargs="?", type=Path, metavar="FILE", help="the study as JSON")
     study.add_argument("--id", type=positive, metavar="ID", help="an existing study's id")
+    study.add_argument(
+        "--retry", action="store_true", help="with --id: queue the study's failed jobs again"
+    )
     study.add_argument("--wait", action="store_true", help=WAIT_HELP)
     add_url(study)
     study.set_defaults(handler=_study)
@@ -186,7 +190,14 @@ def add_study(subcommands: Subcommands) -> None:
 def _study(args: argparse.Namespace) -> int:
     if (args.file is None) == (args.id is None):
         raise UsageError(["give a study FILE to submit, or --id ID to show one (not both)"])
+    if args.retry and args.id is None:
+        raise UsageError(["--retry needs --id ID: the study whose failed jobs to queue again"])
     with connect(args) as api:
+        if args.retry:
+            failed = api.study(args.id).jobs.failed
+            retried = api.retry_study(args.id)
+            print(f"study {retried.id} {retried.status}: {plural(failed, 'failed job')} "
+                  "queued again", flush=True)  # fmt: skip
         if args.file is not None:
             created = api.submit_study(read_json_object(args.file, "study"))
             seeds = len(created.spec.get("seeds") or [])

@@ -91,7 +91,8 @@ class Curve:
     _reached: int = 0
     _returns: float = 0.0
 
-    def add(self, update: Update) -> None:
+    def add(self, update: Update) -> bool:
+        """Count ``update``'s episodes in; True when that closed a row."""
         self._episodes += update.episodes
         self._reached += update.reached
         if update.mean_return is not None:
@@ -99,6 +100,8 @@ class Curve:
         last = self.rows[-1]["decisions"] if self.rows else 0
         if update.decisions - last >= self.every:
             self.close(update.decisions)
+            return True
+        return False
 
     def close(self, decisions: int) -> None:
         """End the row at ``decisions`` (none when no rollout was added since the last)."""
@@ -132,11 +135,13 @@ def train_network(
     threads: int = 1,
     device: str = "auto",
     overlap: bool = True,
+    grew: Callable[[list[dict[str, Any]]], None] | None = None,
 ) -> Trained | None:
     """Train the network ``scenario`` asks for (``learning.decisions``), from ``resume``
     where given; ``keep_going(decisions)`` is asked after every rollout (False stops the run
     and None is returned), ``keep`` is given each checkpoint (every
-    ``learning.checkpoint_decisions``) before the run's end."""
+    ``learning.checkpoint_decisions``) before the run's end, and ``grew`` the curve's rows
+    each time a row is added (so a job's page draws the curve as it grows)."""
     if not scenario.trains:
         raise ValueError(f"robots.policy '{scenario.robots.policy}' trains no network")
     goal = scenario.training_decisions
@@ -147,7 +152,8 @@ def train_network(
         curve.rows = [dict(row) for row in resume.curve]
 
     def after(update: Update) -> None:
-        curve.add(update)
+        if curve.add(update) and grew is not None:
+            grew([dict(row) for row in curve.rows])
         if not keep_going(update.decisions):
             raise TrainingStopped
 

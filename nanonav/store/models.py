@@ -163,9 +163,11 @@ class Job(Base):
     study_seed: Mapped[int | None] = mapped_column(BigInteger)
     # It trains a network (robots.policy ppo, recurrent_ppo): only a worker that trains
     # claims it. While it trains, the decisions done; once resumed from a checkpoint, the
-    # decisions it took up from; once it succeeded, the policy its network was kept as.
+    # decisions it took up from; once it succeeded, the policy its network was kept as. Its
+    # training curve so far (rows as the metrics' training_curve), for its page to draw live.
     trains: Mapped[bool] = mapped_column(Boolean, default=False, server_default="0")
     decisions: Mapped[int | None] = mapped_column(BigInteger)
+    training_curve: Mapped[list[dict[str, Any]] | None] = mapped_column(JSON)
     resumed_from_decisions: Mapped[int | None] = mapped_column(BigInteger)
     trained_policy_id: Mapped[int | None] = mapped_column(RowId)
 

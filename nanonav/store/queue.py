@@ -87,6 +87,7 @@ class JobRecord:
     owner: str = ""
     trains: bool = False  # it trains a network: only a worker that trains claims it
     decisions: int | None = None  # while it trains, the decisions done
+    training_curve: list[dict[str, Any]] | None = None  # and its training curve so far
     resumed_from_decisions: int | None = None  # the checkpoint it was taken up from
     trained_policy_id: int | None = None  # the policy its trained network was kept as
     # Whether the store keeps a Q-table for the job (its run ended with one): read with the
@@ -115,6 +116,7 @@ class JobRecord:
             owner=row.owner,
             trains=bool(row.trains),
             decisions=row.decisions,
+            training_curve=row.training_curve,
             resumed_from_decisions=row.resumed_from_decisions,
             trained_policy_id=row.trained_policy_id,
             has_qtable=isinstance(row, Row) and bool(row.has_qtable),
@@ -536,12 +538,15 @@ class JobStore:
         fraction: float,
         lease_s: float,
         decisions: int | None = None,
+        curve: list[dict[str, Any]] | None = None,
         now: datetime | None = None,
     ) -> bool:
-        """Write the progress (and a training's ``decisions`` done, when given), renew the
-        lease; True if a client asked to cancel the job."""
+        """Write the progress (and a training's ``decisions`` done and its ``curve`` so far,
+        when given), renew the lease; True if a client asked to cancel the job."""
         now = now or utcnow()
         values: dict[str, Any] = {} if decisions is None else {"decisions": decisions}
+        if curve is not None:
+            values["training_curve"] = curve
         statement = (
             _fenced(claim)
             .values(
@@ -578,6 +583,8 @@ class JobStore:
         values: dict[str, Any] = {"status": status, "finished_at": now, **_lease_cleared()}
         if outcome.completed:
             values.update(fraction=1.0, episode=Job.episodes)
+        if "training_curve" in outcome.metrics:  # whole, the rows written while it ran or not
+            values["training_curve"] = outcome.metrics["training_curve"]
         # Compressed before the write lock is taken, which is held for the writes alone.
         result = JobResult(
             job_id=claim.job.id,

@@ -13,7 +13,7 @@ from datetime import datetime
 from itertools import groupby
 from typing import Any
 
-from sqlalchemy import JSON, Engine, func, insert, literal, select, update
+from sqlalchemy import JSON, Engine, delete, func, insert, literal, select, update
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
@@ -21,12 +21,12 @@ from nanonav.store.db import add_once, make_sessionmaker, unit_of_work
 from nanonav.store.deliveries import add_waiting
 from nanonav.store.errors import StudyNotFound
 from nanonav.store.idempotency import Idempotency, insert_once
-from nanonav.store.models import Job, JobResult, JobStatus, Study, StudyPlot
+from nanonav.store.models import Job, JobPlot, JobResult, JobStatus, Study, StudyPlot
 from nanonav.store.policies import evaluated_policies, hold_policies
 from nanonav.store.queue import aware, utcnow
 from nanonav.store.quotas import Quota, check_quota
 from nanonav.store.retention import delete_study
-from nanonav.store.training import trains_network
+from nanonav.store.training import drop_checkpoints, trains_network
 from nanonav.store.wakeups import announce
 
 
@@ -316,6 +316,42 @@ class StudyStore:
             )
             session.flush()
             return StudyRecord.of(study)
+
+    def retry_failed(self, study_id: int, *, quota: Quota | None = None) -> list[int]:
+        """Queue the study's failed jobs again as if new (no attempts, error, progress or
+        result), and drop its kept report and pictures, which no longer hold; the ids queued.
+        Past ``quota`` (which counts the jobs queued again), ``QuotaExceeded``."""
+        with unit_of_work(self._sessions, write=True) as session:
+            study = _study(session, study_id)
+            failed = session.execute(
+                select(Job.id, Job.robot_steps)
+                .where(Job.study_id == study_id, Job.status == JobStatus.FAILED)
+                .order_by(Job.id)
+            ).all()
+            ids = [row.id for row in failed]
+            if not ids:
+                return []
+            check_quota(
+                session, quota, jobs=len(ids), robot_steps=sum(r.robot_steps for r in failed)
+            )
+            session.execute(delete(JobResult).where(JobResult.job_id.in_(ids)))
+            session.execute(delete(JobPlot).where(JobPlot.job_id.in_(ids)))
+            drop_checkpoints(session, ids)
+            session.execute(
+                update(Job)
+                .where(Job.id.in_(ids))
+                .values(
+                    status=JobStatus.QUEUED, started_at=None, finished_at=None, episode=0,
+                    fraction=0.0, error=None, attempts=0, cancel_requested=False,
+                    lease_token=None, lease_owner=None, lease_expires_at=None, decisions=None,
+                    resumed_from_decisions=None, training_curve=None, trained_policy_id=None,
+                )
+                .execution_options(synchronize_session=False)
+            )  # fmt: skip
+            study.report = None
+            session.execute(delete(StudyPlot).where(StudyPlot.study_id == study_id))
+            announce(session)
+            return ids
 
     def delete(self, study_id: int, *, now: datetime | None = None) -> None:
         """Delete a study whose jobs have all ended, with its jobs, their results, its report

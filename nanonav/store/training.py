@@ -66,13 +66,13 @@ class TrainingStore:
         now: datetime | None = None,
     ) -> None:
         """Replace the job's checkpoint with this one, if ``token`` still holds its lease
-        (``LeaseLost`` if not), and say in the job how many decisions are done."""
+        (``LeaseLost`` if not), and say in the job how many decisions are done and its curve."""
         now = now or datetime.now(UTC)
         with unit_of_work(self._sessions, write=True) as session:
             row = session.scalars(select(Job).where(_held(job_id, token)).with_for_update()).first()
             if row is None:
                 raise LeaseLost(job_id)
-            row.decisions = decisions
+            row.decisions, row.training_curve = decisions, curve
             kept = session.get(JobCheckpoint, job_id)
             if kept is None:
                 kept = JobCheckpoint(job_id=job_id)
@@ -89,13 +89,14 @@ class TrainingStore:
                 job_id, row.decisions, bytes(row.data), list(row.curve), row.written_at
             )
 
-    def resumed(self, job_id: int, token: str, decisions: int) -> None:
-        """Say in the job that its training was taken up at ``decisions``."""
+    def resumed(self, job_id: int, token: str, decisions: int, curve: list[dict[str, Any]]) -> None:
+        """Say in the job that its training was taken up at ``decisions``, its ``curve`` as
+        the checkpoint kept it (rows a dead worker wrote after it are dropped)."""
         with unit_of_work(self._sessions) as session:
             found = session.execute(
                 update(Job)
                 .where(_held(job_id, token))
-                .values(resumed_from_decisions=decisions, decisions=decisions)
+                .values(resumed_from_decisions=decisions, decisions=decisions, training_curve=curve)
                 .returning(Job.id)
                 .execution_options(synchronize_session=False)
             ).first()

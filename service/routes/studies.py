@@ -56,6 +56,7 @@ from service.problems import (
     InvalidInput,
     NoCallback,
     NoMetric,
+    NothingToRetry,
     StudyFinished,
     field_error,
     invalid_body,
@@ -251,6 +252,30 @@ def cancel_study(study_id: StudyId, studies: StudiesDep, reports: ReportsDep) ->
     if view.status in FINISHED and not view.cancel_requested:
         raise StudyFinished(f"study {study_id} has already finished: it is {view.status}")
     return study_answer(studies, reports, studies.cancel(study_id))
+
+
+@router.post(
+    "/{study_id}/retry",
+    response_model=Study,
+    responses=problems(403, 404, 409, 415, 422, 429),
+    openapi_extra=SCRIPTED_ONLY,
+)
+def retry_study(
+    study_id: StudyId,
+    studies: StudiesDep,
+    reports: ReportsDep,
+    settings: SettingsDep,
+    caller: CallerDep,
+) -> Study:
+    """Queue every failed job of the study again, in one request: each runs anew (its
+    attempts, error and partial result cleared) on the same scenario and seed, so the study's
+    pairing by seed holds. Its report and pictures are made again from its jobs once they end.
+
+    409 when no job of it has failed; 429 past the caller's quota, which counts the jobs
+    queued again. A callback_url the study gave that was already sent is not sent again."""
+    if not studies.retry_failed(study_id, quota=quota_of(caller, settings)):
+        raise NothingToRetry(f"no job of study {study_id} has failed: there is nothing to retry")
+    return study_answer(studies, reports, studies.get(study_id))
 
 
 @router.delete(

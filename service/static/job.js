@@ -19,6 +19,7 @@
       ? `${p.decisions.toLocaleString("en")} of ${p.training_decisions.toLocaleString("en")} decisions trained`
       : `episode ${p.episode} of ${p.episodes}`;
     document.getElementById("progress-text").textContent = `${Math.round(100 * fraction)}% · ${done}`;
+    if (p.training_curve) drawCurve(p.training_curve, p.training_decisions);
     const eta = document.getElementById("eta");
     if (job.started_at && fraction > 0 && fraction < 1) {
       const elapsed = (Date.now() - Date.parse(job.started_at)) / 1000;
@@ -27,6 +28,60 @@
       eta.textContent = job.status === "queued" ? " · waiting for a worker" : "";
     }
   }
+
+  // ------------------------------------------------------------ the training curve
+  // A network's training: the share of its training episodes that reached a cell against the
+  // decisions trained, redrawn each time the progress brings a longer curve.
+  const SVG = "http://www.w3.org/2000/svg";
+  const curveNode = document.getElementById("training-curve");
+  let drawnRows = -1;
+
+  function svg(name, attributes, text) {
+    const node = document.createElementNS(SVG, name);
+    for (const [key, value] of Object.entries(attributes)) node.setAttribute(key, String(value));
+    if (text !== undefined) node.textContent = text;
+    return node;
+  }
+
+  function drawCurve(rows, total) {
+    if (!curveNode || rows.length === drawnRows) return;
+    drawnRows = rows.length;
+    curveNode.replaceChildren();
+    const [left, right, top, bottom] = [62, 545, 12, 180];
+    const x = (decisions) => left + (right - left) * decisions / Math.max(total, 1);
+    const y = (share) => bottom - (bottom - top) * share;
+    curveNode.appendChild(svg("rect", { x: left, y: top, width: right - left, height: bottom - top,
+                                        class: "plot-area" }));
+    for (const share of [0, 0.25, 0.5, 0.75, 1]) {
+      curveNode.appendChild(svg("line", { x1: left, x2: right, y1: y(share), y2: y(share), class: "grid" }));
+      curveNode.appendChild(svg("text", { x: left - 6, y: y(share) + 4, "text-anchor": "end" }, share.toFixed(2)));
+    }
+    for (const [part, anchor] of [[0, "start"], [0.5, "middle"], [1, "end"]]) {
+      curveNode.appendChild(svg("text", { x: x(part * total), y: bottom + 16, "text-anchor": anchor },
+                                Math.round(part * total).toLocaleString("en")));
+    }
+    curveNode.appendChild(svg("text", { x: (left + right) / 2, y: bottom + 34, "text-anchor": "middle" },
+                              "decisions trained"));
+    curveNode.appendChild(svg("text", { x: 14, y: (top + bottom) / 2, "text-anchor": "middle",
+                                        transform: `rotate(-90 14 ${(top + bottom) / 2})` },
+                              "success rate (training)"));
+    const points = rows.filter((row) => row.success_rate !== null)
+      .map((row) => [x(row.decisions), y(row.success_rate), row]);
+    if (points.length > 1) {
+      curveNode.appendChild(svg("polyline", { points: points.map(([px, py]) => `${px},${py}`).join(" "),
+                                              class: "line" }));
+    }
+    for (const [px, py, row] of points) {
+      const dot = svg("circle", { cx: px, cy: py, r: 3.5, class: "point" });
+      dot.appendChild(svg("title", {}, `${row.decisions.toLocaleString("en")} decisions: ` +
+                          `${(100 * row.success_rate).toFixed(1)}% of ${row.episodes} episodes reached a cell`));
+      curveNode.appendChild(dot);
+    }
+    curveNode.dataset.rows = String(rows.length);
+    curveNode.dataset.points = String(points.length);
+  }
+
+  if (curveNode) drawCurve(JSON.parse(curveNode.dataset.curve), Number(curveNode.dataset.decisions));
 
   // A page being left (a link followed) is not reloaded: the reload would cancel the navigation
   // under way and take the user back here.

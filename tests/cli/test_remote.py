@@ -206,6 +206,13 @@ def test_a_study_with_a_failed_job_says_so_and_exits_1(
     assert re.fullmatch(
         r"nanonav study: study \d+ failed: 2 jobs: 1 succeeded, 1 failed, 0 cancelled\n", err
     )
+    # retried in one command, the failed job runs again (and fails again: still no room)
+    study_id = re.findall(r"study (\d+) failed", err)[0]
+    code = main(["study", "--id", study_id, "--retry", "--wait", "--url", live_api.url])
+    out, err = capsys.readouterr()
+    assert code == 1
+    assert out.startswith(f"study {study_id} running: 1 failed job queued again\n")
+    assert "2 jobs: 1 succeeded, 1 failed, 0 cancelled" in out
 
 
 def test_study_needs_a_file_or_an_id(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
@@ -214,6 +221,8 @@ def test_study_needs_a_file_or_an_id(capsys: pytest.CaptureFixture[str], tmp_pat
     assert main(["study", write(tmp_path, {}), "--id", "3"]) == 2
     assert main(["study", "--id", "0"]) == 2
     assert "must be at least 1, not 0" in capsys.readouterr().err
+    assert main(["study", write(tmp_path, {}), "--retry"]) == 2
+    assert "--retry needs --id ID" in capsys.readouterr().err
 
 
 # ---------------------------------------------------------------- fetch

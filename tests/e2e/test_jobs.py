@@ -82,7 +82,7 @@ def test_a_submitted_job_runs_and_every_result_comes_back(
     assert job["status"] == "succeeded", job
     assert job["progress"] == {
         "episode": 2 + 20, "episodes": 2 + 20, "training_episodes": 2, "evaluation_worlds": 20,
-        "fraction": 1.0, "decisions": None, "training_decisions": None,
+        "fraction": 1.0, "decisions": None, "training_decisions": None, "training_curve": None,
     }  # fmt: skip
     assert job["attempts"] == 1
     assert job["started_at"] is not None and job["finished_at"] >= job["started_at"]

@@ -78,6 +78,7 @@ def test_a_ppo_job_trains_in_a_worker_that_trains_and_its_network_evaluates_in_a
     metrics = api.client.get(f"/jobs/{job_id}/metrics").json()
     curve = metrics["training_curve"]
     assert [row["decisions"] for row in curve] == [ROLLOUT, 2 * ROLLOUT]
+    assert job["progress"]["training_curve"] == curve  # what the page drew, whole at the end
     assert sum(row["episodes"] for row in curve) > 0
     assert metrics["training"]["decisions"] == 2 * ROLLOUT
     assert metrics["training"]["decisions_per_s"] > 0
@@ -105,14 +106,16 @@ def test_a_ppo_job_trains_in_a_worker_that_trains_and_its_network_evaluates_in_a
 def test_a_killed_training_worker_is_resumed_from_its_checkpoint_and_a_cancel_ends_training(
     api: Api, start_worker: Callable[..., Worker]
 ) -> None:
-    fast = {"NANONAV_LEASE_S": "3", "NANONAV_PROGRESS_INTERVAL_S": "0.2"}
+    # the killed worker's lease is short, so its job is taken up again soon; long enough, and
+    # the second worker's the default, that neither lapses while a loaded machine trains
+    fast = {"NANONAV_LEASE_S": "6", "NANONAV_PROGRESS_INTERVAL_S": "0.2"}
     first = start_worker("--train", **fast)
     job_id = submit(api, training("recurrent_ppo", decisions=5 * ROLLOUT,
                                   checkpoint_decisions=ROLLOUT))  # fmt: skip
     wait_for(api, job_id, lambda j: checkpoints(api) > 0, FIRST_JOB_S)
     first.process.send_signal(signal.SIGKILL)
     first.process.wait()
-    start_worker("--train", **fast)
+    start_worker("--train", NANONAV_PROGRESS_INTERVAL_S="0.2")
     job, _ = wait_for(api, job_id, finished, 2 * FIRST_JOB_S)
     assert job["status"] == "succeeded", job
     assert job["attempts"] == 2

@@ -52,7 +52,7 @@ def test_submit_answers_202_with_location_and_the_resolved_scenario(api: Api) ->
     assert job["scenario"]["learning"]["episodes"] == 50
     assert job["progress"] == {
         "episode": 0, "episodes": 50 + 20, "training_episodes": 50, "evaluation_worlds": 20,
-        "fraction": 0.0, "decisions": None, "training_decisions": None,
+        "fraction": 0.0, "decisions": None, "training_decisions": None, "training_curve": None,
     }  # fmt: skip
     # nothing to fetch yet: no result is advertised before it exists
     assert job["links"]["metrics"] is None and job["links"]["plots"] == {}

@@ -169,6 +169,25 @@ def test_cancel_cancels_the_queued_jobs_and_then_is_409(api: Api) -> None:
     assert api.client.post(f"/studies/{study['id']}/cancel").status_code == 200
 
 
+def test_a_studys_failed_jobs_are_retried_in_one_request(api: Api) -> None:
+    study = create(api, GRID)
+    assert_problem(api.client.post(f"/studies/{study['id']}/retry"), 409)  # none failed
+    failed = []
+    for _ in range(2):
+        claim = api.store.claim("test", lease_s=30)
+        assert claim is not None
+        failed.append(api.store.fail(claim, "the worker's machine ran out of memory").id)
+    retried = api.client.post(f"/studies/{study['id']}/retry")
+    assert retried.status_code == 200, retried.text
+    assert retried.json()["jobs"] == {**retried.json()["jobs"], "failed": 0, "queued": 12}
+    for job_id in failed:
+        job = api.client.get(f"/jobs/{job_id}").json()
+        assert (job["status"], job["attempts"], job["error"]) == ("queued", 0, None)
+    problem = assert_problem(api.client.post(f"/studies/{study['id']}/retry"), 409)
+    assert problem["type"].endswith("nothing-to-retry") and "nothing to retry" in problem["detail"]
+    assert_problem(api.client.post("/studies/99/retry"), 404)
+
+
 def test_unknown_studies_are_404(api: Api) -> None:
     for path in ("/studies/99", "/studies/99/results.csv", "/studies/99/plots/learning.png"):
         body = assert_problem(api.client.get(path), 404)

@@ -2,9 +2,12 @@ from __future__ import annotations
 
 from datetime import UTC, datetime, timedelta
 
+import pytest
 from sqlalchemy import event
 
 from nanonav.store import JobStatus, JobStore, Outcome, StudyJob, StudyStore
+from nanonav.store.errors import QuotaExceeded
+from nanonav.store.quotas import Quota
 
 LEASE_S = 30.0
 
@@ -56,3 +59,47 @@ def test_progress_sums_up_many_studies_in_one_query(store: JobStore) -> None:
     assert two.cancel_requested
     assert two.last_finished_at is not None and two.last_finished_at.tzinfo is not None
     assert studies.progress([]) == {}
+
+
+def test_a_studys_failed_jobs_are_queued_again_as_new_and_its_report_dropped(
+    store: JobStore,
+) -> None:
+    studies = StudyStore(store.engine)
+    made = study(studies, 3)
+    claims = [store.claim("w", lease_s=LEASE_S) for _ in range(3)]
+    assert all(claims)
+    first, second, third = claims
+    assert first and second and third
+    store.finish(first, Outcome(True, {"summary": {}}, None, None))
+    store.report_progress(second, episode=1, episodes=1, fraction=0.7, lease_s=LEASE_S)
+    store.fail(second, "boom")
+    store.fail(third, "bang")
+    studies.keep_report(made, {"metrics": ["kept"]})
+    studies.keep_plot(made, "learning", b"png")
+    assert studies.retry_failed(made) == [second.job.id, third.job.id]
+    for claim in (second, third):
+        job = store.get(claim.job.id)
+        assert (job.status, job.attempts, job.error, job.fraction) == (
+            JobStatus.QUEUED, 0, None, 0.0
+        )  # fmt: skip
+        assert job.started_at is None and job.finished_at is None
+    assert store.get(first.job.id).status is JobStatus.SUCCEEDED  # a success is kept
+    assert studies.get(made).report is None and studies.plot(made, "learning") is None
+    # they run again, claimed as any queued job; nothing failed is left to retry
+    again = store.claim("w", lease_s=LEASE_S)
+    assert again is not None and again.job.id == second.job.id and again.job.attempts == 1
+    assert studies.retry_failed(made) == []
+
+
+def test_retrying_a_studys_jobs_counts_against_the_quota(store: JobStore) -> None:
+    studies = StudyStore(store.engine)
+    made = study(studies, 2)
+    for _ in range(2):
+        claim = store.claim("w", lease_s=LEASE_S)
+        assert claim is not None
+        store.fail(claim, "boom")
+    store.enqueue({"seed": 9}, robot_steps=1, episodes=1)  # one active job of the key ''
+    with pytest.raises(QuotaExceeded):
+        studies.retry_failed(made, quota=Quota("", active_jobs=2, robot_steps=0))
+    assert studies.job_states(made)[0].status is JobStatus.FAILED  # nothing was queued
+    assert len(studies.retry_failed(made, quota=Quota("", active_jobs=3, robot_steps=0))) == 2

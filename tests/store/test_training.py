@@ -53,8 +53,24 @@ def test_a_checkpoint_is_kept_under_the_lease_and_read_back(store: JobStore) -> 
     assert store.get(job.id).decisions == 20
     with pytest.raises(LeaseLost):
         store.training.keep(job.id, "another token", decisions=30, data=b"x", curve=[])
-    store.training.resumed(job.id, claim.token, 20)
+    assert store.get(job.id).training_curve == CURVE * 2  # the page draws the kept rows
+    store.training.resumed(job.id, claim.token, 20, CURVE)
     assert store.get(job.id).resumed_from_decisions == 20
+    assert store.get(job.id).training_curve == CURVE
+
+
+def test_the_progress_writes_the_training_curve_as_it_grows(store: JobStore) -> None:
+    job = store.enqueue(TRAINS, robot_steps=10, episodes=1)
+    claim = store.claim("w", lease_s=LEASE_S, trains=True)
+    assert claim is not None
+    assert store.get(job.id).training_curve is None
+    progress = {"episode": 0, "episodes": 1, "fraction": 0.1, "lease_s": LEASE_S}
+    store.report_progress(claim, decisions=10, curve=CURVE, **progress)
+    assert store.get(job.id).training_curve == CURVE
+    store.report_progress(claim, decisions=15, **progress)  # no new row: the rows stay
+    assert (store.get(job.id).decisions, store.get(job.id).training_curve) == (15, CURVE)
+    store.report_progress(claim, decisions=20, curve=CURVE * 2, **progress)
+    assert store.get(job.id).training_curve == CURVE * 2
 
 
 @pytest.mark.parametrize("end", ["finish", "fail", "cancel queued", "expire"])
