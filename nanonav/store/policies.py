@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from sqlalchemy import Engine, delete, func, select
+from sqlalchemy import Engine, delete, func, select, update
 from sqlalchemy.orm import Session, defer
 
 from nanonav.store.arrays import pack, unpack
@@ -270,7 +270,8 @@ class PolicyStore:
 
     def delete(self, policy_id: int) -> None:
         """Forget the policy; PolicyInUse while queued or running jobs evaluate it (a job
-        queued while it is deleted fails, saying so, when a worker claims it)."""
+        queued while it is deleted fails, saying so, when a worker claims it). A job that
+        trained it names no trained policy any more."""
         with unit_of_work(self._sessions, write=True) as session:
             # Locked before the jobs are counted: a transaction queueing a job for this policy
             # (``hold_policies``) either commits first, and its job is counted, or waits and then
@@ -290,6 +291,13 @@ class PolicyStore:
             if job_ids:
                 raise PolicyInUse(policy_id, job_ids[:SHOWN_JOBS], len(job_ids))
             session.execute(delete(Policy).where(Policy.id == policy_id))
+            # a job that trained it no longer names it (a rare write: no index on the column)
+            session.execute(
+                update(Job)
+                .where(Job.trained_policy_id == policy_id)
+                .values(trained_policy_id=None)
+                .execution_options(synchronize_session=False)
+            )
 
 
 def evaluated_policies(sources: Iterable[object]) -> list[int]:

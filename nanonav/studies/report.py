@@ -84,17 +84,23 @@ def reported_metrics(jobs: Sequence[JobOutcome]) -> tuple[str, ...]:
     return PAPER_METRICS + given
 
 
-def learning_curve(document: dict[str, Any]) -> dict[str, list[float]]:
+def learning_curve(document: dict[str, Any]) -> dict[str, list[float | None]]:
     """A job's learning curve averaged in at most ``CURVE_POINTS`` bins of episodes (jobs of one
-    grid point have as many episodes, so they bin alike)."""
+    grid point have as many episodes, so they bin alike); of a network the job trained, also
+    its training curve's rows (``decisions``, ``training_success_rate``: None where no
+    training episode ended), which jobs of one grid point close at the same decisions."""
     episodes = document.get("episodes") or []
     bins = max(1, math.ceil(len(episodes) / CURVE_POINTS))
-    curve: dict[str, list[float]] = {"episode": [], **{key: [] for key in CURVE_KEYS}}
+    curve: dict[str, list[float | None]] = {"episode": [], **{key: [] for key in CURVE_KEYS}}
     for start in range(0, len(episodes), bins):
         chunk = episodes[start : start + bins]
         curve["episode"].append(float(np.mean([e["episode"] for e in chunk])))
         for key in CURVE_KEYS:
             curve[key].append(float(np.mean([float(e[key]) for e in chunk])))
+    rows = document.get("training_curve")
+    if rows:
+        curve["decisions"] = [float(row["decisions"]) for row in rows]
+        curve["training_success_rate"] = [row.get("success_rate") for row in rows]
     return curve
 
 

@@ -73,8 +73,9 @@ PictureName = Annotated[
     str,
     Path(
         pattern="^(" + "|".join(pictures.PICTURES) + ")$",
-        description="A metric (" + ", ".join(pictures.PICTURES[:-2]) + "), 'learning', or "
-        "'policies' (a study whose points learn Q-tables).",
+        description="A metric (" + ", ".join(pictures.PICTURES[:-3]) + "), 'learning', "
+        "'policies' (a study whose points learn Q-tables), or 'training' (a study whose points "
+        "train networks).",
     ),
 ]
 FINISHED = frozenset({"succeeded", "failed", "cancelled"})
@@ -381,8 +382,10 @@ async def get_study_plot(
     """A metric against the swept numeric parameter with CI bars, a line per compared method
     (grouped bars when no swept parameter is numeric), the mean learning curves, or the
     policies its points learned (the greedy action in their most visited states, counted over
-    seeds, with the action gap). 404 for one of the swarm's metrics while no job of the study
-    has it, and for policies where no point learns (its links name those it has)."""
+    seeds, with the action gap), or the training curves of the networks its points train
+    against the decisions trained, every other point a level of its evaluation. 404 for one
+    of the swarm's metrics while no job of the study has it, for policies where no point
+    learns, and for training where none trains (its links name those it has)."""
     png = await run_in_threadpool(studies.plot, study_id, kept_name(name, pictures.VERSION))
     if png is not None:
         return Response(png, media_type="image/png", headers=IMMUTABLE)
@@ -403,9 +406,16 @@ async def _draw(
 def _draw_now(
     studies: StudyStore, store: JobStore, study_id: int, name: str, finished: list[bool]
 ) -> bytes:
-    loaded = _Loaded.of(studies, studies.get(study_id), curves=name == "learning")
+    loaded = _Loaded.of(studies, studies.get(study_id), curves=name in ("learning", "training"))
     if name == "learning":
         png = pictures.learning_png(loaded.spec, point_values(loaded.spec), loaded.outcomes)
+    elif name == "training":
+        if not pictures.training_points(loaded.spec):
+            raise NoMetric(
+                f"no point of study {study_id} trains a network: only robots.policy ppo and "
+                "recurrent_ppo do"
+            )
+        png = pictures.training_png(loaded.spec, point_values(loaded.spec), loaded.outcomes)
     elif name == "policies":
         learning = set(pictures.learning_points(loaded.spec))
         if not learning:
@@ -499,7 +509,10 @@ def study_answer(studies: StudyStore, reports: Reports, record: StudyRecord) -> 
         jobs=JobCounts.of(counts),
         progress=found.work_done / max(total, 1),
         spec=record.spec,
-        links=_links(record.id, pictures.pictures_of(statistics, learns(record.spec))),
+        links=_links(
+            record.id,
+            pictures.pictures_of(statistics, learns(record.spec), trains(record.spec)),
+        ),
         **statistics,
     )
 
@@ -527,6 +540,16 @@ def learns(spec: Mapping[str, Any]) -> bool:
 def _learns(spec: str) -> bool:
     # a study's spec never changes: its points are validated once, not on every poll
     return bool(pictures.learning_points(StudySpec.model_validate(json.loads(spec))))
+
+
+def trains(spec: Mapping[str, Any]) -> bool:
+    """Whether a point of the study ``spec`` trains a network (it has a training picture)."""
+    return _trains(json.dumps(spec, sort_keys=True))
+
+
+@lru_cache(maxsize=256)
+def _trains(spec: str) -> bool:
+    return bool(pictures.training_points(StudySpec.model_validate(json.loads(spec))))
 
 
 def _links(study_id: int, plots: tuple[str, ...]) -> StudyLinks:

@@ -76,6 +76,20 @@
     document.getElementById("delete-row").hidden = false;
   }
 
+  // A finished study's failed jobs, queued again in one request; the page then follows them.
+  const retry = document.getElementById("retry");
+  if (retry) {
+    retry.addEventListener("click", async () => {
+      retry.disabled = true;
+      const answer = await nanonav.send("POST", `/studies/${studyId}/retry`);
+      if (answer.ok) { window.location.reload(); return; }
+      retry.disabled = false;
+      const error = document.getElementById("retry-error");
+      error.textContent = (answer.document && answer.document.detail) || `The server answered ${answer.status}.`;
+      error.hidden = false;
+    });
+  }
+
   nanonav.deleteButton(
     document.getElementById("delete"), `/studies/${studyId}`, `study #${studyId}`, "/ui/studies"
   );

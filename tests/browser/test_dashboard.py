@@ -170,6 +170,30 @@ def test_a_study_is_cancelled_from_its_page_once_confirmed(page: Page, site: Sit
     assert asked and asked[0].startswith(f"Cancel study #{study_id}?")
 
 
+def test_a_studys_failed_jobs_are_retried_from_its_page(page: Page, site: Site) -> None:
+    # no room for 300 obstacles: that point fails in the engine, and fails again when retried
+    crowded = {"robots": {"count": 10000}, "obstacles": {"radius": 3.0},
+               "learning": {"episodes": 0, "max_steps": 5}}  # fmt: skip
+    study = {"name": "to retry", "base": crowded, "grid": {"obstacles.count": [0, 300]},
+             "seeds": [1]}  # fmt: skip
+    study_id = httpx.post(f"{site.url}/studies", json=study).json()["id"]
+    page.goto(f"{site.url}/ui/studies/{study_id}")
+    expect(page.locator("#study-status")).to_have_text("failed", timeout=60_000)
+    page.reload()
+    expect(page.locator("#retry")).to_have_text("Retry its 1 failed job")
+    jobs = httpx.get(f"{site.url}/jobs", params={"study": study_id}).json()["jobs"]
+    [failed] = [job for job in jobs if job["status"] == "failed"]
+    with page.expect_navigation():  # the page reloads to follow the job queued again
+        page.click("#retry")
+    deadline = time.monotonic() + 60
+    while (again := httpx.get(f"{site.url}/jobs/{failed['id']}").json())["status"] != "failed":
+        assert time.monotonic() < deadline, again
+        time.sleep(0.2)
+    assert again["finished_at"] > failed["finished_at"]  # it ran again, and failed once more
+    assert again["attempts"] == 1  # counted anew
+    expect(page.locator("#study-status")).to_have_text("failed", timeout=60_000)
+
+
 def test_a_link_followed_as_the_job_ends_is_not_undone_by_the_page(page: Page, site: Site) -> None:
     # A job's page reloads itself when the job ends, to show the results. A user who has just
     # followed a link (here "Run again") must not be taken back: the reload would cancel the

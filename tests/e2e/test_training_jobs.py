@@ -163,3 +163,10 @@ def test_a_study_compares_a_rule_with_a_learner_trained_in_its_jobs(
     assert len(learners) == 3 and all(job["trained_policy"] for job in learners)
     # paired by seed: each seed's learner and rule met the same evaluation worlds
     assert sorted(job["scenario"]["seed"] for job in learners) == [1, 2, 3]
+    # the learner's training curve beside the rule's level, in one picture
+    training = done["links"]["plots"]["training"]
+    picture = api.client.get(training)
+    assert picture.status_code == 200, picture.text
+    decode_png(picture.content)
+    page = api.client.get(f"/ui/studies/{done['id']}").text
+    assert f"/studies/{done['id']}/plots/training.png" in page

@@ -117,6 +117,9 @@ def test_a_succeeded_job_keeps_its_network_as_a_policy_of_its_owner(store: JobSt
     policy = store.policies.get(finished.trained_policy_id)
     assert (policy.owner, policy.kind) == ("someone", "network")
     assert store.policies.table(policy.id)["model"].tobytes() == b"onnx"
+    # deleted later, it is no longer named by the job that trained it
+    store.policies.delete(policy.id)
+    assert store.get(finished.id).trained_policy_id is None
 
 
 def test_a_cancelled_training_keeps_no_network(store: JobStore) -> None:

@@ -25,7 +25,7 @@ LEARNING_PANELS = {
     "success_rate": "success rate",
     "mean_return": "mean return per robot",
 }
-PICTURES = (*METRICS, "learning", "policies")
+PICTURES = (*METRICS, "learning", "policies", "training")
 """Every picture a study can have; ``pictures_of`` says which a given study has."""
 HABIT_STATES = 3
 """The most visited states the policies picture shows for each grid point that learns."""
@@ -33,7 +33,7 @@ EVERY_STUDYS_PICTURES = (*PAPER_METRICS, "learning")
 """The pictures every study has, whatever its jobs report."""
 SECONDS_PANEL = "time per episode (s)"
 """The first learning panel of a study whose every point is active Brownian: steps x dt_s."""
-VERSION = 6
+VERSION = 7
 """The version of the drawing of every picture of a study: it goes up when a picture drawn
 before would now be drawn differently, so that a copy kept of the older drawing is drawn again.
 2: series and groups named in words (``robots policy: q_learning``, not
@@ -45,7 +45,13 @@ training episodes says so, and the wall-clock duration is no metric. 5: a share 
 has the interval of its seeds' pooled trials (``nanonav.stats.describe_share``), so a perfect
 column no longer draws the longest bar. 6: a study that compares draws its paired
 differences beside the means (a forest plot, Holm-adjusted p marked), and a policy that learns
-nothing is a level on the learning curves, not a curve."""
+nothing is a level on the learning curves, not a curve. 7: a study whose points train networks
+draws their training curves against the decisions trained, beside every other point's level
+(``training``)."""
+TRAINING_PANEL = "success rate"
+"""The training picture's one panel: a learner's training episodes, a fixed point's evaluation."""
+NO_TRAINING = "no network of this study has finished its training yet"
+"""What the training picture of a study none of whose learners has succeeded yet says."""
 NO_EPISODES = "no training episodes in this study"
 """What the learning picture of a study whose finished jobs trained for no episode says."""
 
@@ -85,11 +91,15 @@ def _label(values: dict[str, GridValue], keys: Sequence[str]) -> str:
     return ", ".join(f"{readable_key(k)}: {_readable_value(values[k])}" for k in keys)
 
 
-def pictures_of(report: dict[str, Any], learns: bool = False) -> tuple[str, ...]:
+def pictures_of(
+    report: dict[str, Any], learns: bool = False, trains: bool = False
+) -> tuple[str, ...]:
     """The pictures of the study ``report`` describes: a chart of each metric it reports (the
     swarm's only once a job has them: ``nanonav.studies.report.reported_metrics``), the
-    learning curves, and if any of its points ``learns`` (``learning_points``), its policies."""
-    return (*(m for m in METRICS if m in report["metrics"]), "learning", *policies_of(learns))
+    learning curves, if any of its points ``learns`` (``learning_points``) its policies, and
+    if any ``trains`` a network (``training_points``) the training curves."""
+    metrics = (m for m in METRICS if m in report["metrics"])
+    return (*metrics, "learning", *policies_of(learns), *(("training",) if trains else ()))
 
 
 def policies_of(learns: bool) -> tuple[str, ...]:
@@ -105,6 +115,75 @@ def learning_points(spec: StudySpec) -> list[int]:
         for p in points(spec)
         if p.scenario.robots.policy == "q_learning" and p.scenario.learning.episodes > 0
     ]
+
+
+def training_points(spec: StudySpec) -> list[int]:
+    """The grid points whose jobs train a network (robots.policy ppo, recurrent_ppo): those
+    the training picture draws as curves."""
+    return [p.index for p in points(spec) if p.scenario.trains]
+
+
+def training_png(
+    spec: StudySpec, values: Sequence[dict[str, GridValue]], jobs: Sequence[JobOutcome]
+) -> bytes:
+    """Does the learner beat the rule, as its training went: each point that trains a network
+    as a curve of its training episodes' success rate against the decisions trained (the mean
+    over its succeeded seeds, with their CI; the actions sampled, as it trains), and every
+    other point as a level, its evaluation's success rate over its seeds with their CI, drawn
+    across the same decisions. A learner's own evaluation (greedy) is in the success_rate
+    picture beside the rule's, paired by seed."""
+    trained = set(training_points(spec))
+    succeeded = [job for job in jobs if job.status == "succeeded"]
+    curves: dict[int, list[dict[str, list[Any]]]] = {}
+    for job in succeeded:
+        if job.point in trained and job.curve is not None and job.curve.get("decisions"):
+            curves.setdefault(job.point, []).append(job.curve)
+    reach = max((c["decisions"][-1] for found in curves.values() for c in found), default=0.0)
+    series: list[charts.Series] = []
+    for index, point_values in enumerate(values):
+        label = _label(point_values, list(spec.grid)) or "base scenario"
+        if index in trained:
+            found = curves.get(index, [])
+            length = min((len(c["decisions"]) for c in found), default=0)
+            if length == 0:
+                continue
+            described = []
+            for row in range(length):
+                shares = [c["training_success_rate"][row] for c in found]
+                kept = [float(s) for s in shares if s is not None]
+                described.append(stats.describe(kept, bounds=(0.0, 1.0)) if kept else None)
+            series.append(
+                charts.Series(
+                    label,
+                    found[0]["decisions"][:length],
+                    [None if d is None else d.mean for d in described],
+                    [None if d is None else d.ci_low for d in described],
+                    [None if d is None else d.ci_high for d in described],
+                )
+            )
+        elif reach > 0:
+            rates = [
+                float(job.metrics["success_rate"])
+                for job in succeeded
+                if job.point == index and job.metrics is not None
+                and job.metrics.get("success_rate") is not None
+            ]  # fmt: skip
+            if not rates:
+                continue
+            level = stats.describe(rates, bounds=(0.0, 1.0))
+            series.append(
+                charts.Series(
+                    label, [0.0, reach], [level.mean] * 2, [level.ci_low] * 2,
+                    [level.ci_high] * 2, level=True,
+                )
+            )  # fmt: skip
+    return charts.learning_png(
+        {TRAINING_PANEL: series} if series else {},
+        title=f"{spec.name or 'Study'}: training curves (learners) and evaluations (fixed)",
+        empty=NO_TRAINING,
+        shares={TRAINING_PANEL},
+        x_label="decisions trained",
+    )
 
 
 def policies_png(

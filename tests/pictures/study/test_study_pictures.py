@@ -14,6 +14,7 @@ from matplotlib.lines import Line2D
 from nanonav.pictures.figure import png as figure_png
 from nanonav.pictures.study import (
     NO_EPISODES,
+    NO_TRAINING,
     SECONDS_PANEL,
     axis_key,
     charts,
@@ -21,6 +22,8 @@ from nanonav.pictures.study import (
     learning_points,
     metric_png,
     policies_png,
+    training_png,
+    training_points,
 )
 from nanonav.studies.report import METRICS, JobOutcome, learning_curve, report
 from nanonav.studies.spec import StudySpec, point_values
@@ -303,3 +306,44 @@ def test_a_policy_that_learns_nothing_is_a_level_on_the_learning_curves(
     assert list(learner.get_ydata()) == pytest.approx(np.mean(learned, axis=0).tolist())
     legend = [t.get_text() for t in drawn.figures[-1].legends[0].get_texts()]
     assert legend == ["robots policy: q_learning", "robots policy: gradient (fixed: its mean)"]
+
+
+def test_the_training_picture_draws_each_learner_as_a_curve_and_each_rule_as_a_level(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A study of gradient against ppo: ppo's training curve, the mean of its seeds' training
+    success at each row's decisions, and gradient's evaluation success as a dashed level
+    across the same decisions."""
+    study = StudySpec.model_validate({
+        "base": {"preset": "alonso-kirkegaard", "learning": {"decisions": 131_072}},
+        "grid": {"robots.policy": ["gradient", "ppo"]}, "seeds": [0, 1],
+        "compare": "robots.policy",
+    })  # fmt: skip
+    assert training_points(study) == [1]
+    rows = [[0.2, 0.4], [0.4, 0.6]]  # the two seeds' training success at the two rows
+    jobs = [JobOutcome(10 + seed, 0, seed, "succeeded", {"success_rate": 0.5 + 0.1 * seed})
+            for seed in (0, 1)]  # fmt: skip
+    for seed in (0, 1):
+        document = {"summary": {}, "episodes": [], "training_curve": [
+            {"decisions": d, "episodes": 8, "success_rate": s, "return": 1.0}
+            for d, s in zip((65_536, 131_072), rows[seed], strict=True)
+        ]}  # fmt: skip
+        jobs.append(JobOutcome(20 + seed, 1, seed, "succeeded", {"success_rate": 0.1},
+                               learning_curve(document)))  # fmt: skip
+    drawn = Drawn(monkeypatch)
+    image = decode(training_png(study, point_values(study), jobs))
+    assert image[..., :3].std() > 0.01
+    [figure] = drawn.figures
+    [ax] = figure.axes
+    lines = [line for line in ax.get_lines() if len(line.get_xdata()) > 1]
+    curve = [line for line in lines if line.get_linestyle() != "--"]
+    level = [line for line in lines if line.get_linestyle() == "--"]
+    assert len(curve) == 1 and len(level) == 1
+    assert list(curve[0].get_xdata()) == [65_536, 131_072]
+    assert list(curve[0].get_ydata()) == pytest.approx([0.3, 0.5])
+    assert list(level[0].get_ydata()) == pytest.approx([0.55, 0.55])  # gradient's evaluation
+    assert ax.get_xlabel() == "decisions trained"
+    # a study none of whose learners has succeeded yet says so
+    waiting = [j for j in jobs if j.point == 0]
+    decode(training_png(study, point_values(study), waiting))
+    assert NO_TRAINING in drawn.texts()

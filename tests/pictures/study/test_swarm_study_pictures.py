@@ -36,8 +36,10 @@ def test_a_papers_study_has_no_picture_of_the_swarms_numbers() -> None:
 
 def test_a_swarms_study_draws_each_of_the_swarms_numbers() -> None:
     found = report(SPEC, point_values(SPEC), jobs(swarm=True))
-    assert pictures_of(found) == PICTURES[:-1]  # no policies: a picture of learning points
-    assert pictures_of(found, learns=True) == PICTURES
+    # no policies (a picture of learning points), no training (of points that train)
+    assert pictures_of(found) == PICTURES[:-2]
+    assert pictures_of(found, learns=True) == PICTURES[:-1]
+    assert pictures_of(found, learns=True, trains=True) == PICTURES
     drawn = {key: metric_png(SPEC, found, key) for key in SWARM_METRICS}
     for png in drawn.values():
         assert_picture(png, (800, 500))
