@@ -117,6 +117,9 @@ def learning_points(spec: StudySpec) -> list[int]:
     ]
 
 
+_DECISION_UNITS = ((1e6, " (millions)"), (1e3, " (thousands)"), (1.0, ""))
+
+
 def training_points(spec: StudySpec) -> list[int]:
     """The grid points whose jobs train a network (robots.policy ppo, recurrent_ppo): those
     the training picture draws as curves."""
@@ -139,6 +142,8 @@ def training_png(
         if job.point in trained and job.curve is not None and job.curve.get("decisions"):
             curves.setdefault(job.point, []).append(job.curve)
     reach = max((c["decisions"][-1] for found in curves.values() for c in found), default=0.0)
+    # decisions in millions or thousands: a reader sees the figures, not an offset in a corner
+    scale, unit = next((s, u) for s, u in _DECISION_UNITS if reach >= s or s == 1)
     series: list[charts.Series] = []
     for index, point_values in enumerate(values):
         label = _label(point_values, list(spec.grid)) or "base scenario"
@@ -155,7 +160,7 @@ def training_png(
             series.append(
                 charts.Series(
                     label,
-                    found[0]["decisions"][:length],
+                    [d / scale for d in found[0]["decisions"][:length]],
                     [None if d is None else d.mean for d in described],
                     [None if d is None else d.ci_low for d in described],
                     [None if d is None else d.ci_high for d in described],
@@ -173,7 +178,7 @@ def training_png(
             level = stats.describe(rates, bounds=(0.0, 1.0))
             series.append(
                 charts.Series(
-                    label, [0.0, reach], [level.mean] * 2, [level.ci_low] * 2,
+                    label, [0.0, reach / scale], [level.mean] * 2, [level.ci_low] * 2,
                     [level.ci_high] * 2, level=True,
                 )
             )  # fmt: skip
@@ -182,7 +187,8 @@ def training_png(
         title=f"{spec.name or 'Study'}: training curves (learners) and evaluations (fixed)",
         empty=NO_TRAINING,
         shares={TRAINING_PANEL},
-        x_label="decisions trained",
+        x_label=f"decisions trained{unit}",
+        whole_x=False,
     )
 
 

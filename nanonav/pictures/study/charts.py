@@ -508,10 +508,11 @@ def learning_png(
     empty: str = NO_DATA,
     shares: Collection[str] = (),
     x_label: str = "episode",
+    whole_x: bool = True,
 ) -> bytes:
     """Mean learning curves with their confidence bands, one panel per quantity (the key is the
     panel's y label), stacked on a shared axis of episodes (or ``x_label``) with whole-numbered
-    ticks.
+    ticks (unless not ``whole_x``).
 
     Curves longer than ``MAX_CURVE_POINTS`` are drawn as bin averages (of the mean and of each
     bound), so thousands of episodes draw quickly. A ``level`` series (a policy that learns
@@ -541,7 +542,8 @@ def learning_png(
             ax.set_ylim(*SHARE_LIMITS)
         drawn = True
     axes[-1].set_xlabel(x_label, fontsize=_LABEL_SIZE)
-    axes[-1].xaxis.set_major_locator(MaxNLocator(integer=True))
+    if whole_x:
+        axes[-1].xaxis.set_major_locator(MaxNLocator(integer=True))
     if title:
         fig.suptitle(title, fontsize=_TITLE_SIZE)
     if drawn:

@@ -339,10 +339,10 @@ def test_the_training_picture_draws_each_learner_as_a_curve_and_each_rule_as_a_l
     curve = [line for line in lines if line.get_linestyle() != "--"]
     level = [line for line in lines if line.get_linestyle() == "--"]
     assert len(curve) == 1 and len(level) == 1
-    assert list(curve[0].get_xdata()) == [65_536, 131_072]
+    assert list(curve[0].get_xdata()) == [65.536, 131.072]
     assert list(curve[0].get_ydata()) == pytest.approx([0.3, 0.5])
     assert list(level[0].get_ydata()) == pytest.approx([0.55, 0.55])  # gradient's evaluation
-    assert ax.get_xlabel() == "decisions trained"
+    assert ax.get_xlabel() == "decisions trained (thousands)"
     # a study none of whose learners has succeeded yet says so
     waiting = [j for j in jobs if j.point == 0]
     decode(training_png(study, point_values(study), waiting))
