@@ -30,17 +30,17 @@ from dataclasses import MISSING, Field, dataclass, field, fields
 from datetime import datetime
 from pathlib import Path
 from types import TracebackType
-from typing import Any, Literal, TypeVar, cast
+from typing import Any, TypeVar, cast
 
 import httpx
 import numpy as np
 from numpy.typing import NDArray
 
 import nanonav
+from nanonav.status import FINISHED
+from nanonav.status import Status as Status  # a public name of the client too
 
-Status = Literal["queued", "running", "succeeded", "failed", "cancelled"]
 GridValue = bool | int | float | str | None
-FINISHED: frozenset[str] = frozenset({"succeeded", "failed", "cancelled"})
 # A job's pictures by name: the path under /jobs/{id}/ and its query.
 JOB_PICTURES: dict[str, tuple[str, dict[str, str]]] = {
     **{f"heatmap_{p}": ("heatmap.png", {"plane": p}) for p in ("xy", "xz", "yz", "all")},

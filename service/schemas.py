@@ -23,10 +23,10 @@ from nanonav.engine.worlds import OBSERVATION_LABELS
 from nanonav.pictures import job as job_pictures
 from nanonav.policy import MAX_ACTIONS, MAX_Q, MAX_STATES, MAX_TABLES, UNVISITED
 from nanonav.scenario import TRAINING_DECISIONS, ActionSet, CommunicationModel
+from nanonav.status import Status
 from nanonav.store import JobRecord, JobStatus, PolicyRecord, policy_name
 from service.paging import CURSOR_PATTERN
 
-Status = Literal["queued", "running", "succeeded", "failed", "cancelled"]
 PLOTS = ("trajectory", "concentration", "learning", "qtable", "treatment")
 PLANES = ("xy", "xz", "yz", "all")
 
@@ -723,9 +723,7 @@ class StudySummary(BaseModel):
 
     id: int
     name: str
-    status: Literal["queued", "running", "succeeded", "failed", "cancelled"] = Field(
-        description=STUDY_STATUS_DOC
-    )
+    status: Status = Field(description=STUDY_STATUS_DOC)
     created_at: datetime
     cancel_requested: bool
     jobs: JobCounts

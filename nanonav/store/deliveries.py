@@ -25,6 +25,7 @@ from sqlalchemy.orm import Session
 
 from nanonav.store.db import make_sessionmaker, unit_of_work
 from nanonav.store.models import (
+    ENDED,
     Delivery,
     DeliveryState,
     Job,
@@ -36,7 +37,6 @@ from nanonav.store.models import (
 from nanonav.studies.report import status_of
 from nanonav.webhooks import normalised
 
-FINISHED = (JobStatus.SUCCEEDED, JobStatus.FAILED, JobStatus.CANCELLED)
 PROMOTE_BATCH = 100
 ERROR_LENGTH = 500
 
@@ -313,11 +313,11 @@ def _ended() -> Any:
     """Deliveries whose job or study has ended (or was deleted): theirs is to be sent."""
     job_ended = and_(
         Delivery.job_id.is_not(None),
-        exists().where(Job.id == Delivery.job_id, Job.status.in_(FINISHED)),
+        exists().where(Job.id == Delivery.job_id, Job.status.in_(ENDED)),
     )
     study_ended = and_(
         Delivery.study_id.is_not(None),
-        ~exists().where(Job.study_id == Delivery.study_id, Job.status.not_in(FINISHED)),
+        ~exists().where(Job.study_id == Delivery.study_id, Job.status.not_in(ENDED)),
     )
     orphaned = and_(Delivery.job_id.is_(None), Delivery.study_id.is_(None))
     return or_(job_ended, study_ended, orphaned)

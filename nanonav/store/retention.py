@@ -28,9 +28,17 @@ from nanonav.store.errors import (
     StudyNotFinished,
     StudyNotFound,
 )
-from nanonav.store.models import Delivery, Job, JobPlot, JobResult, JobStatus, Study, StudyPlot
+from nanonav.store.models import (
+    ENDED,
+    Delivery,
+    Job,
+    JobPlot,
+    JobResult,
+    JobStatus,
+    Study,
+    StudyPlot,
+)
 
-FINISHED = (JobStatus.SUCCEEDED, JobStatus.FAILED, JobStatus.CANCELLED)
 RETENTION_BATCH = 100
 
 
@@ -67,7 +75,7 @@ def delete_study(session: Session, study_id: int, *, now: datetime) -> None:
     if session.scalars(query).one_or_none() is None:
         raise StudyNotFound(study_id)
     unfinished = session.scalar(
-        select(func.count()).where(Job.study_id == study_id, Job.status.not_in(FINISHED))
+        select(func.count()).where(Job.study_id == study_id, Job.status.not_in(ENDED))
     )
     if unfinished:
         raise StudyNotFinished(study_id, int(unfinished))
@@ -90,14 +98,14 @@ class RetentionStore:
         now = now or datetime.now(UTC)
         jobs_query = (
             select(Job.id)
-            .where(Job.study_id.is_(None), Job.status.in_(FINISHED), Job.finished_at < before)
+            .where(Job.study_id.is_(None), Job.status.in_(ENDED), Job.finished_at < before)
             .order_by(Job.id)
             .limit(batch)
             .with_for_update(skip_locked=True)
         )
         still_recent = exists().where(
             Job.study_id == Study.id,
-            or_(Job.status.not_in(FINISHED), Job.finished_at.is_(None), Job.finished_at >= before),
+            or_(Job.status.not_in(ENDED), Job.finished_at.is_(None), Job.finished_at >= before),
         )
         has_jobs = exists().where(Job.study_id == Study.id)
         studies_query = (

@@ -12,13 +12,14 @@ import math
 from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
 
 from nanonav import stats
 from nanonav.engine.metrics import RANGES, SHARES_OF, SWARM
 from nanonav.scenario import Scenario
+from nanonav.status import STATUSES, Status
 from nanonav.studies.spec import GridValue, StudySpec, points
 
 # The paper's Table 1, then success, collisions and path efficiency: every study reports them.
@@ -52,7 +53,6 @@ def trials(scenario: Scenario, metric: str) -> int:
 # A job's learning curve is kept at most this many points long (episodes averaged in bins).
 CURVE_POINTS = 200
 CURVE_KEYS = ("steps", "success_rate", "mean_return")
-STATUSES = ("queued", "running", "succeeded", "failed", "cancelled")
 
 
 @dataclass(frozen=True)
@@ -104,7 +104,7 @@ def learning_curve(document: dict[str, Any]) -> dict[str, list[float | None]]:
     return curve
 
 
-StudyStatus = Literal["queued", "running", "succeeded", "failed", "cancelled"]
+StudyStatus = Status  # a study's status: its jobs', and cancelled once a cancel was asked
 
 
 def status_of(counts: Mapping[str, int], cancel_requested: bool) -> StudyStatus:

@@ -21,13 +21,13 @@ from fastapi import APIRouter, Depends, Header, Request
 from fastapi.responses import Response
 from fastapi.sse import EventSourceResponse, ServerSentEvent
 
+from nanonav.status import FINISHED
 from nanonav.store import JobRecord, JobStore, StudyNotFound, StudyProgress, StudyStore
 from nanonav.studies.report import status_of
 from service.deps import JobEventsDep, StoreDep, StudiesDep, StudyEventsDep
 from service.events import Channel, Snapshot, StreamLimits
 from service.ids import JobId, StudyId
 from service.problems import PROBLEM_JSON, EventsUnavailable
-from service.routes.studies import FINISHED
 from service.schemas import Job, JobCounts, StudyState
 from service.security import caller_of
 

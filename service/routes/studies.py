@@ -13,6 +13,7 @@ from fastapi.concurrency import run_in_threadpool
 from pydantic import ValidationError
 
 from nanonav.pictures import study as pictures
+from nanonav.status import FINISHED
 from nanonav.store import (
     JobStore,
     StudyJob,
@@ -78,7 +79,6 @@ PictureName = Annotated[
         "train networks).",
     ),
 ]
-FINISHED = frozenset({"succeeded", "failed", "cancelled"})
 
 STUDY_EXAMPLES: dict[str, Any] = {
     "policies": {
