@@ -15,7 +15,7 @@ export HOST PORT
 # a test process's collection).
 unexport PYTHONDONTWRITEBYTECODE
 
-.PHONY: run test test-fast format compile-ahead lint typecheck pytest docs docs-check bench clean clean-compiled
+.PHONY: run test test-fast hooks format compile-ahead lint typecheck pytest docs docs-check bench clean clean-compiled
 
 PIP := $(BIN)/python -m pip install --quiet
 
@@ -79,6 +79,10 @@ pytest: $(VENV)/.installed-test
 # while working (make test, and CI, run them all).
 test-fast: $(VENV)/.installed-test
 	$(BIN)/python -m pytest -q -n $(TEST_PROCESSES) -m "not e2e and not browser and not benchmark"
+
+# ruff and mypy before each commit (.pre-commit-config.yaml), with the tools `make test` runs.
+hooks: $(VENV)/.installed-test
+	$(BIN)/pre-commit install
 
 # Formats the code and applies ruff's safe fixes, as `make test`'s lint then expects.
 format: $(VENV)/.installed-test

@@ -17,12 +17,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from nanonav.engine import qlearning
-from nanonav.engine.worlds import (
-    BODY_GRADIENT_LABELS,
-    OBSERVATION_LABELS,
-    observation_of,
-    possible_observations,
-)
+from nanonav.engine.labels import BODY_GRADIENT_LABELS, OBSERVATION_LABELS
+from nanonav.engine.worlds import observation_of, possible_observations
 from nanonav.rl.evaluate import REMEMBERS_AT_ONCE, decides_at_once
 from nanonav.scenario import (
     ActionSet,

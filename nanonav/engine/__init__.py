@@ -1,15 +1,41 @@
 """The simulation engine: fields, world, policies, Q-learning, metrics.
 
 It knows nothing of HTTP or SQL: a scenario goes in, plain arrays and dicts come out.
+
+Its public names are imported when first asked for (PEP 562), so that a process that reads
+only the engine's plain data (``labels``, ``qlearning``'s tables of states, ``metrics``'
+ranges) never loads numba and the compiled kernel: the API does not, until it draws. A module
+that compiles imports ``compiled`` first, which points numba's cache at the engine's folder.
 """
 
-# first: numba's cache is pointed at the folder of this engine's digest before anything of
-# the engine is compiled or loaded (``compiled.keep_compiled_code``)
-from nanonav.engine import compiled  # noqa: F401  # isort: skip
-from nanonav.engine.fields import field_and_gradient
-from nanonav.engine.result import QTable, SimulationResult, Trajectory, without_timings
-from nanonav.engine.simulate import Progress, ProgressCallback, compiled_here, simulate
+from __future__ import annotations
 
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from nanonav.engine.fields import field_and_gradient as field_and_gradient
+    from nanonav.engine.result import QTable as QTable
+    from nanonav.engine.result import SimulationResult as SimulationResult
+    from nanonav.engine.result import Trajectory as Trajectory
+    from nanonav.engine.result import without_timings as without_timings
+    from nanonav.engine.simulation import Progress as Progress
+    from nanonav.engine.simulation import ProgressCallback as ProgressCallback
+    from nanonav.engine.simulation import compiled_here as compiled_here
+    from nanonav.engine.simulation import simulate as simulate
+
+# where each public name lives
+_HOMES = {
+    "Progress": "simulation",
+    "ProgressCallback": "simulation",
+    "QTable": "result",
+    "SimulationResult": "result",
+    "Trajectory": "result",
+    "compiled_here": "simulation",
+    "field_and_gradient": "fields",
+    "simulate": "simulation",
+    "without_timings": "result",
+}
 __all__ = [
     "Progress",
     "ProgressCallback",
@@ -21,3 +47,13 @@ __all__ = [
     "simulate",
     "without_timings",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    """A public name of the engine, imported from its module the first time it is asked for."""
+    home = _HOMES.get(name)
+    if home is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"{__name__}.{home}"), name)
+    globals()[name] = value
+    return value

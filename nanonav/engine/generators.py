@@ -16,6 +16,9 @@ import ctypes
 from typing import Any
 
 import numpy as np
+
+# first: numba's cache is pointed at the engine's folder before this module compiles
+from nanonav.engine import compiled  # noqa: F401  # isort: skip
 from numba import njit, types
 from numba.core import cgutils
 from numba.extending import intrinsic

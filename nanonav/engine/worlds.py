@@ -18,7 +18,8 @@ from numpy.typing import NDArray
 
 from nanonav.engine import phases, qlearning, stepping
 from nanonav.engine.generators import handle
-from nanonav.engine.simulate import (
+from nanonav.engine.labels import BODY_GRADIENT_LABELS, OBSERVATION_LABELS
+from nanonav.engine.simulation import (
     DEFAULT_RECORD_BYTES,
     empty_recording,
     episode_arrays,
@@ -40,19 +41,6 @@ _NO_HISTORY_CAP = 2**62
 # The bound of a column with none (as Gymnasium's CartPole bounds its velocities): finite, so
 # that a learner may normalise by it.
 UNBOUNDED = float(np.finfo(np.float32).max)
-OBSERVATION_LABELS = (
-    "reading",
-    "reading_change",
-    "gradient_x",
-    "gradient_y",
-    "gradient_z",
-    "obstacle",
-    "cell",
-    "signal",
-    "signal_change",
-)
-# The gradient's columns where robots steer continuously: read each step in the body frame.
-BODY_GRADIENT_LABELS = ("gradient_forward", "gradient_side", "gradient_up")
 
 
 def as_scenario(scenario: Scenario | Mapping[str, Any] | None) -> Scenario:

@@ -28,7 +28,7 @@ from numpy.typing import NDArray
 from nanonav.engine import metrics, phases, state
 from nanonav.engine.kernel import tally_evaluation
 from nanonav.engine.result import SimulationResult
-from nanonav.engine.simulate import (
+from nanonav.engine.simulation import (
     DEFAULT_RECORD_BYTES,
     Progress,
     ProgressCallback,

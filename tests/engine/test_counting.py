@@ -20,7 +20,7 @@ from scipy.integrate import quad
 
 from nanonav.engine import phases, sensing, simulate
 from nanonav.engine.phases import Sim
-from nanonav.engine.simulate import Run, kernel_params
+from nanonav.engine.simulation import Run, kernel_params
 from nanonav.engine.state import KernelParams, Swarm
 from nanonav.scenario import PRESETS, Scenario, preset_scenario
 

@@ -11,7 +11,7 @@ import pytest
 from pydantic import ValidationError
 
 from nanonav.engine import qlearning, simulate
-from nanonav.engine.simulate import kernel_params
+from nanonav.engine.simulation import kernel_params
 from nanonav.engine.worlds import Worlds
 from nanonav.scenario import Scenario, deep_merge
 

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from nanonav.engine import SimulationResult, Trajectory, simulate, without_timings
-from nanonav.engine.simulate import (
+from nanonav.engine.simulation import (
     CHUNK_ROBOT_STEPS,
     DEFAULT_RECORD_BYTES,
     Run,

@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 from pydantic import ValidationError
 
 from nanonav.engine.fields import MODEL_CODES
-from nanonav.engine.simulate import kernel_params
+from nanonav.engine.simulation import kernel_params
 from nanonav.scenario import (
     BROWNIAN_POLICIES,
     BROWNIAN_SIGNAL,

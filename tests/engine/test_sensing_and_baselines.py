@@ -12,7 +12,7 @@ import pytest
 
 from nanonav.engine import qlearning, sensing, simulate
 from nanonav.engine.result import without_timings
-from nanonav.engine.simulate import Run, kernel_params
+from nanonav.engine.simulation import Run, kernel_params
 from nanonav.scenario import Scenario, preset_scenario
 
 

@@ -11,7 +11,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from nanonav.engine import communication, sensing
-from nanonav.engine.simulate import Run, kernel_params
+from nanonav.engine.simulation import Run, kernel_params
 from nanonav.engine.state import KernelParams, Social
 from nanonav.scenario import Scenario, preset_scenario
 

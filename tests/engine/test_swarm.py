@@ -20,7 +20,7 @@ from scipy.spatial import cKDTree
 from nanonav.engine import fields, metrics, qlearning
 from nanonav.engine.contacts import grid_for, rebuild
 from nanonav.engine.result import SimulationResult, Trajectory, without_timings
-from nanonav.engine.simulate import simulate
+from nanonav.engine.simulation import simulate
 from nanonav.engine.worlds import Worlds
 from nanonav.scenario import Scenario, ScenarioError
 
@@ -504,7 +504,13 @@ def test_each_swarm_field_out_of_bounds_is_refused_by_name(
     ],
 )  # fmt: skip
 def test_the_swarm_fields_within_bounds_are_accepted(data: dict[str, Any]) -> None:
-    Scenario.model_validate(data)
+    accepted = Scenario.model_validate(data).model_dump(mode="json")
+    for section, given in data.items():  # each value given is the one kept, none adjusted
+        if section == "preset":
+            assert accepted["preset"] == given
+            continue
+        for name, value in given.items():
+            assert accepted[section][name] == value, (section, name)
 
 
 def test_a_swimmer_that_slides_on_a_contact_is_listed_where_it_ends_for_the_radio() -> None:

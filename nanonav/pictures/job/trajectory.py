@@ -17,7 +17,7 @@ from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 from numpy.typing import NDArray
 
 from nanonav.engine import SimulationResult, Trajectory
-from nanonav.engine.simulate import swarm_metrics
+from nanonav.engine.simulation import swarm_metrics
 from nanonav.pictures.figure import png
 from nanonav.pictures.job.common import (
     CELL_RED,

@@ -18,7 +18,7 @@ from matplotlib.ticker import MaxNLocator
 from numpy.typing import NDArray
 
 from nanonav.engine import SimulationResult, Trajectory
-from nanonav.engine.simulate import swarm_metrics
+from nanonav.engine.simulation import swarm_metrics
 from nanonav.pictures.figure import png
 from nanonav.pictures.job.common import (
     CELL_RED,
