@@ -55,7 +55,7 @@ from science import mean_ci
 
 from nanonav import stats
 from nanonav.engine import simulate
-from nanonav.engine.worlds import action_labels, observation_of
+from nanonav.engine.observations import action_labels, observation_of
 from nanonav.rl.evaluate import evaluate
 from nanonav.rl.onnx_policy import NetworkPolicy
 from nanonav.rl.rules import TurnUpGradient

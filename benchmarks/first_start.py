@@ -36,6 +36,12 @@ from against import REPO, worktree
 TARGET_S = 60.0
 TARGET_BYTES = 1.5e9
 ENV_STEPS = 20
+# the observation's layout, where the tree at hand keeps it (engine/worlds.py before
+# engine/observations.py), so that an old tree and a new one run the same start
+OBSERVATIONS = (
+    "try:\n    from nanonav.engine.observations import action_labels, observation_of\n"
+    "except ImportError:\n    from nanonav.engine.worlds import action_labels, observation_of\n"
+)
 STARTS = {
     "nanonav run": "from nanonav.cli import main; raise SystemExit(main(['run', '--preset', "
     "'paper-single', '--out', {out!r}]))",
@@ -47,8 +53,7 @@ STARTS = {
     "    _, _, ended, cut, _ = env.step(env.action_space.sample())\n"
     "    if ended or cut: env.reset()",
     # the model read from a file, as a user's trained network is (``MODEL`` made it, untimed)
-    "network policy": "from pathlib import Path; "
-    "from nanonav.engine.worlds import action_labels, observation_of; "
+    "network policy": OBSERVATIONS + "from pathlib import Path; "
     "from nanonav.rl.evaluate import evaluate; from nanonav.rl.onnx_policy import NetworkPolicy; "
     "from nanonav.scenario import Scenario; "
     "s = Scenario.model_validate({{'preset': 'paper-single', 'learning': {{'episodes': 0}}}}); "
@@ -61,8 +66,7 @@ STARTS = {
 # package (2.3 s of imports) is not part of evaluating one.
 MODEL = (
     "import sys; sys.path.insert(0, {benchmarks!r}); from pathlib import Path; "
-    "from network_policy import mlp; "
-    "from nanonav.engine.worlds import action_labels, observation_of; "
+    "from network_policy import mlp\n" + OBSERVATIONS + "from pathlib import Path; "
     "from nanonav.scenario import Scenario; "
     "s = Scenario.model_validate({{'preset': 'paper-single', 'learning': {{'episodes': 0}}}}); "
     "Path({model!r}).write_bytes(mlp(observation_of(s).columns.size, len(action_labels(s))))"

@@ -21,7 +21,7 @@ timing the evaluation alone (onnxruntime's session and numba are warmed up first
 least 1,000,000 robot-steps/s with a decision every step.
 
 Each case also prints what the work budget predicts the evaluation costs (``Scenario.work``
-and ``rl.evaluate.decision_work`` for the network, in seconds at a nanosecond a unit) beside
+and ``scenario.work.decision_work`` for the network, in seconds at a nanosecond a unit) beside
 what it took. ``--against REV`` measures the network, case by case, at a git revision and in
 this tree alternately (``against.py``): before and after a change to how a network is run.
 """
@@ -46,7 +46,11 @@ from against import side_by_side
 from env import REPEATS, median_rate
 
 from nanonav.engine import qlearning, simulate
-from nanonav.engine.worlds import action_labels, observation_of
+
+try:
+    from nanonav.engine.observations import action_labels, observation_of
+except ImportError:  # a tree of --against from before engine/observations.py
+    from nanonav.engine.worlds import action_labels, observation_of  # type: ignore[attr-defined,no-redef]
 from nanonav.rl.evaluate import evaluate
 from nanonav.rl.onnx_policy import NetworkPolicy
 from nanonav.scenario import Scenario
@@ -121,7 +125,10 @@ def by_network(s: Scenario, policy: NetworkPolicy) -> Callable[[], tuple[int, fl
 def predicted_s(s: Scenario, policy: NetworkPolicy) -> tuple[float, float]:
     """What the work budget predicts the network's evaluation of ``s`` costs, seconds (a unit
     a nanosecond), and what one evaluation took."""
-    from nanonav.rl.evaluate import decision_work
+    try:
+        from nanonav.scenario.work import decision_work
+    except ImportError:  # a tree of --against from before it moved there
+        from nanonav.rl.evaluate import decision_work  # type: ignore[attr-defined,no-redef]
 
     cost = getattr(getattr(policy, "info", None), "cost", None)
     units = s.work + decision_work(s, cost.multiply_adds if cost is not None else 0)

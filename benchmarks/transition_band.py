@@ -56,7 +56,7 @@ from science import mean_ci
 
 from nanonav import stats
 from nanonav.engine import simulate
-from nanonav.engine.worlds import action_labels, observation_of
+from nanonav.engine.observations import action_labels, observation_of
 from nanonav.scenario import Scenario, preset_scenario
 
 PRESET = "alonso-kirkegaard"

@@ -51,7 +51,7 @@ def memory_mb(pid: int) -> tuple[float, float]:
 
 def network(client: httpx.Client) -> str:
     """A 64x64 MLP sent for the lattice's 'paper-single': its ``policy_from``."""
-    from nanonav.engine.worlds import action_labels, observation_of
+    from nanonav.engine.observations import action_labels, observation_of
     from nanonav.scenario import Scenario
 
     scenario = Scenario.model_validate({"preset": "paper-single"})

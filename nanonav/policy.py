@@ -17,15 +17,19 @@ import numpy as np
 from numpy.typing import NDArray
 
 from nanonav.engine import qlearning
-from nanonav.engine.labels import BODY_GRADIENT_LABELS, OBSERVATION_LABELS
-from nanonav.engine.worlds import observation_of, possible_observations
-from nanonav.rl.evaluate import REMEMBERS_AT_ONCE, decides_at_once
+from nanonav.engine.observations import (
+    BODY_GRADIENT_LABELS,
+    OBSERVATION_LABELS,
+    observation_of,
+    possible_observations,
+)
 from nanonav.scenario import (
     ActionSet,
     CommunicationModel,
     Scenario,
     Steering,
 )
+from nanonav.scenario.work import REMEMBERS_AT_ONCE, decides_at_once
 from nanonav.store.errors import JobNotFound, ResultsUnavailable
 from nanonav.store.models import JobStatus
 from nanonav.store.policies import (

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from nanonav.rl.evaluate import decision_work
 from nanonav.scenario import Scenario
+from nanonav.scenario.work import decision_work
 from nanonav.settings import Settings
 from nanonav.store.quotas import Quota
 from service.problems import BudgetExceeded, FieldError, InvalidInput, field_error

@@ -19,7 +19,7 @@ from pydantic import (
 from pydantic_core import ErrorDetails, PydanticCustomError
 
 from nanonav.engine import qlearning
-from nanonav.engine.labels import OBSERVATION_LABELS
+from nanonav.engine.observations import OBSERVATION_LABELS
 from nanonav.pictures import job as job_pictures
 from nanonav.policy import MAX_ACTIONS, MAX_Q, MAX_STATES, MAX_TABLES, UNVISITED
 from nanonav.scenario import TRAINING_DECISIONS, ActionSet, CommunicationModel

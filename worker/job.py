@@ -29,9 +29,10 @@ from nanonav.policy import (
     network_layout,
     steering_of,
 )
-from nanonav.rl.evaluate import PolicyFailed, Stopped, evaluate
+from nanonav.rl.evaluate import evaluate
 from nanonav.rl.graph import InvalidModel
 from nanonav.rl.onnx_policy import Limits, NetworkPolicy
+from nanonav.rl.stops import PolicyFailed, Stopped
 from nanonav.scenario import Scenario
 from nanonav.scenario.work import training_work
 from nanonav.settings import Settings

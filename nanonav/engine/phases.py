@@ -30,6 +30,16 @@ from nanonav.engine.contacts import CellList, bumped_back, relist
 from nanonav.engine.dynamics import brownian, lattice
 from nanonav.engine.fields import SAMPLED_GAUSSIAN, place_sources, place_treated
 from nanonav.engine.learning import q_update, q_update_bootstrapped
+from nanonav.engine.observations import (
+    FEATURES,
+    OBS_CELL,
+    OBS_CHANGE,
+    OBS_GRADIENT,
+    OBS_OBSTACLE,
+    OBS_READING,
+    OBS_SIGNAL,
+    OBS_SIGNAL_CHANGE,
+)
 from nanonav.engine.policies import (
     NO_BEHAVIOR,
     baseline_action,
@@ -75,18 +85,6 @@ from nanonav.engine.state import (
     Treatment,
     World,
 )
-
-# The observation's columns: what the tabular state is built from, before it is cut into levels.
-OBS_READING = 0  # the reading it took (with the sensor's noise; 0 below the detection threshold)
-OBS_CHANGE = 1  # the reading minus the last (lattice, 0 at first) or its memory (brownian)
-OBS_GRADIENT = 2  # 2, 3, 4: the sensed gradient (x, y, z); 0 in active_brownian (read when steered)
-OBS_OBSTACLE = 5  # lattice: distance to the nearest obstacle's surface, capped at the sensing
-# radius; active_brownian: 1 if its last move was stopped by an obstacle, else 0
-OBS_CELL = 6  # distance to the nearest untreated cell (active_brownian: between their surfaces),
-# capped at the cell sensor's range (the cap: none sensed)
-OBS_SIGNAL = 7  # the net signal it read (attractant - repellent), or 1 while a message waits
-OBS_SIGNAL_CHANGE = 8  # minus the last net signal (0 with broadcast or without communication)
-FEATURES = 9
 
 # clock[] slots of a world
 CLOCK_STEP = 0  # the step the world is at

@@ -1,16 +1,14 @@
 """Many worlds of one scenario, driven from outside: the arrays, the generators and the one
 compiled call (``engine.stepping.step_worlds``) that every environment (``nanonav.env``) and
-every policy run from outside (``nanonav.rl``) steps them with.
-
-What the observation means, its units and its bounds are written once here, for the
-environments' spaces, the policies sent as ONNX models and the README alike.
+every policy run from outside (``nanonav.rl``) steps them with. What the observation means,
+its units and its bounds are in ``engine.observations``, written once for the environments'
+spaces, the policies sent as ONNX models and the README alike.
 """
 
 from __future__ import annotations
 
-import itertools
-from collections.abc import Mapping, Sequence
-from typing import Any, NamedTuple, get_args
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 from numba.typed import List
@@ -18,7 +16,7 @@ from numpy.typing import NDArray
 
 from nanonav.engine import phases, qlearning, stepping
 from nanonav.engine.generators import handle
-from nanonav.engine.labels import BODY_GRADIENT_LABELS, OBSERVATION_LABELS
+from nanonav.engine.observations import action_labels
 from nanonav.engine.simulation import (
     DEFAULT_RECORD_BYTES,
     empty_recording,
@@ -29,8 +27,6 @@ from nanonav.engine.state import SCHEDULE_CODES, KernelParams, Recording
 from nanonav.engine.world import DYNAMICS_STREAM, EVALUATION_STREAM, raise_for_layout, stream
 from nanonav.scenario import (
     STEERINGS,
-    CommunicationModel,
-    PhysicsModel,
     Scenario,
     Schedule,
     Steering,
@@ -38,139 +34,6 @@ from nanonav.scenario import (
 
 # No history is recorded: the cap only keeps kernel_params from refusing a large swarm.
 _NO_HISTORY_CAP = 2**62
-# The bound of a column with none (as Gymnasium's CartPole bounds its velocities): finite, so
-# that a learner may normalise by it.
-UNBOUNDED = float(np.finfo(np.float32).max)
-
-
-def as_scenario(scenario: Scenario | Mapping[str, Any] | None) -> Scenario:
-    """A scenario from a ``Scenario``, its JSON as a mapping (validated as the API does), or
-    None (the defaults)."""
-    if isinstance(scenario, Scenario):
-        return scenario
-    return Scenario.model_validate(dict(scenario or {}))
-
-
-def with_robots(scenario: Scenario, count: int) -> Scenario:
-    """``scenario`` with ``count`` robots (validated again: a count that does not fit is
-    refused as a scenario would be)."""
-    if scenario.robots.count == count:
-        return scenario
-    data = scenario.model_dump(mode="json")
-    data["robots"]["count"] = count
-    return Scenario.model_validate(data)
-
-
-def _bounds(
-    scenario: Scenario, steering: Steering
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """(low, high) of each engine column (``phases.OBS_*``) in this scenario's units
-    (``column_bounds`` of what sets them)."""
-    return column_bounds(
-        scenario.physics.model,
-        steering,
-        scenario.communication.model,
-        scenario.robots.sensing_radius,
-        scenario.robots.cell_sensing_radius,
-    )
-
-
-def column_bounds(
-    physics: PhysicsModel,
-    steering: Steering,
-    communication: CommunicationModel,
-    sensing_radius: float,
-    cell_sensing_radius: float,
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """(low, high) of each engine column (``phases.OBS_*``) of robots of ``physics`` steered
-    so, that communicate by ``communication`` and sense obstacles and cells within those
-    radii: readings, gradients and signals are unbounded (``UNBOUNDED``; a noise floor can
-    read below 0), the distances are capped at the sensors' ranges, the obstacle contact of
-    active_brownian is 0 or 1; a column never filled is 0 to 0 (active_brownian's gradient,
-    unless robots steer continuously)."""
-    low = np.full(phases.FEATURES, -UNBOUNDED)
-    high = np.full(phases.FEATURES, UNBOUNDED)
-    brownian = physics == "active_brownian"
-    low[phases.OBS_OBSTACLE] = 0.0
-    high[phases.OBS_OBSTACLE] = 1.0 if brownian else sensing_radius
-    low[phases.OBS_CELL] = 0.0
-    high[phases.OBS_CELL] = cell_sensing_radius
-    if brownian and steering == "discrete":
-        low[phases.OBS_GRADIENT : phases.OBS_GRADIENT + 3] = 0.0
-        high[phases.OBS_GRADIENT : phases.OBS_GRADIENT + 3] = 0.0
-    if communication == "none":
-        low[phases.OBS_SIGNAL :] = 0.0
-        high[phases.OBS_SIGNAL :] = 0.0
-    elif communication == "broadcast":
-        low[phases.OBS_SIGNAL] = 0.0
-        high[phases.OBS_SIGNAL] = 1.0
-        low[phases.OBS_SIGNAL_CHANGE] = 0.0
-        high[phases.OBS_SIGNAL_CHANGE] = 0.0
-    return low, high
-
-
-def _labels(low: NDArray[np.float64], high: NDArray[np.float64], steering: Steering) -> tuple[
-    NDArray[np.int64], tuple[str, ...]
-]:  # fmt: skip
-    """The columns a robot fills (those whose bounds differ) and their names."""
-    columns = np.flatnonzero(low != high)
-    names = list(OBSERVATION_LABELS)
-    if steering == "continuous":
-        names[phases.OBS_GRADIENT : phases.OBS_GRADIENT + 3] = BODY_GRADIENT_LABELS
-    return columns, tuple(names[c] for c in columns)
-
-
-def possible_observations(steering: Steering) -> dict[tuple[str, ...], tuple[PhysicsModel, ...]]:
-    """Every observation some scenario's robots make, steered so, and the physics whose
-    robots make it: with each communication model, with obstacles and cells sensed or not (a
-    radius of 0), in each physics that steers so (only active_brownian's robots turn
-    continuously)."""
-    found: dict[tuple[str, ...], list[PhysicsModel]] = {}
-    physics: tuple[PhysicsModel, ...] = (
-        ("active_brownian",) if steering == "continuous" else get_args(PhysicsModel)
-    )
-    for model, communication, obstacle, cell in itertools.product(
-        physics, get_args(CommunicationModel), (0.0, 1.0), (0.0, 1.0)
-    ):
-        low, high = column_bounds(model, steering, communication, obstacle, cell)
-        labels = _labels(low, high, steering)[1]
-        if model not in found.setdefault(labels, []):
-            found[labels].append(model)
-    return {labels: tuple(models) for labels, models in found.items()}
-
-
-class Observation(NamedTuple):
-    """What a robot's observation holds in a scenario: the engine's columns it keeps (those the
-    scenario fills), their names, and their bounds."""
-
-    columns: NDArray[np.int64]
-    labels: tuple[str, ...]
-    low: NDArray[np.float64]
-    high: NDArray[np.float64]
-
-
-def observation_of(scenario: Scenario, steering: Steering = "discrete") -> Observation:
-    """The observation of a robot of ``scenario`` steered so (``OBSERVATION_LABELS`` says what
-    each column is; a column the scenario never fills, such as the signal without
-    communication, is left out). A robot that steers continuously reads its sensed gradient
-    each step along its heading, side and up axes, and observes the mean of its readings since
-    its last decision (``BODY_GRADIENT_LABELS``)."""
-    low, high = _bounds(scenario, steering)
-    columns, labels = _labels(low, high, steering)
-    return Observation(columns, labels, low[columns], high[columns])
-
-
-def action_labels(scenario: Scenario, steering: Steering = "discrete") -> list[str]:
-    """The scenario's action set, in the order the ``Discrete`` action numbers them; steering
-    continuously, the two parts of a turn (``qlearning.TURN_ACTIONS``)."""
-    if steering == "continuous":
-        return list(qlearning.TURN_ACTIONS)
-    return qlearning.labels(scenario.learning.actions, scenario.communication.model)[1]
-
-
-def state_labels(scenario: Scenario) -> list[str]:
-    """The tabular states (``info["state"]`` indexes them), as ``/qtable`` names them."""
-    return qlearning.labels(scenario.learning.actions, scenario.communication.model)[0]
 
 
 def _empty_recording(robots: int, cells: int) -> Recording:

@@ -9,7 +9,7 @@ num_envs=N, vectorization_mode="vector_entry_point")`` work (or, without the imp
 
 from __future__ import annotations
 
-from nanonav.engine.labels import OBSERVATION_LABELS
+from nanonav.engine.observations import OBSERVATION_LABELS
 from nanonav.env.extra import EnvExtraMissing, register  # first of the envs: see its docstring
 from nanonav.env.robot import NanoNavEnv, NanoNavVectorEnv
 from nanonav.env.swarm import NanoNavParallelEnv

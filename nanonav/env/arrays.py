@@ -14,15 +14,15 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from nanonav.engine.world import DYNAMICS_STREAM, EVALUATION_STREAM, TRAINING_STREAM, stream
-from nanonav.engine.worlds import (
-    Worlds,
+from nanonav.engine.observations import (
     action_labels,
     as_scenario,
     observation_of,
     state_labels,
     with_robots,
 )
+from nanonav.engine.world import DYNAMICS_STREAM, EVALUATION_STREAM, TRAINING_STREAM, stream
+from nanonav.engine.worlds import Worlds
 from nanonav.env.robot import ScenarioLike
 from nanonav.scenario import Steering
 

@@ -22,14 +22,14 @@ from numpy.typing import NDArray
 from stable_baselines3.common.vec_env import VecEnv
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvIndices, VecEnvStepReturn
 
-from nanonav.engine.worlds import (
-    Worlds,
+from nanonav.engine.observations import (
     action_labels,
     as_scenario,
     observation_of,
     state_labels,
     with_robots,
 )
+from nanonav.engine.worlds import Worlds
 from nanonav.env.robot import ScenarioLike, action_space_of
 from nanonav.scenario import Steering
 

@@ -12,14 +12,14 @@ from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, VectorEnv
 from numpy.typing import NDArray
 
-from nanonav.engine.worlds import (
-    Worlds,
+from nanonav.engine.observations import (
     action_labels,
     as_scenario,
     observation_of,
     state_labels,
     with_robots,
 )
+from nanonav.engine.worlds import Worlds
 from nanonav.scenario import Scenario, Steering
 
 ScenarioLike = Scenario | Mapping[str, Any] | None

@@ -11,13 +11,8 @@ from gymnasium import spaces
 from numpy.typing import NDArray
 from pettingzoo import ParallelEnv
 
-from nanonav.engine.worlds import (
-    Worlds,
-    action_labels,
-    as_scenario,
-    observation_of,
-    state_labels,
-)
+from nanonav.engine.observations import action_labels, as_scenario, observation_of, state_labels
+from nanonav.engine.worlds import Worlds
 from nanonav.env.robot import ScenarioLike, action_space_of, turn_of
 from nanonav.scenario import Schedule, Steering
 

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from nanonav.engine.worlds import action_labels, observation_of
+from nanonav.engine.observations import action_labels, observation_of
 from nanonav.rl.checkpoint import CHECKPOINT
 from nanonav.rl.ppo import PPOConfig, Update
 from nanonav.rl.training import (

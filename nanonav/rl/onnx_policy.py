@@ -16,9 +16,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from nanonav.rl.evaluate import Stopped
 from nanonav.rl.graph import CALL_ROWS, InvalidModel, ModelInfo
 from nanonav.rl.sandbox import Interrupted, Sandbox, SandboxFailed
+from nanonav.rl.stops import Stopped
 from nanonav.scenario import Steering
 from nanonav.settings import Settings
 
@@ -189,7 +189,7 @@ def _along(memory: Any, part: slice) -> tuple[slice, ...]:
 class NetworkPolicy:
     """A checked model in its own process, deciding for many robots in one inference call (in
     parts of ``ModelInfo.cost.rows_per_call`` for more). ``keep_going`` is asked while a call
-    runs: False stops it (``evaluate.Stopped``). Close it (or use it in a ``with``) to end
+    runs: False stops it (``stops.Stopped``). Close it (or use it in a ``with``) to end
     its process."""
 
     def __init__(

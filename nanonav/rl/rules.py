@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from nanonav.engine.worlds import Worlds, observation_of
+from nanonav.engine.observations import observation_of
+from nanonav.engine.worlds import Worlds
 from nanonav.scenario import Scenario
 
 

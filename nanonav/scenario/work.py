@@ -142,3 +142,46 @@ def work_for(
         + evaluation_steps * evaluation_step
     )
     return math.ceil(total)
+
+
+# Robots stepped at once: the worlds are evaluated in rounds of at most this many robots (or
+# one world, if it has more), so that memory grows with a round, not with worlds x robots
+ROUND_ROBOTS = 100_000
+
+
+# What deciding by a network costs, in the work units of ``Scenario.work`` (about a nanosecond
+# of one core), fitted on benchmarks/network_policy.py's networks (MLPs of 16 to 700 units, an
+# LSTM of 256) run in their sandboxed process: a call (the observations out and the answers
+# back, two processes woken), a row of it (its observation gathered and its answer checked),
+# and a multiply-add the network's check counted (an LSTM's run slowest, 0.025-0.04 ns)
+WORK_NETWORK_CALL = 250_000
+WORK_NETWORK_ROW = 60
+WORK_MULTIPLY_ADD = 0.04
+
+
+def decision_work(scenario: Scenario, multiply_adds: int) -> int:
+    """The work of a network of ``multiply_adds`` an observation deciding in ``scenario``'s
+    evaluation: every robot of every world at every decision, in one call a decision for
+    every world of a round (a call for each robot's turn under the sequential schedule)."""
+    robots = scenario.robots.count
+    worlds = scenario.evaluation.worlds
+    decisions = math.ceil(scenario.learning.max_steps / scenario.decision_steps)
+    rounds = math.ceil(worlds / max(1, ROUND_ROBOTS // robots))
+    calls = rounds * decisions * (1 if decides_at_once(scenario) else robots)
+    rows = worlds * robots * decisions
+    total = calls * WORK_NETWORK_CALL + rows * (
+        WORK_NETWORK_ROW + WORK_MULTIPLY_ADD * multiply_adds
+    )
+    return math.ceil(total)
+
+
+REMEMBERS_AT_ONCE = (
+    "a network with a memory decides for every robot at once, each row one robot: "
+    "robots.schedule must be 'simultaneous'"
+)
+
+
+def decides_at_once(scenario: Scenario) -> bool:
+    """Whether every robot of a world decides in each call (the simultaneous schedule, or one
+    robot), so that row k is the same robot call after call."""
+    return scenario.robots.schedule == "simultaneous" or scenario.robots.count == 1

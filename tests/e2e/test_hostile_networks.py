@@ -18,7 +18,7 @@ from typing import Any
 import httpx
 import pytest
 
-from nanonav.engine.worlds import action_labels, observation_of
+from nanonav.engine.observations import action_labels, observation_of
 from nanonav.scenario import Scenario
 from nanonav.store.migrate import upgrade
 from tests.conftest import SCRIPTED, sqlite_url_in

@@ -15,7 +15,7 @@ from pathlib import Path
 import httpx
 import pytest
 
-from nanonav.engine.worlds import action_labels, observation_of
+from nanonav.engine.observations import action_labels, observation_of
 from nanonav.scenario import Scenario
 from nanonav.settings import Settings
 from nanonav.store.migrate import upgrade

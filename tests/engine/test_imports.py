@@ -14,7 +14,7 @@ import nanonav.engine as engine
 def test_the_engines_plain_data_loads_no_numba() -> None:
     code = (
         "import sys\n"
-        "import nanonav.engine.labels, nanonav.engine.qlearning, nanonav.engine.metrics\n"
+        "import nanonav.engine.observations, nanonav.engine.qlearning, nanonav.engine.metrics\n"
         "assert 'numba' not in sys.modules, sorted(m for m in sys.modules if 'numba' in m)[:5]\n"
     )
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=False)

@@ -12,7 +12,8 @@ import pytest
 
 from nanonav.engine import phases, qlearning
 from nanonav.engine.dynamics.brownian import body_frame, turn_in_body
-from nanonav.engine.worlds import Worlds, observation_of
+from nanonav.engine.observations import observation_of
+from nanonav.engine.worlds import Worlds
 from nanonav.rl.rules import TurnUpGradient
 from nanonav.scenario import Scenario, deep_merge
 

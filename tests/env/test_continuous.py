@@ -17,7 +17,7 @@ from pettingzoo.test import api_test, parallel_api_test, parallel_seed_test, see
 from stable_baselines3 import PPO
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
-from nanonav.engine.worlds import observation_of
+from nanonav.engine.observations import observation_of
 from nanonav.env import NanoNavAECEnv, NanoNavEnv, NanoNavParallelEnv, NanoNavVectorEnv
 from nanonav.env.baselines import NanoNavVecEnv, export_onnx
 from nanonav.rl.onnx_policy import NetworkPolicy

@@ -10,10 +10,11 @@ import numpy as np
 import pytest
 
 from nanonav.engine import qlearning, simulate
-from nanonav.engine.worlds import observation_of
+from nanonav.engine.observations import observation_of
 from nanonav.rl import evaluate as evaluate_module
-from nanonav.rl.evaluate import PolicyFailed, evaluate
+from nanonav.rl.evaluate import evaluate
 from nanonav.rl.rules import TurnUpGradient
+from nanonav.rl.stops import PolicyFailed
 from nanonav.scenario import Scenario, ScenarioError
 
 TIMINGS = ("duration_s",)

@@ -16,10 +16,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from nanonav.rl.evaluate import Stopped
 from nanonav.rl.graph import InvalidModel
 from nanonav.rl.onnx_policy import Limits, NetworkPolicy, check_model
 from nanonav.rl.sandbox import SandboxFailed
+from nanonav.rl.stops import Stopped
 from tests.processes import sandbox_of
 from tests.rl import models
 

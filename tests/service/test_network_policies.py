@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from nanonav.client import Client
-from nanonav.engine.worlds import action_labels, observation_of
+from nanonav.engine.observations import action_labels, observation_of
 from nanonav.rl.graph import METADATA_ACTIONS, METADATA_OBSERVATION
 from nanonav.scenario import Scenario
 from nanonav.settings import Settings

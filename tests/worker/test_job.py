@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from nanonav.engine import Progress
-from nanonav.engine.worlds import action_labels, observation_of
+from nanonav.engine.observations import action_labels, observation_of
 from nanonav.rl.evaluate import evaluate
 from nanonav.scenario import Scenario
 from nanonav.settings import Settings

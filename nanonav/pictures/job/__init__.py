@@ -9,24 +9,40 @@ the Q-table's grows with the table.
 
 from __future__ import annotations
 
-from nanonav.engine import SimulationResult
-from nanonav.pictures.figure import png
-from nanonav.pictures.job.common import PICTURE_PIXELS, ColourScale, resolve_scale
-from nanonav.pictures.job.concentration import concentration_png
-from nanonav.pictures.job.heatmap import (
-    HEATMAP_RESOLUTION,
-    MAX_HEATMAP_RESOLUTION,
-    MIN_HEATMAP_RESOLUTION,
-    Plane,
-    heatmap_figure,
-    heatmap_png,
-    heatmap_slices,
-)
-from nanonav.pictures.job.learning import learning_png
-from nanonav.pictures.job.qtable import learned_qtable_png, qtable_png
-from nanonav.pictures.job.trajectory import trajectory_png
-from nanonav.pictures.job.treatment import has_treatment, treatment_drawn, treatment_png
+import importlib
+from typing import TYPE_CHECKING, Any
 
+if TYPE_CHECKING:
+    from nanonav.pictures.job.catalogue import HEATMAP_RESOLUTION as HEATMAP_RESOLUTION
+    from nanonav.pictures.job.catalogue import MAX_HEATMAP_RESOLUTION as MAX_HEATMAP_RESOLUTION
+    from nanonav.pictures.job.catalogue import MIN_HEATMAP_RESOLUTION as MIN_HEATMAP_RESOLUTION
+    from nanonav.pictures.job.catalogue import OPTIONAL_PICTURES as OPTIONAL_PICTURES
+    from nanonav.pictures.job.catalogue import PICTURE_NAMES as PICTURE_NAMES
+    from nanonav.pictures.job.catalogue import VERSIONS as VERSIONS
+    from nanonav.pictures.job.catalogue import treatment_drawn as treatment_drawn
+    from nanonav.pictures.job.catalogue import version as version
+    from nanonav.pictures.job.common import PICTURE_PIXELS as PICTURE_PIXELS
+    from nanonav.pictures.job.common import ColourScale as ColourScale
+    from nanonav.pictures.job.drawing import render as render
+    from nanonav.pictures.job.drawing import render_all as render_all
+    from nanonav.pictures.job.qtable import qtable_png as qtable_png
+
+# where each public name lives: the plain data in ``catalogue``, the drawing elsewhere
+_HOMES = {
+    "HEATMAP_RESOLUTION": "catalogue",
+    "MAX_HEATMAP_RESOLUTION": "catalogue",
+    "MIN_HEATMAP_RESOLUTION": "catalogue",
+    "OPTIONAL_PICTURES": "catalogue",
+    "PICTURE_NAMES": "catalogue",
+    "PICTURE_PIXELS": "common",
+    "VERSIONS": "catalogue",
+    "ColourScale": "common",
+    "qtable_png": "qtable",
+    "render": "drawing",
+    "render_all": "drawing",
+    "treatment_drawn": "catalogue",
+    "version": "catalogue",
+}
 __all__ = [
     "HEATMAP_RESOLUTION",
     "MAX_HEATMAP_RESOLUTION",
@@ -43,96 +59,14 @@ __all__ = [
     "version",
 ]
 
-PICTURE_NAMES: tuple[str, ...] = (
-    "heatmap_xy",
-    "heatmap_xz",
-    "heatmap_yz",
-    "heatmap_all",
-    "trajectory",
-    "concentration",
-    "learning",
-    "qtable",
-    "treatment",
-)
-"""The keys of ``render_all``: also the file names (``<name>.png``) the command line writes;
-``qtable`` only for a result that learned a Q-table (Q-learning), ``treatment`` only for one
-whose robots deliver payloads (``treatment.has_treatment``)."""
 
-OPTIONAL_PICTURES = frozenset({"qtable", "treatment"})
-"""The pictures only some results have (``render`` refuses the others with ``ValueError``)."""
-
-VERSIONS: dict[str, int] = {
-    "learning": 3,
-    "qtable": 2,
-    "trajectory": 4,
-    "treatment": 3,
-    "concentration": 3,
-    "heatmap_xy": 2,
-    "heatmap_xz": 2,
-    "heatmap_yz": 2,
-    "heatmap_all": 2,
-}
-"""The version of each picture's drawing, for the pictures past their first (the others are at
-1). It goes up when a picture drawn before would now be drawn differently, so that a copy kept
-of the older drawing is not served again. 2: ``learning`` of a result stored without its
-trajectory shows the greedy evaluation too; ``trajectory`` of a swarm's result colours its
-robots by what they did and the signal they read, and its treated cells apart. 3: an active
-Brownian ``learning`` gives each episode's length in seconds. ``qtable`` 2: each greedy dot's
-area is its action gap, given beside the visits. ``trajectory`` 3, ``treatment`` 2 and
-``concentration`` 2: lengths in µm (not um), an active Brownian cell drawn to
-scale, a swarm that delivers no payload (robots that only take up space) drawn as the paper's,
-counts in the right number, a payload axis from 0. ``trajectory`` 4, ``treatment`` 3,
-``concentration`` 3: a run of many evaluation worlds names the one drawn ("evaluation world 1
-of 8"), and the trajectory gives its time to reach beside their mean. The heatmaps' 2: the
-colour scale chosen from the slices' values (``heatmap.SCALE_QUANTILES``), not topped by the
-concentration at a cell, and the world named."""
-
-
-def version(name: str) -> int:
-    """The version of the drawing of the picture ``name`` (``VERSIONS``)."""
-    return VERSIONS.get(name, 1)
-
-
-def render(
-    result: SimulationResult,
-    name: str,
-    *,
-    scale: ColourScale = "auto",
-    at: float | None = None,
-    resolution: int = HEATMAP_RESOLUTION,
-) -> bytes:
-    """The one picture ``name`` (one of ``PICTURE_NAMES``), drawn on its own; ``at`` and
-    ``resolution`` choose a heatmap's slice and grid (``heatmap_png``)."""
-    planes: dict[str, Plane] = {"heatmap_xy": "xy", "heatmap_xz": "xz", "heatmap_yz": "yz",
-                                "heatmap_all": "all"}  # fmt: skip
-    if name in planes:
-        return heatmap_png(result, planes[name], at=at, resolution=resolution, scale=scale)
-    drawers = {"trajectory": trajectory_png, "concentration": concentration_png,
-               "learning": learning_png, "qtable": learned_qtable_png,
-               "treatment": treatment_png}  # fmt: skip
-    if name not in drawers:
-        raise ValueError(f"there is no picture {name!r}; there are {', '.join(PICTURE_NAMES)}")
-    if at is not None or resolution != HEATMAP_RESOLUTION:
-        raise ValueError(f"only heatmaps take at and resolution, not {name!r}")
-    return drawers[name](result)
-
-
-def render_all(result: SimulationResult, *, scale: ColourScale = "auto") -> dict[str, bytes]:
-    """Every picture the result has, keyed by ``PICTURE_NAMES`` (the Q-table only if it learned
-    one, the treatment only if its robots deliver payloads); the field is evaluated once for the
-    four heatmaps."""
-    planes = ("xy", "xz", "yz")
-    slices = heatmap_slices(result, planes)
-    resolved = resolve_scale(result, scale)
-    pictures = {
-        f"heatmap_{p}": png(heatmap_figure(result, {p: slices[p]}, resolved)) for p in planes
-    }
-    pictures["heatmap_all"] = png(heatmap_figure(result, slices, resolved))
-    pictures["trajectory"] = trajectory_png(result)
-    pictures["concentration"] = concentration_png(result)
-    pictures["learning"] = learning_png(result)
-    if result.qtable is not None:
-        pictures["qtable"] = learned_qtable_png(result)
-    if has_treatment(result):
-        pictures["treatment"] = treatment_png(result)
-    return {name: pictures[name] for name in PICTURE_NAMES if name in pictures}
+def __getattr__(name: str) -> Any:
+    """A public name of the job's pictures, imported from its module the first time it is
+    asked for: listing a job's pictures (``catalogue``) loads neither matplotlib's drawing nor
+    the engine."""
+    home = _HOMES.get(name)
+    if home is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"{__name__}.{home}"), name)
+    globals()[name] = value
+    return value

@@ -22,6 +22,11 @@ from numpy.typing import NDArray
 from nanonav.engine import SimulationResult, Trajectory, field_and_gradient
 from nanonav.engine.fields import biomarker_of
 from nanonav.pictures.figure import png
+from nanonav.pictures.job.catalogue import (
+    HEATMAP_RESOLUTION,
+    MAX_HEATMAP_RESOLUTION,
+    MIN_HEATMAP_RESOLUTION,
+)
 from nanonav.pictures.job.common import (
     CELL_RED,
     ROBOT_BLUE,
@@ -39,10 +44,6 @@ from nanonav.pictures.job.common import (
 
 Plane = Literal["xy", "xz", "yz", "all"]
 
-# Heatmap grids are HEATMAP_RESOLUTION pixels per side unless asked otherwise, within these.
-HEATMAP_RESOLUTION = 120
-MIN_HEATMAP_RESOLUTION = 20
-MAX_HEATMAP_RESOLUTION = 400
 # A log colour scale shows this many decades below its top, at most.
 LOG_DECADES = 5.0
 # The colour scale runs between these quantiles of the drawn slices' values (a linear one from

@@ -5,9 +5,6 @@ carry nothing to deliver."""
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from typing import Any
-
 import numpy as np
 from matplotlib.artist import Artist
 from matplotlib.axes import Axes
@@ -20,6 +17,7 @@ from numpy.typing import NDArray
 from nanonav.engine import SimulationResult, Trajectory
 from nanonav.engine.simulation import swarm_metrics
 from nanonav.pictures.figure import png
+from nanonav.pictures.job.catalogue import treatment_drawn
 from nanonav.pictures.job.common import (
     CELL_RED,
     counted,
@@ -40,14 +38,6 @@ _CELL_COLOURS = (
     "#1f77b4", "#ff7f0e", "#2ca02c", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22",
     "#17becf", "#aec7e8", "#ffbb78", "#98df8a", "#c5b0d5", "#c49c94", "#f7b6d2", "#dbdb8d",
 )  # fmt: skip
-
-
-def treatment_drawn(scenario: Mapping[str, Any]) -> bool:
-    """Whether a job of the resolved scenario ``scenario`` (as JSON) has the treatment picture
-    (``delivers_payloads``), read off the plain document so that listing jobs validates none."""
-    cells = scenario.get("cells") or {}
-    communication = scenario.get("communication") or {}
-    return cells.get("capacity") is not None or (communication.get("model") or "none") != "none"
 
 
 def delivers_payloads(scenario: Scenario) -> bool:
