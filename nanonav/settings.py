@@ -57,21 +57,18 @@ class Settings(BaseSettings):
     max_body_bytes: int = Field(
         2_000_000,
         ge=1024,
-        validation_alias=_aliases("max_body_bytes"),
         description="Largest request body the API reads, bytes; larger ones get 413. A "
         "recurrent network sent as a policy takes about 1.6 MB in base64.",
     )
     robot_steps_budget: int = Field(
         1_000_000_000,
         ge=1,
-        validation_alias=_aliases("robot_steps_budget"),
         description="Largest robots x max_steps x (training episodes + evaluation worlds) a "
         "submitted scenario may cost.",
     )
     work_budget: int = Field(
         500_000_000_000,
         ge=1,
-        validation_alias=_aliases("work_budget"),
         description="Largest Scenario.work a submitted scenario may cost: robot-steps weighed by "
         "the field sources, obstacles and cells each one goes through, in units of about a "
         "nanosecond of one core (5e11: about ten minutes at most on one core).",
@@ -79,27 +76,23 @@ class Settings(BaseSettings):
     job_time_limit_s: float = Field(
         3600.0,
         gt=0,
-        validation_alias=_aliases("job_time_limit_s"),
         description="Wall-clock seconds a job may run before it is stopped and failed.",
     )
     progress_interval_s: float = Field(
         0.25,
         gt=0,
-        validation_alias=_aliases("progress_interval_s"),
         description="Least time between two progress writes of a running job; each write also "
         "renews the lease and reads whether a cancel was requested.",
     )
     poll_interval_s: float = Field(
         0.2,
         gt=0,
-        validation_alias=_aliases("poll_interval_s"),
         description="How long an idle worker waits between two looks at the queue; on "
         "PostgreSQL a job queued meanwhile wakes it at once (LISTEN/NOTIFY).",
     )
     lease_s: float = Field(
         15.0,
         gt=0,
-        validation_alias=_aliases("lease_s"),
         description="How long a claim holds without being renewed: a running worker renews it "
         "from a thread every third of it; a job whose lease ran out (its worker died) is "
         "queued again by the next sweep (every 3 s), so within about lease_s + 5 s.",
@@ -108,7 +101,6 @@ class Settings(BaseSettings):
         30.0,
         gt=0,
         le=3600,
-        validation_alias=_aliases("store_busy_timeout_s"),
         description="How long a write waits for another's lock before it fails (SQLite's busy "
         "timeout, PostgreSQL's lock_timeout); a worker then retries it with backoff, and the "
         "job goes on.",
@@ -116,14 +108,12 @@ class Settings(BaseSettings):
     max_attempts: int = Field(
         3,
         ge=1,
-        validation_alias=_aliases("max_attempts"),
         description="Claims a job may get before an expired lease fails it instead.",
     )
     worker_nice: int = Field(
         5,
         ge=0,
         le=19,
-        validation_alias=_aliases("worker_nice"),
         description="Niceness a worker process adds to itself, so that on a shared machine the "
         "API answers promptly while simulations run; 0 leaves the priority alone.",
     )
@@ -131,7 +121,6 @@ class Settings(BaseSettings):
         1,
         ge=1,
         le=64,
-        validation_alias=_aliases("api_processes"),
         description="API processes `nanonav api` serves with (uvicorn's workers) unless "
         "--processes says otherwise; all share the store, so any one may answer any request.",
     )
@@ -139,12 +128,10 @@ class Settings(BaseSettings):
         1,
         ge=1,
         le=256,
-        validation_alias=_aliases("worker_concurrency"),
         description="Worker processes `nanonav worker` starts unless --concurrency says otherwise.",
     )
     worker_trains: bool = Field(
         False,
-        validation_alias=_aliases("worker_trains"),
         description="Workers also claim the jobs that train a network (robots.policy ppo or "
         "recurrent_ppo), as `nanonav worker --train` does; they need the rl extra (torch). "
         "Without it a worker never claims one.",
@@ -152,7 +139,6 @@ class Settings(BaseSettings):
     training_device: str = Field(
         "auto",
         pattern=r"^(auto|cpu|cuda(:[0-9]{1,2})?)$",
-        validation_alias=_aliases("training_device"),
         description="Where a worker that trains learns: 'auto' (a GPU where torch sees one, "
         "else the CPU), 'cpu', 'cuda' or 'cuda:N'. The worlds are stepped on the CPU.",
     )
@@ -160,7 +146,6 @@ class Settings(BaseSettings):
         1,
         ge=1,
         le=256,
-        validation_alias=_aliases("training_threads"),
         description="Torch threads of a worker that trains (its collector takes one more "
         "core): one, because on a shared machine two collapsed to a fraction of one's speed.",
     )
@@ -170,7 +155,6 @@ class Settings(BaseSettings):
         gt=0,
         le=36_500,
         allow_inf_nan=False,
-        validation_alias=_aliases("retention_days"),
         description="Days a finished job (of no study) or an ended study is kept after it "
         "ended; workers then delete it with its results, in batches, about once a minute. "
         "Unset: everything is kept until deleted with DELETE /jobs/{id} or /studies/{id}.",
@@ -179,14 +163,12 @@ class Settings(BaseSettings):
     study_max_jobs: int = Field(
         2000,
         ge=1,
-        validation_alias=_aliases("study_max_jobs"),
         description="Most jobs one study may make (grid points x seeds); larger ones get 422.",
     )
     drawing_queue: int = Field(
         32,
         ge=1,
         le=10_000,
-        validation_alias=_aliases("drawing_queue"),
         description="Pictures an API process may have waiting to be drawn (it draws one at a "
         "time, the first time each is asked for); a request beyond them gets 503.",
     )
@@ -195,7 +177,6 @@ class Settings(BaseSettings):
         0.25,
         gt=0,
         le=60,
-        validation_alias=_aliases("events_poll_s"),
         description="How often an API process reads the state of the jobs and studies its open "
         "event streams watch (one query for all watched jobs, one for all watched studies), "
         "seconds; nothing is read while no stream is open.",
@@ -205,7 +186,6 @@ class Settings(BaseSettings):
         5,
         ge=1,
         le=3600,
-        validation_alias=_aliases("shutdown_grace_s"),
         description="Seconds a stopping API process gives open requests to finish before it "
         "cancels them. An event stream lasts until its job or study finishes, so without this "
         "limit the server would wait for every watching client to leave.",
@@ -217,7 +197,6 @@ class Settings(BaseSettings):
         1000,
         ge=1,
         le=100_000,
-        validation_alias=_aliases("api_max_connections"),
         description="Connections one API process serves at once (default 1000). Past them a "
         "new connection takes the place of the one idle longest (waiting for a request head "
         "for a second or more); with none idle, a request on it gets 503 with Retry-After. With "
@@ -229,7 +208,6 @@ class Settings(BaseSettings):
         16,
         ge=1,
         le=1000,
-        validation_alias=_aliases("api_healthz_connections"),
         description="Connections past api_max_connections, all busy, on which an API process "
         "answers /healthz alone (default 16), once each, and 503 to anything else; a "
         "connection past them is closed at once.",
@@ -238,7 +216,6 @@ class Settings(BaseSettings):
         10.0,
         gt=0,
         le=3600,
-        validation_alias=_aliases("api_header_timeout_s"),
         description="Seconds a client has to send a whole request head (default 10), from "
         "when it connected or sent the first byte of its next request; then it gets 408 and "
         "the connection is closed (one that sent nothing is closed without a word).",
@@ -247,7 +224,6 @@ class Settings(BaseSettings):
         30.0,
         gt=0,
         le=3600,
-        validation_alias=_aliases("api_body_timeout_s"),
         description="Seconds a client has to send a whole request body after its head "
         "(default 30; a 1 MB body at 35 kB/s); then it gets 408, if nothing was answered yet, "
         "and the connection is closed.",
@@ -256,7 +232,6 @@ class Settings(BaseSettings):
         50,
         ge=1,
         le=100_000,
-        validation_alias=_aliases("events_streams_per_key"),
         description="Event streams one key (without keys: one client address) may have open "
         "on one API process (default 50); another gets 503 with Retry-After.",
     )
@@ -264,7 +239,6 @@ class Settings(BaseSettings):
         500,
         ge=1,
         le=100_000,
-        validation_alias=_aliases("events_streams_per_process"),
         description="Event streams one API process keeps open (default 500), so that other "
         "requests still get connections and time; another gets 503 with Retry-After.",
     )
@@ -273,21 +247,18 @@ class Settings(BaseSettings):
     trajectory_json_values: int = Field(
         2_000_000,
         ge=1000,
-        validation_alias=_aliases("trajectory_json_values"),
         description="Most numbers a trajectory answered as JSON may hold (about 20 bytes each); "
         "a larger one is refused with 422 that says to use ?stride= or ?format=npz.",
     )
 
     webhook_hosts: Annotated[tuple[str, ...], NoDecode] = Field(
         (),
-        validation_alias=_aliases("webhook_hosts"),
         description="Comma-separated hosts a job's or study's callback_url may name: "
         "'hooks.example.org' exactly, '*.example.org' its subdomains, 'localhost:9000' only "
         "that port. Empty: no webhooks, and a callback_url gets 422.",
     )
     webhook_addresses: Annotated[tuple[IPv4Network | IPv6Network, ...], NoDecode] = Field(
         (),
-        validation_alias=_aliases("webhook_addresses"),
         description="Comma-separated addresses and networks ('127.0.0.0/8,10.1.2.3,fd00::/8') "
         "webhooks may go to besides public ones. A callback's host is resolved when it is sent, "
         "and a loopback, private, link-local, unspecified, multicast, reserved or shared address "
@@ -305,21 +276,18 @@ class Settings(BaseSettings):
         10.0,
         gt=0,
         le=300,
-        validation_alias=_aliases("webhook_timeout_s"),
         description="How long a webhook's receiver has to answer before the try counts as failed.",
     )
     webhook_attempts: int = Field(
         12,
         ge=1,
         le=100,
-        validation_alias=_aliases("webhook_attempts"),
         description="Tries a webhook gets before it is given up (its state says so).",
     )
     webhook_retry_s: float = Field(
         10.0,
         gt=0,
         le=3600,
-        validation_alias=_aliases("webhook_retry_s"),
         description="Wait before a failed webhook's second try; it doubles after each failure, "
         "up to an hour (12 tries span about 3.6 hours).",
     )
@@ -327,7 +295,6 @@ class Settings(BaseSettings):
         86400.0,
         ge=1,
         le=30 * 86400,
-        validation_alias=_aliases("idempotency_ttl_s"),
         description="How long an Idempotency-Key names its first request: within it the same "
         "request gets the same job, study or policy back and another request is refused; after "
         "it the key is free for a new one.",
@@ -335,7 +302,6 @@ class Settings(BaseSettings):
 
     api_keys: Annotated[tuple[SecretStr, ...], NoDecode] = Field(
         (),
-        validation_alias=_aliases("api_keys"),
         description="Comma-separated keys a client must send as 'Authorization: Bearer <key>' "
         f"on every route but /healthz, each at least {MIN_WEBHOOK_SECRET_LENGTH} characters and "
         "no placeholder; jobs and studies then belong to the key that made them. Empty (the "
@@ -343,7 +309,6 @@ class Settings(BaseSettings):
     )
     session_secret: SecretStr | None = Field(
         None,
-        validation_alias=_aliases("session_secret"),
         description="The key the dashboard's session tokens are signed with (HMAC-SHA256), at "
         f"least {MIN_WEBHOOK_SECRET_LENGTH} characters and no placeholder; rotating it logs "
         "every browser out. Unset: derived from the API keys, so every API process agrees and "
@@ -353,14 +318,12 @@ class Settings(BaseSettings):
         8 * 3600.0,
         ge=60,
         le=30 * 86400,
-        validation_alias=_aliases("session_ttl_s"),
         description="How long a dashboard login lasts, seconds: its token is refused after it, "
         "and the person logs in again.",
     )
     quota_active_jobs: int = Field(
         2000,
         ge=0,
-        validation_alias=_aliases("quota_active_jobs"),
         description="Most queued and running jobs one key (or, without keys, one client "
         "address) may have, by default as many as the largest study makes; a submit past it "
         "gets 429, one that alone is larger gets 422. 0: no limit.",
@@ -368,7 +331,6 @@ class Settings(BaseSettings):
     quota_robot_steps: int = Field(
         10_000_000_000,
         ge=0,
-        validation_alias=_aliases("quota_robot_steps"),
         description="Most robot-steps (the budget's measure) one key or client address may have "
         "queued and running, by default ten full-budget jobs; a submit past it gets 429, one "
         "that alone is larger gets 422. 0: no limit.",
@@ -376,7 +338,6 @@ class Settings(BaseSettings):
     policy_model_max_bytes: int = Field(
         1_400_000,
         ge=1024,
-        validation_alias=_aliases("policy_model_max_bytes"),
         description="Largest ONNX model a policy may be, bytes (POST /policies sends it in "
         "base64, a third larger, within max_body_bytes). A network of two hidden layers of 64 "
         "takes about 25 kB, sb3-contrib's recurrent PPO (an LSTM of 256) 1.2 MB.",
@@ -384,7 +345,6 @@ class Settings(BaseSettings):
     network_memory_bytes: int = Field(
         1_073_741_824,
         ge=268_435_456,
-        validation_alias=_aliases("network_memory_bytes"),
         description="Address space of the process a network sent as a policy is checked and "
         "run in, bytes (RLIMIT_AS); past it the network fails, not the API or the worker. The "
         "process takes about 0.3 GB with ONNX Runtime loaded, and a call at most a quarter of "
@@ -394,7 +354,6 @@ class Settings(BaseSettings):
         20.0,
         ge=2,
         le=3600,
-        validation_alias=_aliases("network_check_cpu_s"),
         description="CPU seconds the check of a network sent to POST /policies may take in its "
         "process, its start included (about 1 s); past it the network is refused with 422.",
     )
@@ -402,7 +361,6 @@ class Settings(BaseSettings):
         30.0,
         gt=0,
         le=3600,
-        validation_alias=_aliases("network_call_limit_s"),
         description="Wall-clock seconds one call of a network may take while a job evaluates "
         "it (a call's counted cost keeps it under a second on one core); past it the job "
         "fails, saying so.",
@@ -411,7 +369,6 @@ class Settings(BaseSettings):
         2,
         ge=1,
         le=64,
-        validation_alias=_aliases("network_checks_at_once"),
         description="Networks an API process checks at once, each in a process of its own; "
         "up to network_checks_waiting more wait (without holding a thread), and one that has "
         "waited 30 s is answered 503 with Retry-After.",
@@ -420,7 +377,6 @@ class Settings(BaseSettings):
         8,
         ge=0,
         le=256,
-        validation_alias=_aliases("network_checks_waiting"),
         description="POST /policies requests an API process takes in while its checks are "
         "busy, besides those being checked; past them a request is answered 503 checks-busy "
         "with Retry-After at once, before its body is read. With network_checks_at_once they "
@@ -429,21 +385,18 @@ class Settings(BaseSettings):
     quota_policies: int = Field(
         1000,
         ge=0,
-        validation_alias=_aliases("quota_policies"),
         description="Most policies (POST /policies) one key may keep, or without keys the "
         "whole server; one more gets 409 until one is deleted. Each is at most max_body_bytes "
         "as sent. 0: no limit.",
     )
     allowed_hosts: Annotated[tuple[str, ...], NoDecode] = Field(
         ("localhost", "127.0.0.1", "::1"),
-        validation_alias=_aliases("allowed_hosts"),
         description="Comma-separated Host names the API answers ('*.example.org' for "
         "subdomains, '*' for any, '::1' or '[::1]' for an IPv6 address); another gets 400, "
         "against DNS rebinding. A deployment sets its own name.",
     )
     allowed_origins: Annotated[tuple[str, ...], NoDecode] = Field(
         (),
-        validation_alias=_aliases("allowed_origins"),
         description="Comma-separated origins ('https://lab.example.org') other than the API's "
         "own from which a browser may send a POST or DELETE; any other Origin gets 403.",
     )
@@ -593,13 +546,11 @@ class ClientSettings(BaseSettings):
 
     url: str = Field(
         DEFAULT_API_URL,
-        validation_alias=_aliases("url"),
         description="Base URL of the NanoNav API that `nanonav submit`, `study`, `fetch`, "
         "`jobs` and `nanonav.client.Client` talk to.",
     )
     api_key: SecretStr | None = Field(
         None,
-        validation_alias=_aliases("api_key"),
         description="The key sent as 'Authorization: Bearer <key>' to an API that has "
         "NANONAV_API_KEYS set; never printed.",
     )

@@ -133,3 +133,26 @@ def test_bad_webhook_addresses_stop_the_process_saying_which(
     monkeypatch.setenv("NANONAV_WEBHOOK_ADDRESSES", addresses)
     with pytest.raises(ValidationError, match=why):
         Settings()
+
+
+def test_every_setting_is_read_from_its_prefixed_variable(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Each field is read from NANONAV_<NAME> (the prefix alone names it; DATABASE_URL, HOST
+    and PORT are also read without it): a number or a switch given as nonsense there is
+    refused, naming the field, so the variable was read."""
+    from pydantic import ValidationError
+
+    from nanonav.settings import Settings
+
+    checked = 0
+    for name in Settings.model_fields:
+        value = getattr(Settings(), name)
+        if isinstance(value, str) or not isinstance(value, (bool, int, float)):
+            continue
+        with monkeypatch.context() as patched:
+            patched.setenv(f"NANONAV_{name.upper()}", "not a value")
+            with pytest.raises(ValidationError) as refused:
+                Settings()
+            assert any(name in str(error["loc"]) or name.upper() in str(error["loc"])
+                       for error in refused.value.errors()), name  # fmt: skip
+        checked += 1
+    assert checked > 30
