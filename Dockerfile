@@ -11,9 +11,7 @@ COPY pyproject.toml README.md alembic.ini ./
 COPY nanonav ./nanonav
 COPY service ./service
 COPY worker ./worker
-COPY migrations ./migrations
-# Editable, so that the migrations directory stays next to the code that finds it.
-RUN pip install -e '.[postgres]' \
+RUN pip install '.[postgres]' \
     && useradd --create-home nanonav \
     && chown -R nanonav /app
 USER nanonav

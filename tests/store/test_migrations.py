@@ -1,5 +1,12 @@
 from __future__ import annotations
 
+import os
+import shutil
+import sqlite3
+import subprocess
+import sys
+from pathlib import Path
+
 import numpy as np
 from sqlalchemy import inspect, text
 
@@ -145,3 +152,47 @@ def test_sqlite_keeps_its_tables_as_they_were(sqlite_url: str) -> None:
             assert connection.execute(schema).all() == before
     finally:
         engine.dispose()
+
+
+def test_an_installed_wheel_migrates_a_database_from_its_own_files(tmp_path: Path) -> None:
+    """The migrations ship in the package (nanonav/store/migrations), so a wheel installed
+    away from the source tree finds them and migrates a new database to the head revision."""
+    root = Path(__file__).resolve().parents[2]
+    source = tmp_path / "source"  # built from a copy: a build leaves its folders beside it
+    for part in ("nanonav", "service", "worker"):
+        shutil.copytree(root / part, source / part, ignore=shutil.ignore_patterns("__pycache__"))
+    for name in ("pyproject.toml", "README.md", "LICENSE"):
+        shutil.copy(root / name, source / name)
+    built = subprocess.run(
+        [sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-q",
+         "-w", str(tmp_path / "wheel"), str(source)],
+        capture_output=True, text=True, check=False,
+    )  # fmt: skip
+    assert built.returncode == 0, built.stderr
+    [wheel] = (tmp_path / "wheel").glob("nanonav-*.whl")
+    installed = tmp_path / "installed"
+    done = subprocess.run(
+        [sys.executable, "-m", "pip", "install", "--no-deps", "-q", "--target", str(installed),
+         str(wheel)],
+        capture_output=True, text=True, check=False,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    url = f"sqlite:///{tmp_path / 'fresh.db'}"
+    code = (
+        "import nanonav.store.migrate as m\n"
+        f"assert m.__file__.startswith({str(installed)!r}), m.__file__\n"
+        f"m.upgrade({url!r})\n"
+        "print(m.MIGRATIONS_DIR)\n"
+    )
+    ran = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=False,
+        cwd=tmp_path, env={**os.environ, "PYTHONPATH": str(installed)},
+    )  # fmt: skip
+    assert ran.returncode == 0, ran.stderr[-2000:]
+    assert ran.stdout.strip().startswith(str(installed))
+    with sqlite3.connect(tmp_path / "fresh.db") as connection:
+        [(revision,)] = connection.execute("SELECT version_num FROM alembic_version").fetchall()
+    heads = sorted(
+        p.name.split("_")[0] for p in (root / "nanonav/store/migrations/versions").glob("0*.py")
+    )
+    assert revision == heads[-1]

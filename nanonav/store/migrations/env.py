@@ -3,19 +3,20 @@
 from __future__ import annotations
 
 from logging.config import fileConfig
+from typing import Any
 
 from alembic import context
+from sqlalchemy import Connection
 
 from nanonav.settings import Settings
 from nanonav.store.db import make_engine
 from nanonav.store.models import Base
 
 config = context.config
-database_url = config.attributes.get("database_url")
-if database_url is None:
-    if config.config_file_name is not None:
-        fileConfig(config.config_file_name, disable_existing_loggers=False)
-    database_url = Settings().database_url
+given: str | None = config.attributes.get("database_url")
+if given is None and config.config_file_name is not None:
+    fileConfig(config.config_file_name, disable_existing_loggers=False)
+database_url: str = given if given is not None else Settings().database_url
 
 
 def run_migrations_offline() -> None:
@@ -29,6 +30,13 @@ def run_migrations_offline() -> None:
         context.run_migrations()
 
 
+def _driver(connection: Connection) -> Any:
+    """The DB-API connection under ``connection`` (sqlite3's), to speak to it directly."""
+    driver = connection.connection.driver_connection
+    assert driver is not None
+    return driver
+
+
 def run_migrations_online() -> None:
     engine = make_engine(database_url)
     try:
@@ -38,7 +46,7 @@ def run_migrations_online() -> None:
                 # Batch mode rebuilds a table by copy and DROP; with foreign keys on, that DROP
                 # would cascade into the rows that point at it. The pragma only works outside a
                 # transaction, so it goes straight to the driver before BEGIN.
-                connection.connection.driver_connection.execute("PRAGMA foreign_keys=OFF")
+                _driver(connection).execute("PRAGMA foreign_keys=OFF")
             context.configure(
                 connection=connection,
                 target_metadata=Base.metadata,
@@ -50,7 +58,7 @@ def run_migrations_online() -> None:
             with context.begin_transaction():
                 context.run_migrations()
             if sqlite:
-                connection.connection.driver_connection.execute("PRAGMA foreign_keys=ON")
+                _driver(connection).execute("PRAGMA foreign_keys=ON")
     finally:
         engine.dispose()
 
