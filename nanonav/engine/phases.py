@@ -408,7 +408,8 @@ def decide(
 
 
 @inlined
-def act(
+def act(  # noqa: C901  # one robot's move, bump, reward and delivery, compiled inlined into the
+    # step: split only with the first compile and the golden digests measured before and after
     p: KernelParams, rng: np.random.Generator, sim: Sim, i: int, t: int, code: int,
     dx: float, dy: float, dz: float, gx: float, gy: float, gz: float,
 ) -> tuple[float, bool]:  # fmt: skip

@@ -57,7 +57,7 @@ def _clear(point: NDArray[np.float64], others: NDArray[np.float64], distance: fl
 
 
 @episodic
-def draw_world(
+def draw_world(  # noqa: C901  # the order of its draws is the seed's contract: kept in one
     p: KernelParams, rng: np.random.Generator, w: World, s: Swarm, near: CellList,
     everyone: NDArray[np.bool_],
 ) -> int:  # fmt: skip

@@ -485,7 +485,9 @@ def _values(model: onnx.ModelProto, batch: str) -> dict[str, _Value]:
     return values
 
 
-def _counted(model: onnx.ModelProto, values: dict[str, _Value]) -> Cost:
+def _counted(  # noqa: C901  # one pass over the nodes in order, each checked by every cap
+    model: onnx.ModelProto, values: dict[str, _Value]
+) -> Cost:
     """The model's cost (``Cost``), node by node in the graph's order (a topological one),
     refused with ``InvalidModel`` naming the node where a cap is passed: a node that does not
     run in a policy, or whose input types it does not take; the node that brings the multiply-
