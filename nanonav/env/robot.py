@@ -50,32 +50,55 @@ class NanoNavEnv(gymnasium.Env[NDArray[np.float64], np.int64]):
     """One robot hunting the cells of a scenario's world (the scenario's other robots are a
     swarm's: ``NanoNavParallelEnv``; here ``robots.count`` is 1).
 
-    Observation: a ``Box`` of float64s, what the robot senses this step, in the scenario's
-    units (lattice: its concentration and length units; active_brownian: nM, nM/µm, µm);
-    ``observation_labels`` names those the scenario fills, of: the reading (with the sensor's
-    noise; 0 below the detection threshold); its change (from the last reading, or in
-    active_brownian from the reading's memory); the sensed gradient (x, y, z; lattice only:
-    an active Brownian robot reads it only when it steers up it); the obstacle (lattice: the
-    distance to the nearest obstacle's surface, capped at the sensing radius; active_brownian:
-    1 if its last move was stopped); the cell (the distance to the nearest untreated cell,
-    between surfaces in active_brownian, capped at the cell sensor's range, which reads as
-    none sensed); and with a communication model the net signal it reads (attractant minus
-    repellent, or 1 while a message waits) and, for a chemical signal, its change.
+    ## Observation
 
-    Action: ``Discrete`` over the scenario's action set (``action_labels``); with
-    ``steering="continuous"`` (active_brownian), a ``Box`` turn (side, up) in the robot's body
-    frame, each -1 .. 1 of the largest turn a step allows (``physics.max_turn_rate_rad_s``),
-    held over the decision interval as a steady turn, and the gradient columns hold the
-    sensed gradient along the robot's heading, side and up axes, read each step and averaged
-    over the steps since the last decision. Reward: the
-    scenario's (paper 2.7). Terminated when the robot reaches a cell (delivers its payload),
-    truncated at ``learning.max_steps`` or once every cell is treated. ``info["state"]`` is the
-    tabular state the engine's learner would see (``state_labels`` names them), so that a
-    table from ``/qtable`` can act here.
+    A ``Box`` of float64s: what the robot senses this step, in the scenario's units (lattice:
+    its concentration and length units; active_brownian: nM, nM/µm, µm). ``observation_labels``
+    names the columns the scenario fills, in this order:
+
+    | label              | what it is                                         | units (AB) |
+    |--------------------|----------------------------------------------------|------------|
+    | reading            | the count-based reading, noisy; 0 below threshold  | nM         |
+    | reading_change     | minus the last reading (AB: minus its memory)      | nM         |
+    | gradient_x, _y, _z | the sensed gradient (AB: steering continuously)    | nM/µm      |
+    | obstacle           | distance to an obstacle (AB: 1 if a move stopped)  | 1          |
+    | cell               | distance to the nearest untreated cell, capped     | µm         |
+    | signal             | the net signal read, or 1 while a message waits    | nM         |
+    | signal_change      | minus the last net signal (a chemical signal only) | nM         |
+
+    (AB: active_brownian; the lattice's columns are in its own units.) Distances are capped at
+    the sensors' ranges, the cap reading as none sensed; the signal columns are there only with
+    a communication model; the lattice's obstacle column is the distance to the nearest
+    obstacle's surface.
+
+    ## Actions
+
+    ``Discrete`` over the scenario's action set (``action_labels``). With
+    ``steering="continuous"`` (active_brownian only): a ``Box`` turn (side, up) in the robot's
+    body frame, each -1 .. 1 of the largest turn a step allows
+    (``physics.max_turn_rate_rad_s``), held over the decision interval as a steady turn; the
+    gradient columns are then ``gradient_forward``, ``_side``, ``_up``, read each step along
+    the robot's axes and averaged over the steps since its last decision.
+
+    ## Rewards
+
+    The scenario's ``rewards`` (the paper's eq. 2.7), each step: ``step`` (a cost), plus
+    ``collision`` when a move is stopped by an obstacle (active_brownian: per second stopped),
+    plus ``approach`` per unit of distance moved toward the nearest untreated cell, plus
+    ``reach`` on arriving at one. Held over a decision interval, the steps' rewards are summed.
+
+    ## Episode end
+
+    Terminated when the robot reaches a cell (delivers its payload); truncated at
+    ``learning.max_steps`` or once every cell is treated.
+
+    ## Reset and info
 
     ``reset(seed=s)`` draws, episode after episode, the worlds a job of seed s evaluates in;
     ``reset()`` goes on to the next world; before any seed, the scenario's seed is used. Reset
     takes no options (any given are ignored, as PettingZoo's checker expects).
+    ``info["state"]`` is the tabular state the engine's learner would see (``state_labels``
+    names them), so that a table from ``/qtable`` can act here.
     """
 
     metadata: dict[str, Any] = {"render_modes": []}  # noqa: RUF012 (gymnasium's own layout)
