@@ -178,6 +178,7 @@ def _paired(treated: list[float], baseline: list[float]) -> stats.PairedComparis
     return stats.paired(treated, baseline)
 
 
+# long: a benchmark's command line and its printed table, in order
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     parser.add_argument("--decisions", type=int, default=300_000, help="PPO's training")

@@ -143,6 +143,7 @@ def engine_rate(scenario: Scenario, repeats: int) -> tuple[float, int]:
     return statistics.median(rates), steps
 
 
+# long: a benchmark's command line and its printed table, in order
 def main(argv: list[str] | None = None) -> int:  # noqa: C901  # a flag a branch, read in order
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="small workloads, one repeat")

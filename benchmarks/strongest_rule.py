@@ -118,6 +118,7 @@ def candidates(preset: str, quick: bool) -> list[Rule]:
     return rules
 
 
+# long: a benchmark's command line and its printed table, in order
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     parser.add_argument("--preset", choices=PRESETS, default=PRESETS[0])

@@ -96,6 +96,7 @@ def holm_resolved(family: str, members: list[tuple[str, list[float], list[float]
     print()
 
 
+# long: a benchmark's command line and its printed table, in order
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     parser.add_argument("--seeds", type=int, default=10)

@@ -59,6 +59,7 @@ def _collect_once() -> None:
     gc.collect()
 
 
+# long: the app assembled in one place: settings, store, middleware, routes, lifespan
 def create_app(settings: Settings | None = None) -> FastAPI:
     """The API over the store that ``settings`` (by default the environment's) names."""
     settings = settings or Settings()

@@ -248,133 +248,139 @@ def unreadable_body(cause: BaseException | None) -> str | None:
     return None
 
 
-def install(app: FastAPI) -> None:  # noqa: C901  # every error type mapped in one place
-    """Map every error type to its problem document, once for the whole app."""
+def _respond(
+    request: Request,
+    status: int,
+    slug: str,
+    title: str,
+    detail: str,
+    errors: Sequence[FieldError] = (),
+) -> Response:
+    problem = Problem(
+        type=PROBLEM_BASE + slug,
+        title=title,
+        status=status,
+        detail=detail,
+        instance=request.url.path,
+        errors=list(errors) or None,
+    )
+    return problem_response(problem)
 
-    def respond(
-        request: Request,
-        status: int,
-        slug: str,
-        title: str,
-        detail: str,
-        errors: Sequence[FieldError] = (),
-    ) -> Response:
-        problem = Problem(
-            type=PROBLEM_BASE + slug,
-            title=title,
-            status=status,
-            detail=detail,
-            instance=request.url.path,
-            errors=list(errors) or None,
+
+async def _on_problem(request: Request, exc: Exception) -> Response:
+    assert isinstance(exc, ProblemError)
+    response = _respond(request, exc.status, exc.slug, exc.title, exc.detail, exc.errors)
+    response.headers.update(exc.headers)
+    return response
+
+
+async def _on_store_error(request: Request, exc: Exception) -> Response:
+    status, slug, title = next(STORE_ERRORS[t] for t in type(exc).__mro__ if t in STORE_ERRORS)
+    return _respond(request, status, slug, title, str(exc))
+
+
+async def _on_quota(request: Request, exc: Exception) -> Response:
+    assert isinstance(exc, QuotaExceeded)
+    response = _respond(request, 429, "quota-exceeded", "Quota exceeded", str(exc))
+    response.headers["Retry-After"] = str(QUOTA_RETRY_AFTER_S)
+    return response
+
+
+async def _on_key_reused(request: Request, exc: Exception) -> Response:
+    detail = str(exc)
+    error = field_error(["header", "idempotency-key"], detail, "idempotency_key_reused")
+    slug, title = "idempotency-key-reused", "Idempotency key reused"
+    return _respond(request, 422, slug, title, detail, [error])
+
+
+async def _on_validation(request: Request, exc: Exception) -> Response:
+    assert isinstance(exc, RequestValidationError)
+    errors = [
+        field_error(
+            [p for p in e.get("loc", ()) if isinstance(p, str | int)],
+            str(e.get("msg", "")),
+            str(e.get("type", "")),
         )
-        return problem_response(problem)
+        for e in exc.errors()
+    ]
+    malformed = [e for e in exc.errors() if e.get("type") == "json_invalid"]
+    if malformed:
+        # the location of a JSON syntax error is a character offset, not a JSON pointer
+        offset = next((p for p in malformed[0].get("loc", ()) if isinstance(p, int)), None)
+        where = "" if offset is None else f" at character {offset}"
+        reason = str(malformed[0].get("ctx", {}).get("error", "")) or "invalid JSON"
+        return _respond(
+            request,
+            400,
+            "malformed-json",
+            "Malformed JSON",
+            f"the request body is not valid JSON{where}: {reason}",
+            [FieldError(pointer="#", loc=["body"], detail=f"{reason}{where}", type="json_invalid")],
+        )
+    first = errors[0] if errors else None
+    detail = "the request is invalid"
+    if first is not None:
+        where = first.pointer or first.parameter or "/".join(map(str, first.loc))
+        detail = f"{where}: {first.detail}"
+    return _respond(request, 422, "invalid-input", "Invalid input", detail, errors)
 
-    async def on_problem(request: Request, exc: Exception) -> Response:
-        assert isinstance(exc, ProblemError)
-        response = respond(request, exc.status, exc.slug, exc.title, exc.detail, exc.errors)
+
+async def _on_http(request: Request, exc: Exception) -> Response:
+    assert isinstance(exc, StarletteHTTPException)
+    if exc.status_code == 400 and (unread := unreadable_body(exc.__cause__)) is not None:
+        error = FieldError(pointer="#", loc=["body"], detail=unread, type="json_invalid")
+        detail = f"the request body is not valid JSON: {unread}"
+        return _respond(request, 400, "malformed-json", "Malformed JSON", detail, [error])
+    slug = {413: "body-too-large", 404: "not-found", 405: "method-not-allowed"}.get(
+        exc.status_code, "http-error"
+    )
+    title = {413: "Content too large"}.get(exc.status_code, _reason(exc.status_code))
+    response = _respond(request, exc.status_code, slug, title, str(exc.detail))
+    if exc.headers:
         response.headers.update(exc.headers)
-        return response
-
-    async def on_store_error(request: Request, exc: Exception) -> Response:
-        status, slug, title = next(STORE_ERRORS[t] for t in type(exc).__mro__ if t in STORE_ERRORS)
-        return respond(request, status, slug, title, str(exc))
-
-    async def on_quota(request: Request, exc: Exception) -> Response:
-        assert isinstance(exc, QuotaExceeded)
-        response = respond(request, 429, "quota-exceeded", "Quota exceeded", str(exc))
-        response.headers["Retry-After"] = str(QUOTA_RETRY_AFTER_S)
-        return response
-
-    async def on_key_reused(request: Request, exc: Exception) -> Response:
-        detail = str(exc)
-        error = field_error(["header", "idempotency-key"], detail, "idempotency_key_reused")
-        slug, title = "idempotency-key-reused", "Idempotency key reused"
-        return respond(request, 422, slug, title, detail, [error])
-
-    async def on_validation(request: Request, exc: Exception) -> Response:
-        assert isinstance(exc, RequestValidationError)
-        errors = [
-            field_error(
-                [p for p in e.get("loc", ()) if isinstance(p, str | int)],
-                str(e.get("msg", "")),
-                str(e.get("type", "")),
-            )
-            for e in exc.errors()
-        ]
-        malformed = [e for e in exc.errors() if e.get("type") == "json_invalid"]
-        if malformed:
-            # the location of a JSON syntax error is a character offset, not a JSON pointer
-            offset = next((p for p in malformed[0].get("loc", ()) if isinstance(p, int)), None)
-            where = "" if offset is None else f" at character {offset}"
-            reason = str(malformed[0].get("ctx", {}).get("error", "")) or "invalid JSON"
-            return respond(
-                request,
-                400,
-                "malformed-json",
-                "Malformed JSON",
-                f"the request body is not valid JSON{where}: {reason}",
-                [
-                    FieldError(
-                        pointer="#", loc=["body"], detail=f"{reason}{where}", type="json_invalid"
-                    )
-                ],
-            )
-        first = errors[0] if errors else None
-        detail = "the request is invalid"
-        if first is not None:
-            where = first.pointer or first.parameter or "/".join(map(str, first.loc))
-            detail = f"{where}: {first.detail}"
-        return respond(request, 422, "invalid-input", "Invalid input", detail, errors)
-
-    async def on_http(request: Request, exc: Exception) -> Response:
-        assert isinstance(exc, StarletteHTTPException)
-        if exc.status_code == 400 and (unread := unreadable_body(exc.__cause__)) is not None:
-            error = FieldError(pointer="#", loc=["body"], detail=unread, type="json_invalid")
-            detail = f"the request body is not valid JSON: {unread}"
-            return respond(request, 400, "malformed-json", "Malformed JSON", detail, [error])
-        slug = {413: "body-too-large", 404: "not-found", 405: "method-not-allowed"}.get(
-            exc.status_code, "http-error"
+    if exc.status_code == 405:
+        # the route that raised it knows only its own methods, not its path's
+        response.headers["Allow"] = ", ".join(
+            allowed_methods(request.app.router.routes, request.scope)
         )
-        title = {413: "Content too large"}.get(exc.status_code, _reason(exc.status_code))
-        response = respond(request, exc.status_code, slug, title, str(exc.detail))
-        if exc.headers:
-            response.headers.update(exc.headers)
-        if exc.status_code == 405:
-            # the route that raised it knows only its own methods, not its path's
-            response.headers["Allow"] = ", ".join(allowed_methods(app.router.routes, request.scope))
-        return response
+    return response
 
-    async def on_database_down(request: Request, exc: Exception) -> Response:
-        logger.error("database error on %s %s: %s", request.method, request.url.path, exc)
-        response = respond(
-            request,
-            503,
-            "database-unavailable",
-            "Database unavailable",
-            "the job store did not answer; try again shortly",
-        )
-        response.headers["Retry-After"] = "1"
-        return response
 
-    async def on_crash(request: Request, exc: Exception) -> Response:
-        logger.exception("unhandled error on %s %s", request.method, request.url.path)
-        return respond(
-            request,
-            500,
-            "internal-error",
-            "Internal server error",
-            "the server failed; this is a bug and has been logged",
-        )
+async def _on_database_down(request: Request, exc: Exception) -> Response:
+    logger.error("database error on %s %s: %s", request.method, request.url.path, exc)
+    response = _respond(
+        request,
+        503,
+        "database-unavailable",
+        "Database unavailable",
+        "the job store did not answer; try again shortly",
+    )
+    response.headers["Retry-After"] = "1"
+    return response
 
-    app.add_exception_handler(ProblemError, on_problem)
+
+async def _on_crash(request: Request, exc: Exception) -> Response:
+    logger.exception("unhandled error on %s %s", request.method, request.url.path)
+    return _respond(
+        request,
+        500,
+        "internal-error",
+        "Internal server error",
+        "the server failed; this is a bug and has been logged",
+    )
+
+
+def install(app: FastAPI) -> None:
+    """Map every error type to its problem document, once for the whole app."""
+    app.add_exception_handler(ProblemError, _on_problem)
     for store_error in STORE_ERRORS:
-        app.add_exception_handler(store_error, on_store_error)
-    app.add_exception_handler(QuotaExceeded, on_quota)
-    app.add_exception_handler(IdempotencyKeyReused, on_key_reused)
-    app.add_exception_handler(RequestValidationError, on_validation)
-    app.add_exception_handler(StarletteHTTPException, on_http)
-    app.add_exception_handler(OperationalError, on_database_down)
-    app.add_exception_handler(Exception, on_crash)
+        app.add_exception_handler(store_error, _on_store_error)
+    app.add_exception_handler(QuotaExceeded, _on_quota)
+    app.add_exception_handler(IdempotencyKeyReused, _on_key_reused)
+    app.add_exception_handler(RequestValidationError, _on_validation)
+    app.add_exception_handler(StarletteHTTPException, _on_http)
+    app.add_exception_handler(OperationalError, _on_database_down)
+    app.add_exception_handler(Exception, _on_crash)
 
 
 def _reason(status: int) -> str:

@@ -78,6 +78,7 @@ def _positive_float(text: str) -> float:
     return value
 
 
+# long: the command's flags, one after another, each with its help
 def add_train(subcommands: Subcommands) -> None:
     train = subcommands.add_parser(
         "train",

@@ -407,6 +407,7 @@ def decide(
     return 0, code, dx, dy, dz, gx, gy, gz
 
 
+# long: a robot's move, bump, reward and delivery, inlined into the compiled step
 @inlined
 def act(  # noqa: C901  # one robot's move, bump, reward and delivery, compiled inlined into the
     # step: split only with the first compile and the golden digests measured before and after

@@ -59,6 +59,7 @@ def _views(batch: phases.Sim, k: int) -> tuple[Swarm, Social, Treatment]:
     )
 
 
+# long: the evaluation's rounds of worlds, in the order simulate's evaluation draws them
 def evaluate(
     scenario: Scenario,
     decide: Decide,

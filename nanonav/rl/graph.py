@@ -485,6 +485,7 @@ def _values(model: onnx.ModelProto, batch: str) -> dict[str, _Value]:
     return values
 
 
+# long: one pass over the graph's nodes in order, every cap checked at each
 def _counted(  # noqa: C901  # one pass over the nodes in order, each checked by every cap
     model: onnx.ModelProto, values: dict[str, _Value]
 ) -> Cost:

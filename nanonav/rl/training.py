@@ -144,6 +144,7 @@ class _Progress:
         )
 
 
+# long: a run's life in order: resume, train in stretches, checkpoint, export, report
 def train(
     out: Path,
     decisions: int,

@@ -55,6 +55,7 @@ def qtable_figsize(states: list[str], actions: list[str]) -> tuple[float, float]
     return round(max(width, 6.0), 1), round(height, 1)
 
 
+# long: one figure's panels, legend and labels, drawn in the order a reader reads them
 def qtable_figure(
     states: list[str],
     actions: list[str],
