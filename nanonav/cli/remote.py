@@ -117,10 +117,15 @@ def _submit(args: argparse.Namespace) -> int:
         scenario["seed"] = args.seed
     with connect(args) as api:
         job = api.submit(scenario)
-        print(f"job {job.id} {job.status} (seed {job.scenario.get('seed')})", flush=True)
-        if not args.wait:
-            return EXIT_OK
-        job = wait_job(api, job.id)
+        try:  # once the job exists, a Ctrl-C says where it goes on, however soon it comes
+            print(f"job {job.id} {job.status} (seed {job.scenario.get('seed')})", flush=True)
+            if not args.wait:
+                return EXIT_OK
+            job = wait_job(api, job.id)
+        except KeyboardInterrupt as stop:
+            if str(stop):  # wait_job's own, which says it already
+                raise
+            raise _left_running("job", job.id, api.url) from None
         if job.status != "succeeded":
             raise Failed([f"job {job.id} {job.status}" + (f": {job.error}" if job.error else "")])
         print()
@@ -201,14 +206,19 @@ def _study(args: argparse.Namespace) -> int:
         if args.file is not None:
             created = api.submit_study(read_json_object(args.file, "study"))
             seeds = len(created.spec.get("seeds") or [])
-            print(
-                f"study {created.id} {created.status}: {plural(created.jobs.total, 'job')} "
-                f"({plural(len(created.points), 'grid point')} x {plural(seeds, 'seed')})",
-                flush=True,
-            )
-            if not args.wait:
-                return EXIT_OK
-            study = wait_study(api, created.id)
+            try:  # once the study exists, a Ctrl-C says where it goes on, however soon
+                print(
+                    f"study {created.id} {created.status}: {plural(created.jobs.total, 'job')} "
+                    f"({plural(len(created.points), 'grid point')} x {plural(seeds, 'seed')})",
+                    flush=True,
+                )
+                if not args.wait:
+                    return EXIT_OK
+                study = wait_study(api, created.id)
+            except KeyboardInterrupt as stop:
+                if str(stop):  # wait_study's own, which says it already
+                    raise
+                raise _left_running("study", created.id, api.url) from None
             print()
         else:
             study = wait_study(api, args.id) if args.wait else api.study(args.id)
