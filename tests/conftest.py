@@ -23,10 +23,10 @@ from pathlib import Path
 import httpx
 import pytest
 import uvicorn
-from fastapi import FastAPI
 from sqlalchemy import create_engine, text
 from sqlalchemy.engine import make_url
 from sqlalchemy.exc import OperationalError
+from starlette.types import ASGIApp
 
 from nanonav.client import tls_context
 from nanonav.settings import Settings
@@ -171,7 +171,7 @@ def sqlite_store(sqlite_url: str) -> Iterator[JobStore]:
 
 
 @contextmanager
-def serve(app: FastAPI) -> Iterator[str]:
+def serve(app: ASGIApp) -> Iterator[str]:
     """Serve ``app`` with a real uvicorn on a free local port, configured as the API always is
     (``service.server``) under the app's own settings; yields its base URL."""
     sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
@@ -243,7 +243,7 @@ def api_and_worker(directory: Path, **api_env: str) -> Iterator[tuple[ApiServer,
     ready; yields both and the database URL, and stops both afterwards."""
     url = sqlite_url_in(directory)
     migrate(url)
-    api = ApiServer(url, directory / "api.log", **api_env)
+    api = ApiServer(url, directory / "api.log", cwd=None, **api_env)  # api_env: variables only
     worker = Worker(url, directory / "worker.log")
     try:
         api.wait_ready()

@@ -3,7 +3,7 @@ the rule for which stored tables a scenario can evaluate."""
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import pytest
@@ -204,14 +204,15 @@ def test_no_table_or_a_table_of_other_labels_or_shape_does_not_fit() -> None:
 def test_learned_policy_reads_the_named_job_and_says_why_it_cannot() -> None:
     table = stored("behaviors", fill=1.5)
 
-    def read(job_id: int) -> dict[str, NDArray[Any]]:
+    def read(job_id: int | str) -> dict[str, NDArray[Any]]:
         if job_id == 7:
             return table
         if job_id == 8:
             raise ResultsUnavailable(8, JobStatus.FAILED)
-        raise JobNotFound(job_id)
+        raise JobNotFound(cast(int, job_id))  # this test names jobs by number only
 
     values = learned_policy(scenario(), read)
+    assert isinstance(values, np.ndarray)
     assert values.shape == (72, 4) and float(values[0, 0]) == 1.5
     with pytest.raises(UnusablePolicy, match=r"^there is no job 9$"):
         learned_policy(scenario(policy_from=9), read)

@@ -342,7 +342,9 @@ def test_pairs_to_resolve_give_the_asked_power(mean: float, sd: float) -> None:
     resolved = np.mean([f.ci_low is not None and f.ci_low > 0 for f in found])
     # the binomial standard error of the share is 0.0063 at 4000 repeats: 4 of them
     assert abs(resolved - 0.8) < 0.025, (n, resolved)
-    assert stats.pairs_to_resolve(mean, sd, power=0.5) < n
+    half_power = stats.pairs_to_resolve(mean, sd, power=0.5)
+    assert half_power is not None
+    assert half_power < n
 
 
 def test_pairs_to_resolve_match_the_normal_rule_of_thumb_for_large_n() -> None:
@@ -400,6 +402,7 @@ def test_a_perfect_column_draws_a_shorter_bar_than_one_with_a_failure() -> None:
     assert perfect.ci_low == pytest.approx(600 / (600 + 1.959963984540054**2))  # Wilson at 1
     assert one_failure.mean == pytest.approx(599 / 600)
     assert one_failure.ci_low is not None and one_failure.ci_high is not None
+    assert perfect.ci_low is not None
     assert one_failure.ci_low < perfect.ci_low < 1.0
     assert 1.0 - perfect.ci_low < one_failure.ci_high - one_failure.ci_low
 
@@ -463,7 +466,7 @@ def synthetic_shares(
     seeds: int,
     trials: tuple[int, int],
     correlation: tuple[float, float],
-) -> np.ndarray:  # type: ignore[type-arg]
+) -> np.ndarray:
     """One study's seed values of a true ``share``: each seed draws its own success probability
     (Beta, intra-class correlation ``correlation[0]``: its learned table), each of its worlds
     one around it (``correlation[1]``: the world's layout), and each of its robots succeeds
@@ -471,7 +474,7 @@ def synthetic_shares(
     (``trials``)."""
     robots, worlds = trials
 
-    def beta(mean: np.ndarray, rho: float, shape: tuple[int, ...]) -> np.ndarray:  # type: ignore[type-arg]
+    def beta(mean: np.ndarray, rho: float, shape: tuple[int, ...]) -> np.ndarray:
         if rho == 0.0:
             return np.broadcast_to(mean, shape).astype(float)
         inside = np.clip(mean, 1e-12, 1 - 1e-12)

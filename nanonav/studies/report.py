@@ -64,7 +64,7 @@ class JobOutcome:
     seed: int
     status: str
     metrics: dict[str, Any] | None  # its METRICS; None unless it succeeded
-    curve: dict[str, list[float]] | None = None  # its binned learning curve, when asked for
+    curve: dict[str, list[float | None]] | None = None  # its binned learning curve, if asked
 
 
 def study_metrics(document: dict[str, Any]) -> dict[str, Any]:

@@ -8,11 +8,11 @@ import sys
 from pathlib import Path
 
 import pytest
+from matplotlib import image
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 
 import transition_band
-from matplotlib import image
 
 
 def test_a_smoke_run_trains_both_learners_and_reports_them(

@@ -166,7 +166,8 @@ def test_study_wait_prints_intervals_paired_differences_and_failures(
         assert row[2] == "2"
         assert interval.mean is not None and float(row[3]) == pytest.approx(interval.mean, 1e-3)
         low, high = (float(x.strip("[],")) for x in row[4:6])
-        assert (low, high) == (
+        # approx in a tuple: mypy's strict equality cannot see that it compares by its __eq__
+        assert (low, high) == (  # type: ignore[comparison-overlap]
             pytest.approx(interval.ci_low, 1e-3),
             pytest.approx(interval.ci_high, 1e-3),
         )
@@ -257,6 +258,7 @@ def test_fetch_writes_a_jobs_results(
     for name in drawn:
         assert imread(out_dir / f"{name}.png", format="png").ndim == 3
     frames = ase.io.read(out_dir / "trajectory.xyz", index=":", format="extxyz")
+    assert isinstance(frames, list)  # every frame, for index ":"
     with np.load(out_dir / "trajectory.npz", allow_pickle=False) as arrays:
         assert len(frames) == arrays["step"].shape[0]
         robots = [i for i, kind in enumerate(frames[-1].arrays["kind"]) if kind == "robot"]

@@ -166,6 +166,7 @@ def test_a_study_of_two_policies_by_two_seeds(api: Client, tmp_path: Path) -> No
         assert found.n == 2
         assert found.mean == pytest.approx(statistics.fmean(steps))
         assert found.ci_low is not None and found.ci_high is not None
+        assert found.mean is not None
         assert found.ci_low <= found.mean <= found.ci_high
     (comparison,) = study.comparisons
     assert (comparison.method, comparison.baseline) == ("gradient", "q_learning")

@@ -44,8 +44,8 @@ def test_a_logout_through_one_api_process_holds_in_every_other(tmp_path: Path) -
     url = sqlite_url_in(tmp_path)
     upgrade(url)
     env = {"NANONAV_API_KEYS": KEY_A}
-    shared = ApiServer(url, tmp_path / "shared.log", NANONAV_API_PROCESSES="2", **env)
-    alone = ApiServer(url, tmp_path / "alone.log", **env)
+    shared = ApiServer(url, tmp_path / "shared.log", cwd=None, NANONAV_API_PROCESSES="2", **env)
+    alone = ApiServer(url, tmp_path / "alone.log", cwd=None, **env)
     try:
         for api in (shared, alone):
             api.wait_ready()

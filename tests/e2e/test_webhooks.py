@@ -36,8 +36,8 @@ def api_settings(tmp_path: Path, receiver: Receiver) -> Settings:
     return Settings(
         database_url=sqlite_url_in(tmp_path),
         webhook_hosts=(urlsplit(receiver.url).netloc,),
-        webhook_secret=SECRET,  # type: ignore[arg-type]
-        webhook_addresses=LOCAL,  # type: ignore[arg-type]
+        webhook_secret=SECRET,
+        webhook_addresses=LOCAL,
     )
 
 

@@ -12,7 +12,7 @@ from scipy.spatial import cKDTree
 from nanonav.engine import contacts
 
 
-def cloud(n: int, half: float, seed: int) -> np.ndarray:  # type: ignore[type-arg]
+def cloud(n: int, half: float, seed: int) -> np.ndarray:
     return np.random.default_rng(seed).uniform(-half, half, size=(n, 3))
 
 
@@ -29,7 +29,7 @@ def test_pairs_within_a_distance_match_a_k_d_tree_at_ten_thousand_robots(cutoff:
     assert grid.dims > 3  # and the grid really splits the space
 
 
-def brute_first(pos: np.ndarray, active: np.ndarray, point: np.ndarray, distance: float,  # type: ignore[type-arg]
+def brute_first(pos: np.ndarray, active: np.ndarray, point: np.ndarray, distance: float,
                 skip: int) -> int:  # fmt: skip
     close = np.flatnonzero(active & (np.sum((pos - point) ** 2, axis=1) < distance**2))
     close = close[close != skip]
@@ -51,7 +51,8 @@ def test_the_first_robot_a_move_runs_into_is_found_after_moves_within_the_step()
     hits = 0
     for i in range(0, len(pos), 3):
         point = moved[i] + rng.uniform(-0.3, 0.3, size=3)
-        got = contacts.first_within(grid, moved, active, *point, 2 * radius, i)
+        px, py, pz = point
+        got = contacts.first_within(grid, moved, active, px, py, pz, 2 * radius, i)
         assert got == brute_first(moved, active, point, 2 * radius, i), i
         hits += got >= 0
     assert hits > 50
@@ -94,10 +95,11 @@ def test_relisting_as_robots_move_keeps_every_search_exact_however_far_they_go()
     tree = cKDTree(pos)
     for point in rng.uniform(-25.0, 25.0, (200, 3)):
         found = np.empty(len(pos), dtype=np.int64)
-        k = contacts.each_within(grid, pos, *point, 1.0, found)
+        px, py, pz = point
+        k = contacts.each_within(grid, pos, px, py, pz, 1.0, found)
         expected = sorted(j for j in tree.query_ball_point(point, 1.0 - 1e-12))
         assert found[:k].tolist() == expected
-        nearest = contacts.first_within(grid, pos, everyone, *point, 1.0, -1)
+        nearest = contacts.first_within(grid, pos, everyone, px, py, pz, 1.0, -1)
         assert nearest == (expected[0] if expected else -1)
 
 
@@ -111,13 +113,14 @@ def test_a_hashed_grid_finds_what_a_k_d_tree_finds_when_far_cells_share_buckets(
     assert contacts.pairs_within(grid, pos, active, 0.2) == len(cKDTree(pos).query_pairs(0.2))
     found = np.empty(len(pos), dtype=np.int64)
     for point in pos[:50]:
-        k = contacts.each_within(grid, pos, *point, 0.2, found)
+        px, py, pz = point
+        k = contacts.each_within(grid, pos, px, py, pz, 0.2, found)
         assert found[:k].tolist() == sorted(cKDTree(pos).query_ball_point(point, 0.2 - 1e-12))
 
 
-@njit
-def _pushed_out(c: np.ndarray, reach: float, point: np.ndarray) -> tuple[float, float, float, bool]:  # type: ignore[type-arg]
-    return contacts.pushed_out(c[0], c[1], c[2], reach, point[0], point[1], point[2])  # type: ignore[no-any-return]
+@njit()
+def _pushed_out(c: np.ndarray, reach: float, point: np.ndarray) -> tuple[float, float, float, bool]:
+    return contacts.pushed_out(c[0], c[1], c[2], reach, point[0], point[1], point[2])
 
 
 def test_a_point_inside_a_body_is_pushed_out_along_the_line_of_centres_to_contact() -> None:
@@ -132,7 +135,7 @@ def test_a_point_inside_a_body_is_pushed_out_along_the_line_of_centres_to_contac
     assert _pushed_out(centre, 3.0, centre)[3] is False
 
 
-@njit
+@njit()
 def _time_to_slide(reach: float, speed: float, impact: float, dt: float, to_angle: float) -> float:
     # a swimmer headed along +x meets a fixed sphere at the given impact parameter and is
     # pushed out after each step; the time until its polar angle from -x reaches ``to_angle``

@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 from pydantic import ValidationError
 from scipy.integrate import quad
 
-from nanonav.engine import phases, sensing, simulate
+from nanonav.engine import observations, phases, sensing, simulate
 from nanonav.engine.phases import Sim
 from nanonav.engine.simulation import Run, kernel_params
 from nanonav.engine.state import KernelParams, Swarm
@@ -278,8 +278,8 @@ def _rises(p: KernelParams, rng: np.random.Generator, sim: Sim, truth: NDArray[n
         for t in range(truth.shape[0]):
             s.reading[0] = truth[t]
             phases.read_state(p, rng, sim, 0, t, 1e9, False)
-            change[k, t] = sim.pc.obs[0, phases.OBS_CHANGE]
-            reading = sim.pc.obs[0, phases.OBS_READING]
+            change[k, t] = sim.pc.obs[0, observations.OBS_CHANGE]
+            reading = sim.pc.obs[0, observations.OBS_READING]
             s.prev_conc[0] += p.memory_weight * (reading - s.prev_conc[0])
 
 
@@ -316,6 +316,7 @@ def shadow_of_a_patch() -> float:
     def half_width(y: float) -> float:  # the shadow's z extent at y
         return min(math.sqrt(max(1 - 2 * y * y, 0.0)), math.sqrt((1 - y * y) / 2))
 
+    area: float
     area, _ = quad(half_width, 0.0, 1 / math.sqrt(2), points=[1 / math.sqrt(3)], epsabs=1e-12)
     return 4 * area
 

@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 
 from nanonav.engine import field_and_gradient
-from nanonav.scenario import Biomarker
+from nanonav.scenario import Biomarker, FieldModel
 
-MODELS = ["gaussian", "inverse_square", "diffusion"]
+MODELS: list[FieldModel] = ["gaussian", "inverse_square", "diffusion"]
 
 
-def _world(model: str, seed: int = 3) -> tuple[Biomarker, np.ndarray, np.ndarray]:
+def _world(model: FieldModel, seed: int = 3) -> tuple[Biomarker, np.ndarray, np.ndarray]:
     rng = np.random.default_rng(seed)
     biomarker = Biomarker(model=model, emitters_per_cell=20, emitter_scatter=1.5, spread=6.0)
     cells = rng.uniform(-10, 10, (2, 3))
@@ -21,7 +21,7 @@ def _world(model: str, seed: int = 3) -> tuple[Biomarker, np.ndarray, np.ndarray
 
 
 @pytest.mark.parametrize("model", MODELS)
-def test_analytic_gradient_equals_finite_differences(model: str) -> None:
+def test_analytic_gradient_equals_finite_differences(model: FieldModel) -> None:
     biomarker, cells, offsets = _world(model)
     points = np.random.default_rng(7).uniform(-20, 20, (200, 3))
     _, grad = field_and_gradient(biomarker, cells, offsets, points)
@@ -71,7 +71,7 @@ def test_diffusion_decays_exponentially_beyond_inverse_distance() -> None:
 
 
 @pytest.mark.parametrize("model", MODELS)
-def test_gradient_points_toward_a_lone_cell(model: str) -> None:
+def test_gradient_points_toward_a_lone_cell(model: FieldModel) -> None:
     biomarker = Biomarker(model=model, emitter_scatter=0.0)
     cells = np.array([[0.0, 0.0, 0.0]])
     offsets = np.zeros((1, 50 if model == "inverse_square" else 0, 3))

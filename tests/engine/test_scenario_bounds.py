@@ -49,11 +49,12 @@ EXAMPLES = settings(max_examples=300, deadline=None, suppress_health_check=[Heal
 
 def _admits(spec: dict[str, Any], value: float) -> bool:
     """Whether a JSON Schema number ``spec`` admits ``value``."""
-    return (
+    admitted: bool = (
         spec.get("minimum", -math.inf) <= value <= spec.get("maximum", math.inf)
         and value > spec.get("exclusiveMinimum", -math.inf)
         and value < spec.get("exclusiveMaximum", math.inf)
     )
+    return admitted
 
 
 def _numbers(spec: dict[str, Any]) -> st.SearchStrategy[float]:

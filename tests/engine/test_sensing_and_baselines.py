@@ -20,7 +20,7 @@ def scenario(**fields: Any) -> Scenario:
     return Scenario.model_validate(fields)
 
 
-def segment_clearance(a: np.ndarray, b: np.ndarray, centres: np.ndarray) -> float:  # type: ignore[type-arg]
+def segment_clearance(a: np.ndarray, b: np.ndarray, centres: np.ndarray) -> float:
     """Least distance from the segment a-b to any of ``centres``."""
     u = b - a
     length2 = float(u @ u)

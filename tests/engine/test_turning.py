@@ -10,9 +10,9 @@ from typing import Any
 import numpy as np
 import pytest
 
-from nanonav.engine import phases, qlearning
+from nanonav.engine import qlearning
 from nanonav.engine.dynamics.brownian import body_frame, turn_in_body
-from nanonav.engine.observations import observation_of
+from nanonav.engine.observations import OBS_GRADIENT, observation_of
 from nanonav.engine.worlds import Worlds
 from nanonav.rl.rules import TurnUpGradient
 from nanonav.scenario import Scenario, deep_merge
@@ -35,7 +35,14 @@ def _worlds(data: dict[str, Any], steering: str, seed: int = 11) -> Worlds:
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
-    return v / np.linalg.norm(v)
+    unit: np.ndarray = v / np.linalg.norm(v)
+    return unit
+
+
+def _xyz(v: np.ndarray) -> tuple[float, float, float]:
+    """``v``'s three components, as the compiled functions take them."""
+    x, y, z = v
+    return x, y, z
 
 
 def test_the_body_frame_is_orthonormal_and_carried_along_a_small_turn() -> None:
@@ -43,19 +50,19 @@ def test_the_body_frame_is_orthonormal_and_carried_along_a_small_turn() -> None:
     for _ in range(200):
         n = _unit(rng.normal(size=3))
         kept = rng.normal(size=3)
-        side = np.array(body_frame(*n, *kept))
+        side = np.array(body_frame(*_xyz(n), *_xyz(kept)))
         e, f = side[:3], side[3:]
         frame = np.array([n, e, f])
         np.testing.assert_allclose(frame @ frame.T, np.eye(3), atol=1e-12)
         np.testing.assert_allclose(np.cross(n, e), f, atol=1e-12)  # right-handed
         # the heading turns a little: the side axis moves by about as little
         turned = _unit(n + 0.01 * rng.normal(size=3))
-        e2 = np.array(body_frame(*turned, *e)[:3])
+        e2 = np.array(body_frame(*_xyz(turned), *_xyz(e))[:3])
         assert np.linalg.norm(e2 - e) < 0.05
     # no side axis yet (zeros), or one along the heading: the heading's tangent basis
     n = np.array([0.0, 0.0, 1.0])
-    assert abs(np.dot(body_frame(*n, 0.0, 0.0, 0.0)[:3], n)) < 1e-12
-    assert abs(np.dot(body_frame(*n, 0.0, 0.0, 2.0)[:3], n)) < 1e-12
+    assert abs(np.dot(body_frame(*_xyz(n), 0.0, 0.0, 0.0)[:3], n)) < 1e-12
+    assert abs(np.dot(body_frame(*_xyz(n), 0.0, 0.0, 2.0)[:3], n)) < 1e-12
 
 
 @pytest.mark.parametrize(("u_side", "u_up"), [(1.0, 0.0), (0.0, -0.5), (0.3, 0.4), (3.0, 4.0)])
@@ -63,17 +70,17 @@ def test_a_turn_is_its_share_of_the_largest_toward_its_direction(
     u_side: float, u_up: float
 ) -> None:
     n = _unit(np.array([0.2, -0.5, 0.8]))
-    frame = np.array(body_frame(*n, 1.0, 0.0, 0.0))
+    frame = np.array(body_frame(*_xyz(n), 1.0, 0.0, 0.0))
     e, f = frame[:3], frame[3:]
     largest = 0.3
-    turned = np.array(turn_in_body(*n, *e, u_side, u_up, largest))
+    turned = np.array(turn_in_body(*_xyz(n), *_xyz(e), u_side, u_up, largest))
     size = math.hypot(u_side, u_up)
     assert math.acos(np.clip(np.dot(n, turned), -1, 1)) == pytest.approx(largest * min(1.0, size))
     # toward u_side e + u_up f: the turned heading's part across n points there
     across = turned - np.dot(turned, n) * n
     np.testing.assert_allclose(_unit(across), _unit(u_side * e + u_up * f), atol=1e-12)
     # no command, no turn
-    np.testing.assert_allclose(turn_in_body(*n, *e, 0.0, 0.0, largest), n)
+    np.testing.assert_allclose(turn_in_body(*_xyz(n), *_xyz(e), 0.0, 0.0, largest), n)
 
 
 def test_a_held_turn_swims_a_circle_at_the_largest_turn_rate() -> None:
@@ -122,7 +129,7 @@ def test_turning_as_the_gradient_rule_steers_reproduces_it() -> None:
         assert turner.over[0] == rule.over[0]
     assert steps > 100
     # the rule never reads its gradient into the observation; the turner does, every step
-    assert not rule.obs[0, 0, phases.OBS_GRADIENT : phases.OBS_GRADIENT + 3].any()
+    assert not rule.obs[0, 0, OBS_GRADIENT : OBS_GRADIENT + 3].any()
 
 
 def test_a_decision_observes_the_mean_gradient_read_since_the_last() -> None:
@@ -139,7 +146,7 @@ def test_a_decision_observes_the_mean_gradient_read_since_the_last() -> None:
     assert hold == 5
     step_s = held.scenario.physics.step_s
     each = _worlds(deep_merge(data, {"learning": {"decision_interval_s": step_s}}), "continuous")
-    columns = slice(phases.OBS_GRADIENT, phases.OBS_GRADIENT + 3)
+    columns = slice(OBS_GRADIENT, OBS_GRADIENT + 3)
     np.testing.assert_array_equal(held.obs[0, 0, columns], each.obs[0, 0, columns])
     stay = np.zeros(1, dtype=np.bool_)
     still = np.zeros((1, 1, 2))  # no turn: the same draws either way

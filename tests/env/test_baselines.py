@@ -5,10 +5,12 @@ from __future__ import annotations
 
 from typing import Any
 
+import gymnasium
 import numpy as np
 import pytest
 from stable_baselines3 import PPO
 from stable_baselines3.common.vec_env import VecEnv
+from stable_baselines3.common.vec_env.base_vec_env import VecEnvObs
 
 from nanonav.env import NanoNavVectorEnv
 from nanonav.env.baselines import NanoNavVecEnv
@@ -35,6 +37,7 @@ def _episodes_gymnasium(steps: int) -> list[list[Episode]]:
     ended = np.zeros(WORLDS, dtype=bool)
     current: list[Episode] = [[(o.tolist(), 0.0)] for o in obs]
     done: list[list[Episode]] = [[] for _ in range(WORLDS)]
+    assert isinstance(env.single_action_space, gymnasium.spaces.Discrete)
     n = int(env.single_action_space.n)
     for _ in range(steps):
         actions = np.array([_action(k, episode[k], step[k], n) for k in range(WORLDS)])
@@ -58,7 +61,8 @@ def _episodes_sb3(steps: int) -> list[list[Episode]]:
     env = NanoNavVecEnv(WORLDS, SHORT)
     assert isinstance(env, VecEnv)
     env.seed(11)
-    obs = env.reset()
+    obs: VecEnvObs = env.reset()
+    assert isinstance(obs, np.ndarray)
     episode = [0] * WORLDS
     step = [0] * WORLDS
     current: list[Episode] = [[(o.tolist(), 0.0)] for o in obs]
@@ -67,6 +71,7 @@ def _episodes_sb3(steps: int) -> list[list[Episode]]:
     for _ in range(steps):
         actions = np.array([_action(k, episode[k], step[k], n) for k in range(WORLDS)])
         obs, reward, dones, infos = env.step(actions)
+        assert isinstance(obs, np.ndarray)
         for k in range(WORLDS):
             last = infos[k]["terminal_observation"] if dones[k] else obs[k]
             current[k].append((last.tolist(), float(reward[k])))
@@ -98,6 +103,7 @@ def test_a_time_limit_is_marked_and_each_info_names_the_state() -> None:
     assert [set(i) for i in env.reset_infos] == [{"state"}, {"state"}]
     for _ in range(3):
         obs, _, dones, infos = env.step(np.zeros(2, dtype=np.int64))
+    assert isinstance(obs, np.ndarray)
     assert obs.dtype == np.float32 and env.observation_space.contains(obs[0])
     assert dones.all()
     assert all(i["TimeLimit.truncated"] for i in infos if "terminal_observation" in i)

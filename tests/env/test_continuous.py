@@ -49,7 +49,8 @@ def test_the_single_and_vector_envs_step_the_same_worlds() -> None:
     rng = np.random.default_rng(0)
     for _ in range(15):
         turn = rng.uniform(-1.5, 1.5, size=2)  # beyond -1 .. 1 is clipped, in both
-        obs, reward, terminated, truncated, _ = single.step(turn)
+        # a turn: NanoNavEnv.step's annotation admits discrete actions only
+        obs, reward, terminated, truncated, _ = single.step(turn)  # type: ignore[arg-type]
         batch, rewards, *_ = vector.step(np.stack([turn, -turn]))
         np.testing.assert_array_equal(batch[0], obs)
         assert rewards[0] == reward
@@ -58,9 +59,9 @@ def test_the_single_and_vector_envs_step_the_same_worlds() -> None:
     # what is not a turn of two finite numbers is refused
     for bad in ([np.nan, 0.0], [1.0, 2.0, 3.0], "left"):
         with pytest.raises(ValueError, match="turn"):
-            single.step(bad)
+            single.step(bad)  # type: ignore[arg-type]  # refused on purpose
     with pytest.raises(ValueError, match="shape"):
-        vector.step(np.zeros((2, 3)))
+        vector.step(np.zeros((2, 3)))  # type: ignore[arg-type]  # refused on purpose
 
 
 # they draw nothing: the service draws a job's pictures
@@ -75,7 +76,8 @@ def test_the_swarm_envs_pass_pettingzoos_checkers_turning() -> None:
     env.reset(seed=2)
     with pytest.raises(ValueError, match="robot_1's action"):
         env.step({"robot_0": [0.0, 1.0], "robot_1": [np.inf, 0.0], "robot_2": [0.0, 0.0]})
-    arrays = env.step_arrays(np.zeros((3, 2)))
+    # turns: step_arrays's annotation admits discrete actions only
+    arrays = env.step_arrays(np.zeros((3, 2)))  # type: ignore[arg-type]
     assert arrays[0].shape == (3, len(env.observation_labels))
 
 

@@ -57,6 +57,7 @@ def test_the_single_env_passes_gymnasiums_checker(scenario: dict[str, Any]) -> N
     check_env(env.unwrapped)
     obs, info = env.reset(seed=3)
     assert obs.shape == env.observation_space.shape and obs in env.observation_space
+    assert isinstance(env.unwrapped, NanoNavEnv)
     assert 0 <= info["state"] < len(env.unwrapped.state_labels)
 
 
@@ -98,6 +99,7 @@ def test_the_vector_env_steps_each_world_as_a_single_env_seeded_alike() -> None:
     vector = gymnasium.make_vec(ENV_ID, num_envs=worlds, vectorization_mode="vector_entry_point",
                                 scenario=LATTICE)  # fmt: skip
     assert isinstance(vector.unwrapped, NanoNavVectorEnv)
+    assert isinstance(vector.single_action_space, gymnasium.spaces.Discrete)
     actions = np.random.default_rng(0).integers(0, vector.single_action_space.n, (200, worlds))
     singles = [_rollout(NanoNavEnv(LATTICE), 10 + k, actions[:, k]) for k in range(worlds)]
     obs, _ = vector.reset(seed=10)
@@ -219,6 +221,7 @@ def test_what_a_user_can_get_wrong_is_refused_by_name() -> None:
     with pytest.raises(RuntimeError, match="reset"):
         env.step(0)
     env.reset(seed=1)
+    assert isinstance(env.action_space, gymnasium.spaces.Discrete)
     with pytest.raises(ValueError, match="action"):
         env.step(env.action_space.n)
     with pytest.raises(ValidationError, match="robots"):

@@ -4,6 +4,7 @@ action meets, world for world, what ``simulate`` gives a table whose greedy acti
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -111,7 +112,7 @@ def test_under_the_sequential_schedule_each_call_decides_one_robot_a_world() -> 
 
 def test_a_policy_that_answers_nonsense_or_raises_fails_saying_what() -> None:
     s = scenario()
-    cases = [
+    cases: list[tuple[Callable[[np.ndarray], Any], str]] = [  # answers of any type
         (lambda rows: np.zeros(rows.shape[0] + 1, dtype=np.int64), "shape"),
         (lambda rows: np.zeros(rows.shape[0]), "float64, not integers"),
         (lambda rows: np.full(rows.shape[0], 9, dtype=np.int64), "action 9, not one of 0..3"),

@@ -111,7 +111,7 @@ def test_a_scenario_over_the_work_budget_is_refused_with_422(api: Api) -> None:
 def test_a_cheap_count_of_robot_steps_over_the_work_budget_is_refused(api: Api) -> None:
     # 25 million robot-steps (2.5 % of the robot-step budget) among 100,000 emitters would
     # hold a worker for nearly two hours (2.6 ns an emitter's term here)
-    scenario = {
+    scenario: dict[str, Any] = {
         "cells": {"count": 100},
         "biomarker": {"model": "inverse_square", "emitters_per_cell": 1000},
         "robots": {"count": 25},

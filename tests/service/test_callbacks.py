@@ -31,7 +31,7 @@ def api_settings(tmp_path: Path) -> Settings:
     return Settings(
         database_url=sqlite_url_in(tmp_path),
         webhook_hosts=("hooks.example.org",),
-        webhook_secret=SECRET,  # type: ignore[arg-type]
+        webhook_secret=SECRET,
     )
 
 

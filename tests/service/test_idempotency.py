@@ -24,11 +24,13 @@ def api_settings(sqlite_url: str) -> Settings:
 
 def post(api: Api, body: Any, key: str | bytes, **params: str) -> httpx.Response:
     content = body if isinstance(body, bytes) else None
+    # a bytes key is sent as given: httpx's annotations have no bytes value under a str name
+    headers: dict[str, Any] = {"Idempotency-Key": key, "Content-Type": "application/json"}
     return api.client.post(
         "/jobs",
         json=None if content is not None else body,
         content=content,
-        headers={"Idempotency-Key": key, "Content-Type": "application/json"},
+        headers=headers,
         params=params,
     )
 

@@ -297,8 +297,8 @@ def test_a_network_kept_before_costs_were_counted_is_checked_when_a_job_names_it
 ) -> None:
     """A network the store kept without a counted cost (sent to an earlier version) is checked
     in its sandbox when a job names it: counted and charged, or refused as it would be sent."""
-    layout = {"action_set": "behaviors", "communication": ("none",),
-              "observation": OBSERVATION, "actions": ACTIONS}  # fmt: skip
+    layout: dict[str, Any] = {"action_set": "behaviors", "communication": ("none",),
+                               "observation": OBSERVATION, "actions": ACTIONS}  # fmt: skip
     kept = api.store.policies.add_network(
         model=models.mlp(len(OBSERVATION), len(ACTIONS)), **layout
     )

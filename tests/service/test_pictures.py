@@ -108,7 +108,7 @@ def test_a_heatmap_at_a_chosen_slice_and_resolution_is_drawn_for_each_request(
 ) -> None:
     job_id = succeeded_job(api.store, api_settings)
     url = f"/jobs/{job_id}/heatmap.png"
-    chosen = {"plane": "xy", "at": 3.5, "resolution": 40}
+    chosen: dict[str, str | float] = {"plane": "xy", "at": 3.5, "resolution": 40}
     first = api.client.get(url, params=chosen)
     assert first.status_code == 200, first.text
     assert first.headers["content-type"] == "image/png"

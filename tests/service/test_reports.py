@@ -184,6 +184,10 @@ def test_while_one_request_computes_a_new_report_the_others_get_the_last() -> No
 def test_only_the_last_studies_are_kept() -> None:
     reports = Reports(size=2, min_interval_s=0.0)
     for study in ("a", "b", "c"):
-        reports.get(study, 1, lambda study=study: {"study": study})
+
+        def compute(study: str = study) -> dict[str, Any]:
+            return {"study": study}
+
+        reports.get(study, 1, compute)
     assert reports.get("a", 1, lambda: {"study": "again"}) == {"study": "again"}
     assert reports.get("c", 1, lambda: {"study": "never"}) == {"study": "c"}

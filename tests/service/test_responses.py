@@ -17,6 +17,7 @@ def test_a_number_json_cannot_carry_is_written_as_null_and_logged(
     content = {"values": [[1.5, float("inf")]], "mean": {"a/b": float("nan")}, "n": 2}
     with caplog.at_level(logging.ERROR, logger="service.responses"):
         body = FiniteJSONResponse(content).body
+    assert isinstance(body, bytes)
     assert json.loads(body) == {"values": [[1.5, None]], "mean": {"a/b": None}, "n": 2}
     [record] = caplog.records
     assert record.getMessage() == (

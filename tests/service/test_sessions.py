@@ -10,6 +10,7 @@ import re
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
+from typing import Any
 
 import httpx
 import pytest
@@ -41,8 +42,9 @@ def logged_in(api: Served, key: str) -> str:
     return match.group(1)
 
 
-def cookie_header(token: str | bytes) -> dict[str, bytes]:
-    """The Cookie header that carries ``token`` as the session; bytes are sent as they are."""
+def cookie_header(token: str | bytes) -> dict[str, Any]:
+    """The Cookie header that carries ``token`` as the session; bytes are sent as they are.
+    (A bytes value under a str name: httpx sends it, its annotations have no such header.)"""
     raw = token if isinstance(token, bytes) else token.encode()
     return {"Cookie": SESSION_COOKIE.encode() + b"=" + raw}
 

@@ -49,7 +49,7 @@ def api_settings(database_url: str) -> Settings:
         database_url=database_url,
         max_body_bytes=64 * 1024,
         webhook_hosts=("hooks.example.org",),
-        webhook_secret=SECRET,  # type: ignore[arg-type]
+        webhook_secret=SECRET,
     )
 
 
@@ -107,7 +107,11 @@ def test_nul_anywhere_in_a_body_key_or_value_at_any_depth_is_422_naming_it(api: 
 def test_a_query_parameter_or_idempotency_key_holding_nul_is_422(
     api: Api, api_settings: Settings
 ) -> None:
-    bodies = (("/jobs", {}), ("/studies", STUDY), ("/policies", POLICY))
+    bodies: tuple[tuple[str, dict[str, Any]], ...] = (
+        ("/jobs", {}),
+        ("/studies", STUDY),
+        ("/policies", POLICY),
+    )
     for path, body in bodies:
         assert refused_at(api, path, body, callback_url=f"{HOOK}?run=\u0000") == [
             ("callback_url", "nul_character")

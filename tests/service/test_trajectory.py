@@ -6,6 +6,7 @@ from __future__ import annotations
 import csv
 import io
 import threading
+from typing import Any
 
 import ase.io
 import httpx
@@ -168,7 +169,7 @@ def test_the_trajectory_as_extended_xyz_opens_in_ase_with_time_and_lengths_in_un
     settings = Settings(database_url=sqlite_url)
     upgrade(sqlite_url)
     store = JobStore.from_url(sqlite_url)
-    brownian = {
+    brownian: dict[str, Any] = {
         "physics": {"model": "active_brownian"},
         "robots": {"count": 3},
         "learning": {"episodes": 0, "max_steps": 40},

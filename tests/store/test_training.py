@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 from datetime import UTC, datetime, timedelta
+from typing import Any
 
 import pytest
 
@@ -64,7 +65,7 @@ def test_the_progress_writes_the_training_curve_as_it_grows(store: JobStore) -> 
     claim = store.claim("w", lease_s=LEASE_S, trains=True)
     assert claim is not None
     assert store.get(job.id).training_curve is None
-    progress = {"episode": 0, "episodes": 1, "fraction": 0.1, "lease_s": LEASE_S}
+    progress: dict[str, Any] = {"episode": 0, "episodes": 1, "fraction": 0.1, "lease_s": LEASE_S}
     store.report_progress(claim, decisions=10, curve=CURVE, **progress)
     assert store.get(job.id).training_curve == CURVE
     store.report_progress(claim, decisions=15, **progress)  # no new row: the rows stay

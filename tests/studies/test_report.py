@@ -82,7 +82,7 @@ def test_each_metrics_p_values_are_adjusted_by_holm_over_its_comparisons() -> No
     )  # fmt: skip
     values = point_values(spec)
     shifts = {"q_learning": 0.0, "gradient": -3.0, "random": 0.4}
-    jobs = []
+    jobs: list[JobOutcome] = []
     for point, point_value in enumerate(values):
         for seed in spec.seeds or []:
             steps = 100.0 + seed * (1 + point) % 7 + shifts[str(point_value["robots.policy"])]

@@ -16,6 +16,7 @@ import pytest
 
 from nanonav.engine import Progress
 from nanonav.engine.observations import action_labels, observation_of
+from nanonav.finite import finite
 from nanonav.rl.evaluate import evaluate
 from nanonav.scenario import Scenario
 from nanonav.settings import Settings
@@ -23,7 +24,7 @@ from nanonav.store import Claim, JobRecord, JobStatus, JobStore
 from tests.processes import sandbox_of
 from tests.rl import models
 from worker.health import healthy
-from worker.job import Stop, Watch, finite, heartbeat, run_job
+from worker.job import Stop, Watch, heartbeat, run_job
 from worker.loop import work
 
 TINY: dict[str, Any] = {"robots": {"count": 2}, "learning": {"episodes": 1, "max_steps": 40}}
@@ -62,7 +63,11 @@ def test_progress_is_written_at_most_once_per_interval(store: JobStore) -> None:
     clock.now += 0.2
     assert watch(Progress(1, 2, 0, 40))
     job = store.get(claim.job.id)
-    assert (job.episode, job.fraction) == (1, pytest.approx(0.5))
+    # approx in a tuple: mypy's strict equality cannot see that it compares by its __eq__
+    assert (job.episode, job.fraction) == (  # type: ignore[comparison-overlap]
+        1,
+        pytest.approx(0.5),
+    )
 
 
 def test_a_cancel_request_stops_the_run_at_the_next_write(store: JobStore) -> None:
@@ -237,16 +242,16 @@ def test_a_compile_does_not_starve_the_leases_heartbeat(sqlite_store: JobStore) 
     renewed: list[float] = []
     renew = sqlite_store.renew
 
-    def recorded(claim: Claim, *, lease_s: float) -> None:
+    def recorded(claim: Claim, *, lease_s: float, now: datetime | None = None) -> None:
         renewed.append(time.monotonic())
-        renew(claim, lease_s=lease_s)
+        renew(claim, lease_s=lease_s, now=now)
 
     sqlite_store.renew = recorded  # type: ignore[method-assign]
     sources, points = np.zeros(4), np.ones((3, 3))
     arguments = (fields.GAUSSIAN, sources, sources, sources, 1.0, 1.0, 0.1, points,
                  np.ones(3, np.bool_), np.zeros(3), np.zeros((3, 3)), *fields._NONE_TREATED,
                  0.0)  # fmt: skip
-    options = {"fastmath": fields.FASTMATH, "error_model": "numpy"}
+    options: dict[str, Any] = {"fastmath": fields.FASTMATH, "error_model": "numpy"}
     # about 4 s each on an idle machine: together longer than a lease
     first, second, third = (njit(**options)(fields.sample_many.py_func) for _ in range(3))
 

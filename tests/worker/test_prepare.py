@@ -6,6 +6,7 @@ that process."""
 from __future__ import annotations
 
 import signal
+import subprocess
 import threading
 import time
 from pathlib import Path
@@ -79,7 +80,7 @@ def test_a_worker_ready_on_a_cache_leaves_the_next_no_compile(
     loaded: list[int] = []
     monkeypatch.setattr(loop, "CACHE", tmp_path)
     monkeypatch.setattr(loop, "warm_up", lambda: loaded.append(1))
-    monkeypatch.setattr(loop.subprocess, "Popen", _Compiled)
+    monkeypatch.setattr(subprocess, "Popen", _Compiled)  # the module loop.subprocess is
     _Compiled.started.clear()
     assert loop.prepare(threading.Event())
     assert len(_Compiled.started) == 1 and "compile_alone" in _Compiled.started[0][-1]

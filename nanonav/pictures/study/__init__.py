@@ -296,7 +296,8 @@ def learning_png(
         length = min((len(c["episode"]) for c in curves), default=0)
         if length == 0:
             continue
-        episodes = curves[0]["episode"][:length]
+        # an episode's number is never missing (only a training row's share may be)
+        episodes = [e for e in curves[0]["episode"][:length] if e is not None]
         label = _label(point_values, list(spec.grid)) or "base scenario"
         for key, title in titles.items():
             matrix = np.array([c[key][:length] for c in curves], dtype=np.float64)

@@ -49,7 +49,8 @@ def test_one_step_of_heading_diffusion_has_the_exact_correlation_and_stays_unit(
     rng = np.random.default_rng(4)
     start = np.array([0.3, -0.5, 0.8])
     start /= np.linalg.norm(start)
-    turned = np.array([brownian.diffuse_heading(rng, *start, sigma) for _ in range(100_000)])
+    nx, ny, nz = start
+    turned = np.array([brownian.diffuse_heading(rng, nx, ny, nz, sigma) for _ in range(100_000)])
     assert np.allclose(np.linalg.norm(turned, axis=1), 1.0, atol=1e-12)
     dots = turned @ start
     error = 4 * np.std(dots) / math.sqrt(len(dots))
@@ -82,7 +83,8 @@ def test_a_turn_toward_a_direction_is_bounded_and_stays_in_their_plane() -> None
     for _ in range(200):
         a, b = rng.standard_normal(3), rng.standard_normal(3)
         a /= np.linalg.norm(a)
-        out = np.array(brownian.turn_toward(*a, *b, 0.2))
+        (ax, ay, az), (bx, by, bz) = a, b
+        out = np.array(brownian.turn_toward(ax, ay, az, bx, by, bz, 0.2))
         assert np.linalg.norm(out) == pytest.approx(1.0)
         assert math.acos(min(1.0, float(out @ a))) <= 0.2 + 1e-9
         assert abs(float(np.cross(a, b) @ out)) < 1e-9  # in the plane of n and t

@@ -8,6 +8,7 @@ import pytest
 from nanonav.engine import SimulationResult, Trajectory
 from nanonav.pictures.figure import png
 from nanonav.pictures.job.concentration import concentration_figure, searching_mask, searching_stats
+from tests.pictures.data import xdata, ydata
 from tests.pictures.job.results import EXPECTED_SIZE, assert_picture, made_trajectory, result_of
 
 
@@ -46,7 +47,7 @@ def test_the_swarm_picture_follows_only_the_robots_still_searching() -> None:
     figure = concentration_figure(result_of(trajectory, robots={"count": 3}))
     distance, _, count = figure.axes
     assert count.get_title() == "robots still searching (of 3)"
-    assert count.get_lines()[0].get_ydata().tolist() == [3, 2, 2, 2, 2, 2]
+    assert ydata(count.get_lines()[0]).tolist() == [3, 2, 2, 2, 2, 2]
     assert distance.get_lines()[0].get_ydata() == pytest.approx(stats.distance[:, 1])
     assert "0 of 3 reached" not in figure.get_suptitle()
     assert "1 of 3 reached a cell within 5 steps" in figure.get_suptitle()
@@ -61,7 +62,7 @@ def test_one_robot_keeps_the_papers_twin_axes_up_to_its_reach(single: Simulation
     assert concentration.get_ylabel().startswith("biomarker concentration")
     assert distance.get_ylabel().startswith("distance to the nearest cell")
     (line,) = distance.get_lines()
-    assert int(line.get_xdata()[-1]) == int(trajectory.robot_steps[0])
+    assert int(xdata(line)[-1]) == int(trajectory.robot_steps[0])
     assert f"reached a cell after {int(trajectory.robot_steps[0])} steps" in figure.get_suptitle()
 
 

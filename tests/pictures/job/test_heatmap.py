@@ -1,5 +1,7 @@
 """The heatmap (Figure 5): the field in a plane, where and as finely as it is asked for."""
 
+from typing import Literal
+
 import numpy as np
 import pytest
 from matplotlib.figure import Figure
@@ -69,6 +71,7 @@ def test_the_heatmap_draws_the_paths_projected_on_the_slice(swarm: SimulationRes
     assert len(paths) == MAX_HEATMAP_PATHS  # the field stays visible under them
     end = int(trajectory.robot_steps[3])
     x, z = paths[3].get_data()
+    assert isinstance(x, np.ndarray) and isinstance(z, np.ndarray)
     assert x[-1] == pytest.approx(trajectory.robots[end, 3, 0])
     assert z[-1] == pytest.approx(trajectory.robots[end, 3, 2])
 
@@ -78,7 +81,8 @@ def test_the_heatmap_slice_is_where_it_is_asked_for(swarm: SimulationResult) -> 
     assert [s.level for s in slices.values()] == [-7.5, -7.5]
     figure = heatmap_figure(swarm, slices, "log", through_target=False)
     assert panel_titles(figure)[:2] == ["XY plane at z = -7.5", "YZ plane at x = -7.5"]
-    assert figure.axes[0].images[0].get_array().shape == (30, 30)
+    shown = figure.axes[0].images[0].get_array()
+    assert shown is not None and shown.shape == (30, 30)
     assert "at the chosen level" in figure.get_suptitle()
     drawn = heatmap_png(swarm, "xy", at=-7.5, resolution=30)
     assert_picture(drawn, EXPECTED_SIZE["heatmap_xy"])
@@ -132,7 +136,11 @@ def test_the_colour_scale_is_chosen_from_the_drawn_values(
     """Topped by the concentration at a cell, a field that falls over decades drew the whole
     cube in the darkest colour: the scale runs between quantiles of the slices' values, and
     the colour bar's arrows say what lies beyond."""
-    for result, scale in ((single, "linear"), (swarm, "log")):
+    cases: tuple[tuple[SimulationResult, Literal["linear", "log"]], ...] = (
+        (single, "linear"),
+        (swarm, "log"),
+    )
+    for result, scale in cases:
         slices = heatmap_slices(result, ("xy",), 60)
         figure = heatmap_figure(result, slices, scale)
         image = figure.axes[0].get_images()[0]

@@ -15,6 +15,7 @@ from nanonav.pictures.job.learning import (
     smoothing_window,
 )
 from nanonav.scenario import LATTICE_POLICIES, TRAINED_POLICIES, Policy
+from tests.pictures.data import xdata, ydata
 from tests.pictures.job.results import EXPECTED_SIZE, assert_picture, panel_titles, scenario
 
 
@@ -59,13 +60,15 @@ def test_a_learner_shows_its_greedy_evaluation_as_a_mean_with_its_interval(
     (bar,) = steps.containers
     assert isinstance(bar, ErrorbarContainer)
     x, y = bar.lines[0].get_data()
+    assert isinstance(x, np.ndarray) and isinstance(y, np.ndarray)
     assert float(y[0]) == pytest.approx(swarm.summary["episode_steps"])
     spread = swarm.uncertainty["episode_steps"]
     assert spread["ci_high"] > spread["ci_low"]
     (segment,) = bar.lines[2][0].get_segments()
     assert segment[:, 1] == pytest.approx([spread["ci_low"], spread["ci_high"]])
     (rate,) = success.containers
-    assert float(rate.lines[0].get_ydata()[0]) == pytest.approx(100 * swarm.summary["success_rate"])
+    assert isinstance(rate, ErrorbarContainer)
+    assert float(ydata(rate.lines[0])[0]) == pytest.approx(100 * swarm.summary["success_rate"])
     assert not epsilon.containers  # the evaluation is greedy: no exploration rate to show
     labels = {t.get_text(): t.get_position()[0] for t in epsilon.get_xticklabels()}
     assert labels["greedy\nevaluation"] == pytest.approx(float(x[0]))
@@ -101,9 +104,9 @@ def test_a_baseline_without_training_draws_its_evaluation_worlds_as_trials() -> 
     figure = learning_figure(run)
     steps = figure.axes[0].get_lines()[-1]  # the moving mean over the raw line
     raw = figure.axes[0].get_lines()[0]
-    assert raw.get_xdata().tolist() == [0, 1, 2, 3, 4]
-    assert raw.get_ydata().tolist() == [w["episode_steps"] for w in run.worlds]
-    assert steps.get_ydata() == pytest.approx(moving_mean(raw.get_ydata(), 2))
+    assert xdata(raw).tolist() == [0, 1, 2, 3, 4]
+    assert ydata(raw).tolist() == [w["episode_steps"] for w in run.worlds]
+    assert steps.get_ydata() == pytest.approx(moving_mean(ydata(raw), 2))
     assert "5 evaluation worlds as trials" in figure.get_suptitle()
     assert figure.axes[-1].get_xlabel() == "evaluation world"
 
@@ -119,9 +122,9 @@ def test_a_short_run_gets_a_moving_mean_over_its_faint_raw_values() -> None:
     run = simulate(scenario(seed=6, robots={"count": 4}, learning={"episodes": 8, "max_steps": 80}))
     figure = learning_figure(run)
     raw, mean, *_ = figure.axes[0].get_lines()
-    assert raw.get_ydata().tolist() == [e["steps"] for e in run.episodes]
+    assert ydata(raw).tolist() == [e["steps"] for e in run.episodes]
     assert raw.get_alpha() == pytest.approx(0.3)
-    assert mean.get_ydata() == pytest.approx(moving_mean(raw.get_ydata(), 2))
+    assert mean.get_ydata() == pytest.approx(moving_mean(ydata(raw), 2))
     (legend,) = figure.legends
     assert "moving mean of 2" in [t.get_text() for t in legend.get_texts()]
 
@@ -150,8 +153,8 @@ def test_an_active_brownian_learner_counts_its_episodes_in_seconds() -> None:
     seconds = figure.axes[0]
     assert seconds.get_ylabel() == "time (s)"
     dt = run.scenario.physics.step_s
-    drawn = seconds.lines[0].get_ydata()
+    drawn = ydata(seconds.lines[0])
     assert list(drawn) == pytest.approx([e["steps"] * dt for e in run.episodes])
     (bar,) = seconds.containers
     assert isinstance(bar, ErrorbarContainer)
-    assert float(bar.lines[0].get_ydata()[0]) == pytest.approx(run.summary["episode_steps"] * dt)
+    assert float(ydata(bar.lines[0])[0]) == pytest.approx(run.summary["episode_steps"] * dt)

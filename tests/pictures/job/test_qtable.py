@@ -2,11 +2,13 @@
 
 import numpy as np
 import pytest
+from matplotlib.collections import PathCollection
 from matplotlib.figure import Figure
 from numpy.typing import NDArray
 
 from nanonav.engine import qlearning
 from nanonav.pictures.job.qtable import GAP_DOT_MAX, GAP_DOT_MIN, qtable_figure, qtable_png
+from tests.pictures.data import offsets
 from tests.pictures.job.results import assert_picture, decode
 
 # (width, height) in pixels: the figure grows with the table.
@@ -36,7 +38,7 @@ def marks(figure: Figure, label: str) -> list[tuple[int, int]]:
     """The (action, state) cells a scatter layer of the figure marks."""
     for collection in figure.axes[0].collections:
         if collection.get_label() == label:
-            return [(round(x), round(y)) for x, y in collection.get_offsets()]
+            return [(round(x), round(y)) for x, y in offsets(collection)]
     return []
 
 
@@ -54,7 +56,7 @@ def test_the_qtable_picture_marks_each_greedy_action_and_greys_unvisited_states(
     assert greedy == [(int(np.argmax(values[s])), s) for s in range(10, len(states))]
     assert marks(figure, "tied for best") == [(1, 20), (2, 20)]
     shown = figure.axes[0].images[0].get_array()
-    assert isinstance(shown, np.ma.MaskedArray)
+    assert isinstance(shown, np.ma.MaskedArray) and isinstance(shown.mask, np.ndarray)
     np.testing.assert_array_equal(shown.mask.all(axis=1), np.arange(len(states)) < 10)
     grey = greys(qtable_png(states, labels, values, visits))
     all_seen = greys(qtable_png(*random_table("behaviors")))
@@ -84,6 +86,7 @@ def test_each_greedy_dot_grows_with_its_action_gap_given_beside_the_visits() -> 
     figure = qtable_figure(states, labels, values, visits)
     ax, right = figure.axes[0], figure.axes[1]
     (dots,) = [c for c in ax.collections if c.get_label() == "greedy action"]
+    assert isinstance(dots, PathCollection)  # a scatter's
     sizes = dots.get_sizes()
     assert sizes[1] == pytest.approx(GAP_DOT_MAX)
     assert sizes[2] == pytest.approx(GAP_DOT_MIN)

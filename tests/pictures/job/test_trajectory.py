@@ -21,6 +21,7 @@ from nanonav.pictures.job.trajectory import (
     trajectory_figure,
     trajectory_png,
 )
+from tests.pictures.data import offsets
 from tests.pictures.job.results import (
     EXPECTED_SIZE,
     assert_picture,
@@ -148,8 +149,8 @@ def test_a_run_of_many_worlds_names_the_world_drawn_and_its_time_beside_their_me
     title = figure.axes[0].get_title()
     # below the paths, every world's time: the others as dots, the one drawn as a ring
     others, drawn = figure.axes[1].collections
-    assert others.get_offsets()[:, 0].tolist() == steps[1:]
-    assert drawn.get_offsets()[:, 0].tolist() == steps[:1]
+    assert offsets(others)[:, 0].tolist() == steps[1:]
+    assert offsets(drawn)[:, 0].tolist() == steps[:1]
     assert "each of the 5 worlds (steps)" in figure.axes[1].get_xlabel()
     assert "evaluation world 1 of 5" in title
     assert (

@@ -18,6 +18,7 @@ from nanonav.pictures.job.treatment import (
     treatment_png,
 )
 from nanonav.scenario import Scenario, preset_scenario
+from tests.pictures.data import ydata
 from tests.pictures.job.results import (
     EXPECTED_SIZE,
     assert_picture,
@@ -110,7 +111,7 @@ def test_each_cells_line_is_at_its_exact_load_and_never_over_the_capacity() -> N
     assert len(cells) == MAX_CELL_LINES
     for j, line in enumerate(cells):
         assert np.array_equal(line.get_ydata(), result.trajectory.cell_loads[:, j])
-        assert max(line.get_ydata()) <= 3
+        assert max(ydata(line)) <= 3
     widths = [line.get_linewidth() for line in cells]
     assert widths == sorted(widths, reverse=True) and widths[-1] >= 1.2
 

@@ -12,6 +12,7 @@ from numpy.typing import NDArray
 from nanonav.pictures.figure import png
 from nanonav.pictures.study import charts
 from nanonav.pictures.study.charts import SERIES_COLOURS, Series, learning_png, metric_png
+from tests.pictures.data import offsets
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 METRIC_SIZE = (800, 500)  # 8 x 5 inches at 100 DPI
@@ -301,8 +302,8 @@ def test_paired_differences_are_drawn_beside_the_means_with_holm_marks() -> None
     labels = [t.get_text() for t in forest.get_yticklabels()]
     assert labels == [d.label for d in differences]
     filled, hollow = forest.collections[-2:]  # the dots after the intervals
-    assert filled.get_offsets().tolist() == [[1.3, 2.0]]  # the top row
-    assert hollow.get_offsets().tolist() == [[0.4, 1.0]]
+    assert offsets(filled).tolist() == [[1.3, 2.0]]  # the top row
+    assert offsets(hollow).tolist() == [[0.4, 1.0]]
     said = [t.get_text() for t in forest.texts]
     assert said == ["p Holm 0.008 *", "p Holm 0.4", "not tested"]
     assert "Holm over 3" in forest.get_title()

@@ -27,9 +27,10 @@ from nanonav.pictures.study import (
 )
 from nanonav.studies.report import METRICS, JobOutcome, learning_curve, report
 from nanonav.studies.spec import StudySpec, point_values
+from tests.pictures.data import xdata, ydata
 
 
-def spec(grid: dict[str, list[object]], compare: str | None) -> StudySpec:
+def spec(grid: Mapping[str, Sequence[object]], compare: str | None) -> StudySpec:
     return StudySpec.model_validate({"grid": grid, "seeds": [0, 1, 2], "compare": compare})
 
 
@@ -45,7 +46,7 @@ def test_the_x_axis_is_the_first_swept_number_that_is_not_compared() -> None:
 
 def outcomes(study: StudySpec, with_curves: bool) -> list[JobOutcome]:
     rng = np.random.default_rng(0)
-    found = []
+    found: list[JobOutcome] = []
     for point in range(len(point_values(study))):
         for seed in study.seed_list:
             curve = {"episode": [0.0, 1.0, 2.0], "steps": list(rng.uniform(50, 150, 3)),
@@ -56,8 +57,8 @@ def outcomes(study: StudySpec, with_curves: bool) -> list[JobOutcome]:
     return found
 
 
-def decode(png: bytes) -> np.ndarray:  # type: ignore[type-arg]
-    image: np.ndarray = imread(io.BytesIO(png), format="png")  # type: ignore[type-arg]
+def decode(png: bytes) -> np.ndarray:
+    image: np.ndarray = imread(io.BytesIO(png), format="png")
     return image
 
 
@@ -191,7 +192,12 @@ def test_the_policies_picture_shows_each_learning_points_habits(
     empty = decode(policies_png(study, point_values(study), {}))
     assert empty.shape[:2] == (262, 1000) and empty[..., :3].std() > 0.01
     rows: list[charts.HabitRow] = []
-    monkeypatch.setattr(charts, "habits_png", lambda drawn, **_: rows.extend(drawn) or b"")
+
+    def keep_rows(drawn: list[charts.HabitRow], **_: object) -> bytes:
+        rows.extend(drawn)
+        return b""
+
+    monkeypatch.setattr(charts, "habits_png", keep_rows)
     policies_png(study, point_values(study), {0: [table(0), table(0), table(1)]})
     assert [r.label for r in rows] == [
         "robots policy: q_learning\ns0",
@@ -222,6 +228,7 @@ def untrained(study: StudySpec) -> list[JobOutcome]:
     """Every job succeeded, none trained: each keeps the curve of no episode, as a worker does."""
     empty = learning_curve({"summary": {}, "episodes": []})
     assert empty["episode"] == []
+    # JobOutcome.curve's annotation leaves out the None a learning curve may hold
     return [
         JobOutcome(j.job_id, j.point, j.seed, j.status, j.metrics, empty)
         for j in outcomes(study, False)
@@ -297,13 +304,15 @@ def test_a_policy_that_learns_nothing_is_a_level_on_the_learning_curves(
     decode(learning_png(study, point_values(study), jobs))
     steps = drawn.figures[-1].axes[0]
     learner, rule = steps.get_lines()
-    rule_seeds = [j.curve["steps"] for j in jobs if j.point == 1 and j.curve is not None]
+    rule_seeds = [np.array(j.curve["steps"], dtype=float) for j in jobs
+                  if j.point == 1 and j.curve is not None]  # fmt: skip
     level = float(np.mean([np.mean(c) for c in rule_seeds]))
     assert rule.get_linestyle() == "--"
-    assert list(rule.get_ydata()) == pytest.approx([level, level])
-    assert list(rule.get_xdata()) == [0.0, 2.0]  # across the episodes it ran
-    learned = [j.curve["steps"] for j in jobs if j.point == 0 and j.curve is not None]
-    assert list(learner.get_ydata()) == pytest.approx(np.mean(learned, axis=0).tolist())
+    assert list(ydata(rule)) == pytest.approx([level, level])
+    assert list(xdata(rule)) == [0.0, 2.0]  # across the episodes it ran
+    learned = [np.array(j.curve["steps"], dtype=float) for j in jobs
+               if j.point == 0 and j.curve is not None]  # fmt: skip
+    assert list(ydata(learner)) == pytest.approx(np.mean(learned, axis=0).tolist())
     legend = [t.get_text() for t in drawn.figures[-1].legends[0].get_texts()]
     assert legend == ["robots policy: q_learning", "robots policy: gradient (fixed: its mean)"]
 
@@ -328,6 +337,7 @@ def test_the_training_picture_draws_each_learner_as_a_curve_and_each_rule_as_a_l
             {"decisions": d, "episodes": 8, "success_rate": s, "return": 1.0}
             for d, s in zip((65_536, 131_072), rows[seed], strict=True)
         ]}  # fmt: skip
+        # JobOutcome.curve's annotation leaves out the None a learning curve may hold
         jobs.append(JobOutcome(20 + seed, 1, seed, "succeeded", {"success_rate": 0.1},
                                learning_curve(document)))  # fmt: skip
     drawn = Drawn(monkeypatch)
@@ -335,13 +345,13 @@ def test_the_training_picture_draws_each_learner_as_a_curve_and_each_rule_as_a_l
     assert image[..., :3].std() > 0.01
     [figure] = drawn.figures
     [ax] = figure.axes
-    lines = [line for line in ax.get_lines() if len(line.get_xdata()) > 1]
+    lines = [line for line in ax.get_lines() if len(xdata(line)) > 1]
     curve = [line for line in lines if line.get_linestyle() != "--"]
     level = [line for line in lines if line.get_linestyle() == "--"]
     assert len(curve) == 1 and len(level) == 1
-    assert list(curve[0].get_xdata()) == [65.536, 131.072]
-    assert list(curve[0].get_ydata()) == pytest.approx([0.3, 0.5])
-    assert list(level[0].get_ydata()) == pytest.approx([0.55, 0.55])  # gradient's evaluation
+    assert list(xdata(curve[0])) == [65.536, 131.072]
+    assert list(ydata(curve[0])) == pytest.approx([0.3, 0.5])
+    assert list(ydata(level[0])) == pytest.approx([0.55, 0.55])  # gradient's evaluation
     assert ax.get_xlabel() == "decisions trained (thousands)"
     # a study none of whose learners has succeeded yet says so
     waiting = [j for j in jobs if j.point == 0]
