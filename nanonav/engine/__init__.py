@@ -10,8 +10,9 @@ that compiles imports ``compiled`` first, which points numba's cache at the engi
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from nanonav.lazy import names_from
 
 if TYPE_CHECKING:
     from nanonav.engine.fields import field_and_gradient as field_and_gradient
@@ -49,11 +50,5 @@ __all__ = [
 ]
 
 
-def __getattr__(name: str) -> Any:
-    """A public name of the engine, imported from its module the first time it is asked for."""
-    home = _HOMES.get(name)
-    if home is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(f"{__name__}.{home}"), name)
-    globals()[name] = value
-    return value
+# imported when first asked for: the package loads none of its modules itself
+__getattr__ = names_from(__name__, _HOMES, globals())

@@ -9,8 +9,9 @@ the Q-table's grows with the table.
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from nanonav.lazy import names_from
 
 if TYPE_CHECKING:
     from nanonav.pictures.job.catalogue import HEATMAP_RESOLUTION as HEATMAP_RESOLUTION
@@ -60,13 +61,5 @@ __all__ = [
 ]
 
 
-def __getattr__(name: str) -> Any:
-    """A public name of the job's pictures, imported from its module the first time it is
-    asked for: listing a job's pictures (``catalogue``) loads neither matplotlib's drawing nor
-    the engine."""
-    home = _HOMES.get(name)
-    if home is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(f"{__name__}.{home}"), name)
-    globals()[name] = value
-    return value
+# imported when first asked for: the package loads none of its modules itself
+__getattr__ = names_from(__name__, _HOMES, globals())
