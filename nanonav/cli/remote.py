@@ -72,10 +72,18 @@ def _bar(total: float, unit: str) -> Iterator[Callable[[float, str], None]]:
         bar.close()
 
 
-def _left_running(kind: str, ident: int, url: str) -> KeyboardInterrupt:
-    return KeyboardInterrupt(
-        f"stopped waiting; {kind} {ident} goes on on the server ({url}/{kind}s/{ident})"
-    )
+@contextmanager
+def _goes_on(kind: str, ident: int, url: str) -> Iterator[None]:
+    """A Ctrl-C within says where the job or study that exists goes on (one said by a block
+    within passes as it is)."""
+    try:
+        yield
+    except KeyboardInterrupt as stop:
+        if str(stop):
+            raise
+        raise KeyboardInterrupt(
+            f"stopped waiting; {kind} {ident} goes on on the server ({url}/{kind}s/{ident})"
+        ) from None
 
 
 # ---------------------------------------------------------------- submit
@@ -117,15 +125,11 @@ def _submit(args: argparse.Namespace) -> int:
         scenario["seed"] = args.seed
     with connect(args) as api:
         job = api.submit(scenario)
-        try:  # once the job exists, a Ctrl-C says where it goes on, however soon it comes
+        with _goes_on("job", job.id, api.url):  # from the moment it exists, however soon
             print(f"job {job.id} {job.status} (seed {job.scenario.get('seed')})", flush=True)
             if not args.wait:
                 return EXIT_OK
             job = wait_job(api, job.id)
-        except KeyboardInterrupt as stop:
-            if str(stop):  # wait_job's own, which says it already
-                raise
-            raise _left_running("job", job.id, api.url) from None
         if job.status != "succeeded":
             raise Failed([f"job {job.id} {job.status}" + (f": {job.error}" if job.error else "")])
         print()
@@ -157,13 +161,10 @@ def _job_words(job: Job) -> str:
 
 def wait_job(api: Client, job_id: int) -> Job:
     """The job once it has finished, with a bar meanwhile."""
-    with _bar(1.0, "fraction") as show:
-        try:
-            return api.wait(
-                job_id, poll_s=JOB_POLL_S, on_progress=lambda j: show(j.progress, _job_words(j))
-            )
-        except KeyboardInterrupt:
-            raise _left_running("job", job_id, api.url) from None
+    with _bar(1.0, "fraction") as show, _goes_on("job", job_id, api.url):
+        return api.wait(
+            job_id, poll_s=JOB_POLL_S, on_progress=lambda j: show(j.progress, _job_words(j))
+        )
 
 
 # ---------------------------------------------------------------- study
@@ -206,7 +207,7 @@ def _study(args: argparse.Namespace) -> int:
         if args.file is not None:
             created = api.submit_study(read_json_object(args.file, "study"))
             seeds = len(created.spec.get("seeds") or [])
-            try:  # once the study exists, a Ctrl-C says where it goes on, however soon
+            with _goes_on("study", created.id, api.url):  # from the moment it exists
                 print(
                     f"study {created.id} {created.status}: {plural(created.jobs.total, 'job')} "
                     f"({plural(len(created.points), 'grid point')} x {plural(seeds, 'seed')})",
@@ -215,10 +216,6 @@ def _study(args: argparse.Namespace) -> int:
                 if not args.wait:
                     return EXIT_OK
                 study = wait_study(api, created.id)
-            except KeyboardInterrupt as stop:
-                if str(stop):  # wait_study's own, which says it already
-                    raise
-                raise _left_running("study", created.id, api.url) from None
             print()
         else:
             study = wait_study(api, args.id) if args.wait else api.study(args.id)
@@ -237,10 +234,8 @@ def wait_study(api: Client, study_id: int) -> Study:
             jobs = study.jobs
             show(jobs.finished, f"{jobs.running} running, {jobs.failed} failed")
 
-        try:
+        with _goes_on("study", study_id, api.url):
             return api.wait_study(study_id, poll_s=STUDY_POLL_S, on_progress=progress)
-        except KeyboardInterrupt:
-            raise _left_running("study", study_id, api.url) from None
 
 
 # ---------------------------------------------------------------- fetch
