@@ -207,7 +207,10 @@ def list_studies(
                 jobs=jobs,
                 links=_links(
                     record.id,
-                    (*pictures.EVERY_STUDYS_PICTURES, *pictures.policies_of(learns(record.spec))),
+                    (
+                        *pictures.EVERY_STUDYS_PICTURES,
+                        *pictures.learner_pictures(*learners(record.spec)),
+                    ),
                 ),
             )
         )
@@ -511,7 +514,7 @@ def study_answer(studies: StudyStore, reports: Reports, record: StudyRecord) -> 
         spec=record.spec,
         links=_links(
             record.id,
-            pictures.pictures_of(statistics, learns(record.spec), trains(record.spec)),
+            pictures.pictures_of(statistics, *learners(record.spec)),
         ),
         **statistics,
     )
@@ -531,25 +534,17 @@ def _policy_blame(spec: StudySpec, values: Mapping[str, Any]) -> tuple[tuple[str
     return loc, where
 
 
-def learns(spec: Mapping[str, Any]) -> bool:
-    """Whether a point of the study ``spec`` learns a Q-table (it has a policies picture)."""
-    return _learns(json.dumps(spec, sort_keys=True))
+def learners(spec: Mapping[str, Any]) -> tuple[bool, bool]:
+    """Whether a point of the study ``spec`` learns a Q-table (it has a policies picture),
+    and whether one trains a network (it has a training picture)."""
+    return _learners(json.dumps(spec, sort_keys=True))
 
 
 @lru_cache(maxsize=256)
-def _learns(spec: str) -> bool:
+def _learners(spec: str) -> tuple[bool, bool]:
     # a study's spec never changes: its points are validated once, not on every poll
-    return bool(pictures.learning_points(StudySpec.model_validate(json.loads(spec))))
-
-
-def trains(spec: Mapping[str, Any]) -> bool:
-    """Whether a point of the study ``spec`` trains a network (it has a training picture)."""
-    return _trains(json.dumps(spec, sort_keys=True))
-
-
-@lru_cache(maxsize=256)
-def _trains(spec: str) -> bool:
-    return bool(pictures.training_points(StudySpec.model_validate(json.loads(spec))))
+    study = StudySpec.model_validate(json.loads(spec))
+    return bool(pictures.learning_points(study)), bool(pictures.training_points(study))
 
 
 def _links(study_id: int, plots: tuple[str, ...]) -> StudyLinks:

@@ -99,12 +99,14 @@ def pictures_of(
     learning curves, if any of its points ``learns`` (``learning_points``) its policies, and
     if any ``trains`` a network (``training_points``) the training curves."""
     metrics = (m for m in METRICS if m in report["metrics"])
-    return (*metrics, "learning", *policies_of(learns), *(("training",) if trains else ()))
+    return (*metrics, "learning", *learner_pictures(learns, trains))
 
 
-def policies_of(learns: bool) -> tuple[str, ...]:
-    """The policies picture, for a study any of whose points learns (``learning_points``)."""
-    return ("policies",) if learns else ()
+def learner_pictures(learns: bool, trains: bool = False) -> tuple[str, ...]:
+    """The pictures of a study's learners: its policies if a point ``learns`` a Q-table
+    (``learning_points``), its training curves if one ``trains`` a network
+    (``training_points``)."""
+    return (*(("policies",) if learns else ()), *(("training",) if trains else ()))
 
 
 def learning_points(spec: StudySpec) -> list[int]:
